@@ -1,0 +1,266 @@
+"""BVH reader.
+
+Conventions of the format, as read here:
+- A joint's local rotation is the product of its rotation channels in the
+  listed order, ``Zrotation Xrotation Yrotation`` -> ``Rz @ Rx @ Ry``; angles
+  in degrees. Its origin is ``parent origin + R_parent @ offset``; position
+  channels (the root's) replace the offset. End sites become points named
+  ``<joint>_end``.
+- The length unit is not stated in BVH files. Give it as ``mm_per_unit``, or
+  let :func:`infer_unit` choose among :data:`CANDIDATE_UNITS_MM` the one that
+  makes the rest skeleton's height closest to an adult's (1.6 m); the choice is
+  recorded in the clip's ``notes``. The shared CMU conversions need this:
+  10_01/10_03/11_01 are in centimetres and 131_01 in CMU's ASF unit
+  (1/0.45 inch); read as inches, subject 10 would be 4 m tall.
+- Data is y up and rotated to our z-up world on load.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from data_tools.mocap import MM_PER_INCH, Y_UP_TO_Z_UP, MocapClip, check_finite
+from tracker.errors import InputError
+from tracker.rotations import euler_to_matrix
+
+#: Length units a BVH file may use (mm per unit).
+CANDIDATE_UNITS_MM = {"mm": 1.0, "cm": 10.0, "inch": MM_PER_INCH, "cmu-asf (1/0.45 inch)": MM_PER_INCH / 0.45,
+                      "m": 1000.0}
+
+_CHANNELS = ("xposition", "yposition", "zposition", "xrotation", "yrotation", "zrotation")
+
+
+@dataclass
+class BvhJoint:
+    name: str
+    parent: int
+    offset: np.ndarray
+    channels: list[str]
+    line: int
+    end_offset: np.ndarray | None = None  # the joint's End Site, if any
+    extra_ends: list[np.ndarray] = field(default_factory=list)
+
+
+@dataclass
+class BvhFile:
+    path: str
+    joints: list[BvhJoint]
+    frame_time: float
+    frames: np.ndarray  # T x channels
+    header_frames: int
+
+
+def read_bvh(path: str | Path) -> BvhFile:
+    """Parse a BVH file; errors name the file and line."""
+    path = Path(path)
+    try:
+        lines = path.read_text(errors="replace").splitlines()
+    except OSError as exc:
+        raise InputError(f"cannot read BVH file: {exc.strerror}", path) from None
+    joints: list[BvhJoint] = []
+    stack: list[int] = []  # joint indices; -2 marks an End Site block
+    pending: tuple[str, int] | None = None
+    i = 0
+    in_end = False
+    n_lines = len(lines)
+    if not any(line.strip().upper().startswith("HIERARCHY") for line in lines[:5]):
+        raise InputError("missing HIERARCHY header: not a BVH file", path, 1)
+    while i < n_lines:
+        ln = i + 1
+        tok = lines[i].split()
+        i += 1
+        if not tok:
+            continue
+        key = tok[0].upper()
+        if key == "HIERARCHY":
+            continue
+        if key in ("ROOT", "JOINT"):
+            if len(tok) < 2:
+                raise InputError(f"{key} without a name", path, ln)
+            if key == "ROOT" and joints:
+                raise InputError("more than one ROOT is not supported", path, ln)
+            pending = (" ".join(tok[1:]), ln)
+            in_end = False
+        elif key == "END":
+            in_end = True
+            pending = None
+        elif key == "{":
+            if in_end:
+                stack.append(-2)
+            else:
+                if pending is None:
+                    raise InputError("'{' without a joint", path, ln)
+                parent = next((s for s in reversed(stack) if s >= 0), -1)
+                joints.append(BvhJoint(pending[0], parent, np.zeros(3), [], pending[1]))
+                stack.append(len(joints) - 1)
+                pending = None
+        elif key == "}":
+            if not stack:
+                raise InputError("unbalanced '}'", path, ln)
+            if stack.pop() == -2:
+                in_end = False
+        elif key == "OFFSET":
+            vals = _floats(tok[1:], 3, path, ln, "OFFSET")
+            if in_end:
+                owner = next((s for s in reversed(stack) if s >= 0), None)
+                if owner is None:
+                    raise InputError("End Site outside a joint", path, ln)
+                if joints[owner].end_offset is None:
+                    joints[owner].end_offset = vals
+                else:
+                    joints[owner].extra_ends.append(vals)
+            else:
+                if not stack or stack[-1] < 0:
+                    raise InputError("OFFSET outside a joint", path, ln)
+                joints[stack[-1]].offset = vals
+        elif key == "CHANNELS":
+            if not stack or stack[-1] < 0:
+                raise InputError("CHANNELS outside a joint", path, ln)
+            try:
+                n = int(tok[1])
+            except (IndexError, ValueError):
+                raise InputError("CHANNELS needs a count", path, ln) from None
+            chans = [c.lower() for c in tok[2:]]
+            if len(chans) != n:
+                raise InputError(f"CHANNELS says {n} but lists {len(chans)}", path, ln)
+            bad = [c for c in chans if c not in _CHANNELS]
+            if bad:
+                raise InputError(f"unknown channel(s) {bad}", path, ln)
+            joints[stack[-1]].channels = chans
+        elif key == "MOTION":
+            break
+        else:
+            raise InputError(f"unexpected {tok[0]!r} in HIERARCHY", path, ln)
+    else:
+        raise InputError("no MOTION section (truncated file?)", path)
+    if stack:
+        raise InputError("HIERARCHY ends with unclosed braces", path, i)
+    if not joints:
+        raise InputError("no joints in HIERARCHY", path)
+    # MOTION header.
+    header = {}
+    while i < n_lines and len(header) < 2:
+        ln = i + 1
+        s = lines[i].strip()
+        i += 1
+        if not s:
+            continue
+        low = s.lower()
+        if low.startswith("frames:"):
+            try:
+                header["frames"] = int(s.split(":", 1)[1])
+            except ValueError:
+                raise InputError(f"bad frame count {s!r}", path, ln) from None
+            if header["frames"] < 1:
+                raise InputError(f"frame count must be positive, got {header['frames']}", path, ln)
+        elif low.startswith("frame time:"):
+            try:
+                header["time"] = float(s.split(":", 1)[1])
+            except ValueError:
+                raise InputError(f"bad frame time {s!r}", path, ln) from None
+            if not np.isfinite(header["time"]) or header["time"] <= 0:
+                raise InputError(f"frame time must be positive (a frame rate > 0), got {header['time']}", path, ln)
+        else:
+            raise InputError(f"expected 'Frames:' and 'Frame Time:', got {s[:40]!r}", path, ln)
+    if len(header) < 2:
+        raise InputError("MOTION lacks 'Frames:' or 'Frame Time:' (truncated file?)", path)
+    n_chan = sum(len(j.channels) for j in joints)
+    rows, row_lines = [], []
+    while i < n_lines:
+        ln = i + 1
+        s = lines[i].split()
+        i += 1
+        if not s:
+            continue
+        if len(s) != n_chan:
+            raise InputError(f"frame {len(rows) + 1} has {len(s)} values, the hierarchy has {n_chan} channels",
+                             path, ln)
+        try:
+            rows.append([float(x) for x in s])
+        except ValueError:
+            raise InputError(f"frame {len(rows) + 1}: non-numeric value", path, ln) from None
+        row_lines.append(ln)
+    if len(rows) != header["frames"]:
+        raise InputError(f"header says {header['frames']} frames but the file has {len(rows)} (truncated?)", path)
+    frames = np.array(rows, float)
+    check_finite(frames, path, lambda r: row_lines[r], "values in frame data")
+    return BvhFile(str(path), joints, header["time"], frames, header["frames"])
+
+
+def _floats(tokens, n, path, line, what) -> np.ndarray:
+    try:
+        vals = np.array([float(t) for t in tokens])
+    except ValueError:
+        raise InputError(f"{what}: expected numbers, got {' '.join(tokens)!r}", path, line) from None
+    if vals.size != n:
+        raise InputError(f"{what}: expected {n} numbers, got {vals.size}", path, line)
+    if not np.all(np.isfinite(vals)):
+        raise InputError(f"{what}: NaN or infinite value", path, line)
+    return vals
+
+
+def _positions(bvh: BvhFile, frames: np.ndarray) -> tuple[np.ndarray, list[str]]:
+    """Point positions ``T x J' x 3`` in file units, y up; names of joints then end sites."""
+    T = frames.shape[0]
+    col = 0
+    R_all, p_all = [], []
+    names = [j.name for j in bvh.joints]
+    ends, end_names = [], []
+    for j in bvh.joints:
+        vals = frames[:, col:col + len(j.channels)]
+        col += len(j.channels)
+        rot_ch = [(c[0], k) for k, c in enumerate(j.channels) if c.endswith("rotation")]
+        pos_ch = {c[0]: k for k, c in enumerate(j.channels) if c.endswith("position")}
+        if rot_ch:
+            R_local = euler_to_matrix(np.radians(vals[:, [k for _, k in rot_ch]]), "".join(a for a, _ in rot_ch))
+        else:
+            R_local = np.broadcast_to(np.eye(3), (T, 3, 3))
+        if pos_ch:
+            local_t = np.stack([vals[:, pos_ch[a]] if a in pos_ch else np.full(T, j.offset["xyz".index(a)])
+                                for a in "xyz"], axis=1)
+        else:
+            local_t = np.broadcast_to(j.offset, (T, 3))
+        if j.parent < 0:
+            R, p = R_local, local_t
+        else:
+            Rp, pp = R_all[j.parent], p_all[j.parent]
+            R = Rp @ R_local
+            p = pp + np.einsum("tij,tj->ti", Rp, local_t)
+        R_all.append(R)
+        p_all.append(p)
+        if j.end_offset is not None:
+            ends.append(p + np.einsum("tij,j->ti", R, j.end_offset))
+            end_names.append(j.name + "_end")
+    return np.stack(p_all + ends, axis=1), names + end_names
+
+
+def infer_unit(bvh: BvhFile) -> tuple[str, float]:
+    """The candidate unit (name, mm per unit) that makes the rest skeleton about 1.6 m tall.
+
+    The rest skeleton is the hierarchy with every channel zero; its height is
+    its vertical (y) extent. Log-ratio distance to 1.6 m picks the unit; the
+    candidates differ by factors of 2.2 or more, so the choice is clear-cut for
+    human skeletons.
+    """
+    rest, _ = _positions(bvh, np.zeros((1, bvh.frames.shape[1])))
+    extent = float(np.ptp(rest[0, :, 1]))
+    if extent <= 0:
+        raise InputError("rest skeleton has no height; cannot infer its length unit", bvh.path)
+    best = min(CANDIDATE_UNITS_MM.items(), key=lambda kv: abs(np.log(extent * kv[1] / 1600.0)))
+    return best
+
+
+def bvh_clip(path: str | Path, mm_per_unit: float | None = None) -> MocapClip:
+    """Joint positions of a BVH file in mm, z up, at the file's frame rate."""
+    bvh = read_bvh(path)
+    notes = []
+    if mm_per_unit is None:
+        unit_name, mm_per_unit = infer_unit(bvh)
+        notes.append(f"length unit inferred as {unit_name} ({mm_per_unit:.4g} mm)")
+    elif not (np.isfinite(mm_per_unit) and mm_per_unit > 0):
+        raise InputError(f"length unit must be positive mm per file unit, got {mm_per_unit}", path)
+    pos, names = _positions(bvh, bvh.frames)
+    positions = (pos * mm_per_unit) @ Y_UP_TO_Z_UP.T
+    return MocapClip(str(path), positions, names, 1.0 / bvh.frame_time, "bvh", notes)

@@ -1,0 +1,284 @@
+"""Calibrated cameras: pinhole with Bouguet / OpenCV distortion, batched projection, file formats.
+
+Convention
+----------
+``R``, ``t`` map world to camera, ``X_cam = R @ X_world + t`` (mm); camera axes
+x right, y down, z forward (OpenCV). Normalised coordinates ``(x, y) = (X/Z, Y/Z)``
+are distorted by ``dist = [k1, k2, p1, p2, k3]``:
+``r2 = x^2 + y^2``, ``radial = 1 + k1 r2 + k2 r2^2 + k3 r2^3``,
+``xd = x radial + 2 p1 x y + p2 (r2 + 2 x^2)``, ``yd = y radial + p1 (r2 + 2 y^2) + 2 p2 x y``,
+then pixels ``u = fx (xd + skew yd) + cx``, ``v = fy yd + cy``. ``skew`` is
+Bouguet's dimensionless ``alpha_c``. Pixel ``(x, y)`` = ``(u, v)`` has its
+origin at the centre of the top-left pixel; images are ``H x W``.
+Bouguet's ``kc(1..5)`` is the same vector as OpenCV's ``[k1, k2, p1, p2, k3]``.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from tracker.errors import InputError
+from tracker.rotations import exp_map_to_matrix
+
+
+@dataclass(frozen=True)
+class Camera:
+    """One calibrated camera. Intrinsics in pixels, extrinsics world-to-camera in mm."""
+
+    name: str
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    skew: float
+    dist: tuple[float, float, float, float, float]
+    R: np.ndarray
+    t: np.ndarray
+
+    @property
+    def centre(self) -> np.ndarray:
+        """Camera centre in world coordinates (3,), mm."""
+        return -self.R.T @ self.t
+
+    def points_in_camera(self, points_world: np.ndarray) -> np.ndarray:
+        """``(..., 3)`` world points (mm) -> camera coordinates (mm)."""
+        return np.asarray(points_world, float) @ self.R.T + self.t
+
+    def project(self, points_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pixels ``(..., 2)`` and depths ``(..., )`` (mm along the optical axis) of world points ``(..., 3)``."""
+        X = np.asarray(points_world, float)
+        pix, depth = CameraRig([self]).project(X.reshape(-1, 3))
+        return pix[0].reshape(X.shape[:-1] + (2,)), depth[0].reshape(X.shape[:-1])
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "width": int(self.width), "height": int(self.height), "fx": float(self.fx),
+                "fy": float(self.fy), "cx": float(self.cx), "cy": float(self.cy), "skew": float(self.skew),
+                "dist": [float(d) for d in self.dist], "R": np.asarray(self.R, float).tolist(),
+                "t": np.asarray(self.t, float).tolist()}
+
+
+def make_camera(name: str, width: int, height: int, fx: float, fy: float, cx: float, cy: float, R,
+                t, skew: float = 0.0, dist: Sequence[float] = (0, 0, 0, 0, 0), source: str | None = None) -> Camera:
+    """Build a :class:`Camera`, checking every value; errors name ``source`` (a file) when given."""
+    label = f"camera {name!r}"
+    try:
+        width_i, height_i = int(width), int(height)
+    except (TypeError, ValueError):
+        raise InputError(f"{label}: width and height must be integers, got {width!r}, {height!r}", source) from None
+    if width_i <= 0 or height_i <= 0 or width_i != width or height_i != height:
+        raise InputError(f"{label}: width and height must be positive integers, got {width}, {height}", source)
+    vals = {"fx": fx, "fy": fy, "cx": cx, "cy": cy, "skew": skew}
+    for k, v in vals.items():
+        try:
+            vals[k] = float(v)
+        except (TypeError, ValueError):
+            raise InputError(f"{label}: {k} must be a number, got {v!r}", source) from None
+        if not np.isfinite(vals[k]):
+            raise InputError(f"{label}: {k} must be finite, got {v}", source)
+    if vals["fx"] <= 0 or vals["fy"] <= 0:
+        raise InputError(f"{label}: focal lengths must be positive, got fx={fx}, fy={fy}", source)
+    try:
+        d = np.asarray(dist, float).ravel()
+        R = np.asarray(R, float)
+        t = np.asarray(t, float).ravel()
+    except (TypeError, ValueError):
+        raise InputError(f"{label}: dist, R and t must be numbers", source) from None
+    if d.size > 5:
+        raise InputError(f"{label}: dist has {d.size} coefficients; this model takes at most 5 "
+                         "[k1, k2, p1, p2, k3]", source)
+    d = np.concatenate([d, np.zeros(5 - d.size)])
+    if not np.all(np.isfinite(d)):
+        raise InputError(f"{label}: dist contains NaN or infinite values", source)
+    if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+        raise InputError(f"{label}: R must be a finite 3x3 matrix, got shape {R.shape}", source)
+    orth = np.abs(R @ R.T - np.eye(3)).max()
+    det = np.linalg.det(R)
+    if orth > 1e-5 or abs(det - 1.0) > 1e-5:
+        raise InputError(f"{label}: R is not a rotation (max |R R^T - I| = {orth:.3g}, det = {det:.6g})", source)
+    if t.shape != (3,) or not np.all(np.isfinite(t)):
+        raise InputError(f"{label}: t must be 3 finite numbers (mm), got {t.tolist()}", source)
+    return Camera(name=str(name), width=width_i, height=height_i, fx=vals["fx"], fy=vals["fy"], cx=vals["cx"],
+                  cy=vals["cy"], skew=vals["skew"], dist=tuple(float(x) for x in d), R=R, t=t)
+
+
+class CameraRig:
+    """V cameras with their parameters stacked for batched projection."""
+
+    def __init__(self, cameras: Sequence[Camera]):
+        if not cameras:
+            raise InputError("a camera rig needs at least one camera")
+        self.cameras = list(cameras)
+        self.R = np.stack([c.R for c in cameras])  # V x 3 x 3
+        self.t = np.stack([c.t for c in cameras])  # V x 3
+        self.focal = np.array([[c.fx, c.fy] for c in cameras])  # V x 2
+        self.principal = np.array([[c.cx, c.cy] for c in cameras])  # V x 2
+        self.skew = np.array([c.skew for c in cameras])  # V
+        self.dist = np.array([c.dist for c in cameras])  # V x 5
+        self.has_distortion = bool(np.any(self.dist != 0))
+
+    def __len__(self) -> int:
+        return len(self.cameras)
+
+    def __getitem__(self, i: int) -> Camera:
+        return self.cameras[i]
+
+    @property
+    def names(self) -> list[str]:
+        return [c.name for c in self.cameras]
+
+    def subset(self, views: Sequence[int]) -> "CameraRig":
+        """The rig of the cameras at indices ``views``."""
+        bad = [v for v in views if not 0 <= v < len(self)]
+        if bad:
+            raise InputError(f"view indices {bad} out of range: this rig has {len(self)} cameras (0..{len(self) - 1})")
+        return CameraRig([self.cameras[v] for v in views])
+
+    def project(self, points_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Project world points ``(..., K, 3)`` (mm) into every view.
+
+        Returns pixels ``(..., V, K, 2)`` and depths ``(..., V, K)`` (mm; points
+        behind a camera have depth <= 0 and meaningless pixels, callers mask them).
+        """
+        X = np.asarray(points_world, float)
+        # (..., 1, K, 3) @ (V, 3, 3)^T -> (..., V, K, 3)
+        Xc = np.einsum("vij,...kj->...vki", self.R, X) + self.t[:, None, :]
+        z = Xc[..., 2]
+        z_safe = np.where(np.abs(z) < 1e-9, 1e-9, z)
+        x = Xc[..., 0] / z_safe
+        y = Xc[..., 1] / z_safe
+        if self.has_distortion:
+            k1, k2, p1, p2, k3 = (self.dist[:, i, None] for i in range(5))
+            r2 = x * x + y * y
+            radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+            xy = x * y
+            xd = x * radial + 2.0 * p1 * xy + p2 * (r2 + 2.0 * x * x)
+            yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * xy
+        else:
+            xd, yd = x, y
+        u = self.focal[:, 0, None] * (xd + self.skew[:, None] * yd) + self.principal[:, 0, None]
+        v = self.focal[:, 1, None] * yd + self.principal[:, 1, None]
+        return np.stack([u, v], axis=-1), z
+
+
+# ---------------------------------------------------------------------------
+# Files
+# ---------------------------------------------------------------------------
+
+def read_cameras_json(path: str | Path) -> CameraRig:
+    """Read ``cameras.json`` (DESIGN.md "Sequences on disk")."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise InputError(f"cannot read camera file: {exc.strerror}", path) from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"not valid JSON: {exc.msg}", path, exc.lineno) from None
+    cams = doc.get("cameras") if isinstance(doc, dict) else None
+    if not isinstance(cams, list) or not cams:
+        raise InputError('expected an object with a non-empty "cameras" list', path)
+    out = []
+    required = ("name", "width", "height", "fx", "fy", "cx", "cy", "R", "t")
+    for i, c in enumerate(cams):
+        if not isinstance(c, dict):
+            raise InputError(f"cameras[{i}] is not an object", path)
+        missing = [k for k in required if k not in c]
+        if missing:
+            raise InputError(f"cameras[{i}] lacks {', '.join(missing)}", path)
+        out.append(make_camera(c["name"], c["width"], c["height"], c["fx"], c["fy"], c["cx"], c["cy"], c["R"],
+                               c["t"], c.get("skew", 0.0), c.get("dist", (0, 0, 0, 0, 0)), source=str(path)))
+    names = [c.name for c in out]
+    if len(set(names)) != len(names):
+        raise InputError(f"camera names must be unique, got {names}", path)
+    return CameraRig(out)
+
+
+def write_cameras_json(rig: CameraRig | Sequence[Camera], path: str | Path) -> None:
+    cams = rig.cameras if isinstance(rig, CameraRig) else list(rig)
+    Path(path).write_text(json.dumps({"cameras": [c.to_dict() for c in cams]}, indent=1))
+
+
+def read_bodytrack_calibration(path: str | Path, name: str | None = None, width: int = 640,
+                               height: int = 480) -> Camera:
+    """Read a PARSEC bodytrack ``CameraK.cal`` (Bouguet toolbox order, 25 numbers).
+
+    Order: fc(2), cc(2), alpha_c, kc(5), R (9, row-major), T (3, mm), om (3).
+    The image size is not in the file; pass it (640 x 480 for the shipped data).
+    ``om`` must agree with ``R`` (it is the same rotation as a Rodrigues vector).
+    """
+    path = Path(path)
+    try:
+        tokens = path.read_text().split()
+    except OSError as exc:
+        raise InputError(f"cannot read calibration file: {exc.strerror}", path) from None
+    try:
+        v = np.array([float(x) for x in tokens])
+    except ValueError as exc:
+        raise InputError(f"non-numeric value in calibration file ({exc})", path) from None
+    if v.size != 25:
+        raise InputError(f"expected 25 numbers (fc2 cc2 alpha1 kc5 R9 T3 om3), found {v.size}", path)
+    if not np.all(np.isfinite(v)):
+        raise InputError("calibration contains NaN or infinite values", path)
+    fc, cc, alpha, kc, R, T, om = v[0:2], v[2:4], v[4], v[5:10], v[10:19].reshape(3, 3), v[19:22], v[22:25]
+    cam = make_camera(name or path.stem, width, height, fc[0], fc[1], cc[0], cc[1], R, T, skew=alpha, dist=kc,
+                      source=str(path))
+    diff = np.abs(exp_map_to_matrix(om) - R).max()
+    if diff > 1e-3:
+        raise InputError(f"R and om (its Rodrigues vector) disagree by {diff:.3g}", path)
+    return cam
+
+
+# ---------------------------------------------------------------------------
+# Built-in rigs
+# ---------------------------------------------------------------------------
+
+def look_at(name: str, position, target, width: int = 640, height: int = 480, focal: float = 600.0,
+            up=(0.0, 0.0, 1.0)) -> Camera:
+    """A distortion-free camera at ``position`` (mm) looking at ``target`` (mm), image up along world ``up``.
+
+    The principal point is the image centre, ``((W-1)/2, (H-1)/2)`` in the
+    pixel-centre convention.
+    """
+    position = np.asarray(position, float)
+    z = np.asarray(target, float) - position
+    z /= np.linalg.norm(z)
+    x = np.cross(z, np.asarray(up, float))
+    if np.linalg.norm(x) < 1e-9:
+        raise InputError(f"camera {name!r}: viewing direction is parallel to the up vector")
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    R = np.stack([x, y, z])
+    return make_camera(name, width, height, focal, focal, (width - 1) / 2.0, (height - 1) / 2.0, R, -R @ position)
+
+
+def default_rig(views: int = 4, width: int = 640, height: int = 480, radius: float = 6000.0,
+                camera_height: float = 2000.0, target_height: float = 1000.0, focal: float = 600.0) -> CameraRig:
+    """``views`` cameras evenly spaced on a circle around a 4 m x 4 m capture area.
+
+    Cameras stand ``radius`` mm from the centre (on the diagonals when
+    ``views = 4``), ``camera_height`` mm up, each looking at the point
+    ``target_height`` mm above the centre. At the defaults (measured, see
+    tests/test_cameras.py) every point of the central 3 m x 3 m from the floor
+    to 1.9 m is in every view, 99.9% of the full 4 m x 4 m area is, and a
+    1.75 m person at the centre is about 170 pixels tall.
+    """
+    if views < 1:
+        raise InputError(f"a rig needs at least one view, got {views}")
+    cams = []
+    for i in range(views):
+        a = np.pi / 4 + 2 * np.pi * i / views
+        pos = (radius * np.cos(a), radius * np.sin(a), camera_height)
+        cams.append(look_at(f"cam{i}", pos, (0.0, 0.0, target_height), width, height, focal))
+    return CameraRig(cams)
+
+
+def monocular_rig(width: int = 640, height: int = 480) -> CameraRig:
+    """One camera of :func:`default_rig` (the first, on a diagonal, 6 m away), for monocular tracking."""
+    return default_rig(1, width, height)

@@ -1,0 +1,234 @@
+"""Batched forward kinematics: poses ``(..., D)`` -> link frames, segment frames, named points.
+
+Convention: world frame z up, millimetres; ``R_world_from_link`` maps link
+coordinates to world coordinates (column vectors), ``origin`` is the link's
+joint centre in world coordinates. Any leading batch shape is kept; there is no
+Python loop over the batch, only over the depth levels of the tree (6 for the
+15-cone model), each one a batched matrix product over all links of that depth.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from tracker.body import BALL, EULER, FREE, BodyModel
+from tracker.rotations import exp_map_to_matrix
+
+
+@dataclass
+class Kinematics:
+    """Result of :func:`forward_kinematics` for poses of batch shape ``B``.
+
+    ``rotations`` ``B x L x 3 x 3`` (world from link), ``origins`` ``B x L x 3``
+    (joint centres, mm), ``points`` ``B x M x 3`` (the model's named points, mm).
+    """
+
+    model: BodyModel
+    rotations: np.ndarray
+    origins: np.ndarray
+    points: np.ndarray
+
+    @property
+    def markers(self) -> np.ndarray:
+        """The marker set ``B x 15 x 3`` (mm), in the model's marker order."""
+        return self.points[..., self.model.marker_indices, :]
+
+    @property
+    def joint_centres(self) -> np.ndarray:
+        """Joint centres ``B x L x 3`` (mm): the origin of every link, in link order."""
+        return self.origins
+
+    def segment_frames(self) -> np.ndarray:
+        """Segment frames ``B x S x 4 x 4``, world from segment.
+
+        Segment axes: x along the cross-section's width (radius r), y along its
+        depth (radius r * depth_scale), z along the cone axis; origin at the
+        centre of the proximal end. A point at fraction s in [0, 1] of the cone,
+        angle phi, has segment coordinates ``(r(s) cos phi, r(s) d sin phi, s L)``.
+        """
+        tables = _tables(self.model)
+        R = self.rotations[..., tables["seg_link"], :, :] @ tables["seg_in_link"]
+        out = np.zeros(R.shape[:-2] + (4, 4))
+        out[..., :3, :3] = R
+        out[..., :3, 3] = self.origins[..., tables["seg_link"], :]
+        out[..., 3, 3] = 1.0
+        return out
+
+
+def _tables(model: BodyModel) -> dict:
+    """Index tables derived once per model (cached on the model)."""
+    cache = model._cache
+    if "fk_tables" in cache:
+        return cache["fk_tables"]
+    links = model.links
+    n = len(links)
+    if links[0].parent != -1 or links[0].joint != FREE:
+        raise ValueError(f"{model.name}: link 0 must be the free root")
+    depth = np.zeros(n, int)
+    for i, link in enumerate(links[1:], start=1):
+        if not 0 <= link.parent < i:
+            raise ValueError(f"{model.name}: link {link.name} must come after its parent")
+        depth[i] = depth[link.parent] + 1
+    levels = [np.flatnonzero(depth == d) for d in range(1, depth.max() + 1)]
+    ball = [i for i, link in enumerate(links) if link.joint == BALL]
+    euler_factors = []  # (link index, dof index, axis) for every single-axis factor, in order
+    for i, link in enumerate(links):
+        if link.joint == EULER:
+            if len(link.axes) != len(link.dofs) or not link.axes:
+                raise ValueError(f"{model.name}: euler link {link.name} needs one axis per dof")
+            for dof, axis in zip(link.dofs, link.axes):
+                euler_factors.append((i, dof, np.asarray(axis, float)))
+    tables = {
+        "parents": np.array([link.parent for link in links]),
+        "offsets": np.array([link.offset for link in links], float),
+        "levels": levels,
+        "root_dofs": np.array(links[0].dofs),
+        "ball_links": np.array(ball, int),
+        "ball_dofs": np.array([links[i].dofs for i in ball], int).reshape(-1, 3),
+        "euler_links": np.array([f[0] for f in euler_factors], int),
+        "euler_dofs": np.array([f[1] for f in euler_factors], int),
+        "euler_axes": np.array([f[2] for f in euler_factors], float).reshape(-1, 3),
+        "point_link": np.array([p.link for p in model.points], int),
+        "point_pos": np.array([p.position for p in model.points], float),
+        "seg_link": np.array([s.link for s in model.segments], int),
+        "seg_in_link": np.array([s.frame_in_link() for s in model.segments], float),
+    }
+    cache["fk_tables"] = tables
+    return tables
+
+
+def local_rotations(model: BodyModel, poses: np.ndarray) -> np.ndarray:
+    """Joint rotations ``B x L x 3 x 3`` (parent from link) for poses ``B x D``."""
+    t = _tables(model)
+    batch = poses.shape[:-1]
+    R = np.broadcast_to(np.eye(3), batch + (len(model.links), 3, 3)).copy()
+    rd = t["root_dofs"]
+    R[..., 0, :, :] = exp_map_to_matrix(poses[..., rd[3:6]])
+    if len(t["ball_links"]):
+        R[..., t["ball_links"], :, :] = exp_map_to_matrix(poses[..., t["ball_dofs"]])
+    if len(t["euler_links"]):
+        factors = exp_map_to_matrix(poses[..., t["euler_dofs"], None] * t["euler_axes"])
+        # Multiply factors belonging to the same link left to right.
+        links = t["euler_links"]
+        first = np.ones(len(links), bool)
+        first[1:] = links[1:] != links[:-1]
+        R[..., links[first], :, :] = factors[..., first, :, :]
+        for j in np.flatnonzero(~first):
+            R[..., links[j], :, :] = R[..., links[j], :, :] @ factors[..., j, :, :]
+    return R
+
+
+def forward_kinematics(model: BodyModel, poses: np.ndarray) -> Kinematics:
+    """Forward kinematics of ``poses`` ``(..., D)`` (D = ``model.n_dofs``).
+
+    No input checks (this is a hot path): callers at public boundaries use
+    :meth:`BodyModel.check_poses`.
+    """
+    poses = np.asarray(poses, dtype=float)
+    t = _tables(model)
+    local = local_rotations(model, poses)
+    batch = poses.shape[:-1]
+    n = len(model.links)
+    R = np.empty(batch + (n, 3, 3))
+    o = np.empty(batch + (n, 3))
+    R[..., 0, :, :] = local[..., 0, :, :]
+    o[..., 0, :] = poses[..., t["root_dofs"][:3]] + t["offsets"][0]
+    parents, offsets = t["parents"], t["offsets"]
+    for level in t["levels"]:
+        par = parents[level]
+        Rp = R[..., par, :, :]
+        R[..., level, :, :] = Rp @ local[..., level, :, :]
+        o[..., level, :] = o[..., par, :] + np.einsum("...ij,...j->...i", Rp, offsets[level])
+    pts = np.einsum("...ij,...j->...i", R[..., t["point_link"], :, :], t["point_pos"]) + o[..., t["point_link"], :]
+    return Kinematics(model=model, rotations=R, origins=o, points=pts)
+
+
+def markers(model: BodyModel, poses: np.ndarray) -> np.ndarray:
+    """The model's markers ``(..., 15, 3)`` in mm for poses ``(..., D)``."""
+    return forward_kinematics(model, poses).markers
+
+
+def _left_jacobian(v: np.ndarray) -> np.ndarray:
+    """Left Jacobian of SO(3) at exp maps ``(..., 3)`` -> ``(..., 3, 3)``.
+
+    ``d/dt exp(v + t u) = [J(v) u]_x exp(v)``; series expansion below 1e-4 rad.
+    """
+    t2 = np.einsum("...i,...i->...", v, v)
+    t = np.sqrt(t2)
+    small = t < 1e-4
+    ts = np.where(small, 1.0, t)
+    a = np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(ts)) / (ts * ts))
+    b = np.where(small, 1.0 / 6.0 - t2 / 120.0, (ts - np.sin(ts)) / (ts ** 3))
+    K = np.zeros(v.shape[:-1] + (3, 3))
+    K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    K[..., 1, 0], K[..., 2, 0], K[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
+    return np.eye(3) + a[..., None, None] * K + b[..., None, None] * (K @ K)
+
+
+def _jacobian_tables(model: BodyModel) -> dict:
+    cache = model._cache
+    if "jac_tables" in cache:
+        return cache["jac_tables"]
+    links = model.links
+    D = model.n_dofs
+    dof_link = np.full(D, -1)
+    for i, link in enumerate(links):
+        for d in link.dofs:
+            dof_link[d] = i
+    ancestors = []
+    for i in range(len(links)):
+        chain, j = set(), i
+        while j >= 0:
+            chain.add(j)
+            j = links[j].parent
+        ancestors.append(chain)
+    point_links = [p.link for p in model.points]
+    mask = np.array([[dof_link[d] in ancestors[pl] for d in range(D)] for pl in point_links], float)
+    cache["jac_tables"] = {"dof_link": dof_link, "mask": mask}
+    return cache["jac_tables"]
+
+
+def point_jacobians(model: BodyModel, poses: np.ndarray, fk: Kinematics | None = None) -> np.ndarray:
+    """Derivatives of every named point with respect to every pose number: ``B x M x 3 x D``.
+
+    Analytic: a rotational dof with world axis ``w`` about joint centre ``o``
+    moves a downstream point ``p`` at ``w x (p - o)`` (mm per radian); root
+    position dofs move every point one-for-one. Exp-map joints get their axes
+    from the SO(3) left Jacobian.
+    """
+    poses = np.asarray(poses, float)
+    fk = fk or forward_kinematics(model, poses)
+    t = _tables(model)
+    jt = _jacobian_tables(model)
+    batch = poses.shape[:-1]
+    D = model.n_dofs
+    axes = np.zeros(batch + (D, 3))
+    pivots = np.zeros(batch + (D, 3))
+    R, o = fk.rotations, fk.origins
+    rd = t["root_dofs"]
+    # Root rotation: parent frame is the world.
+    axes[..., rd[3:6], :] = np.swapaxes(_left_jacobian(poses[..., rd[3:6]]), -1, -2)
+    pivots[..., rd[3:6], :] = o[..., 0, None, :]
+    parents = t["parents"]
+    if len(t["ball_links"]):
+        bl = t["ball_links"]
+        Jl = _left_jacobian(poses[..., t["ball_dofs"]])  # B x nb x 3 x 3
+        w = R[..., parents[bl], :, :] @ Jl  # columns are the world axes of the 3 dofs
+        axes[..., t["ball_dofs"], :] = np.swapaxes(w, -1, -2)
+        pivots[..., t["ball_dofs"], :] = o[..., bl, None, :]
+    if len(t["euler_links"]):
+        el, ed, ea = t["euler_links"], t["euler_dofs"], t["euler_axes"]
+        pre = R[..., parents[el], :, :].copy()  # rotation before each factor: parent @ earlier factors
+        factors = exp_map_to_matrix(poses[..., ed, None] * ea)
+        for j in range(1, len(el)):
+            if el[j] == el[j - 1]:
+                pre[..., j, :, :] = pre[..., j - 1, :, :] @ factors[..., j - 1, :, :]
+        axes[..., ed, :] = np.einsum("...jab,jb->...ja", pre, ea)
+        pivots[..., ed, :] = o[..., el, :]
+    pts = fk.points
+    # B x M x D x 3
+    J = np.cross(axes[..., None, :, :], pts[..., :, None, :] - pivots[..., None, :, :])
+    J *= jt["mask"][..., None]
+    J[..., rd[0:3], :] = np.eye(3)
+    return np.swapaxes(J, -1, -2)
