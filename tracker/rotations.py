@@ -111,15 +111,19 @@ def continuous_exp_maps(v: np.ndarray, time_axis: int = -2) -> np.ndarray:
     v = np.moveaxis(np.array(v, dtype=float), time_axis, 0)
     out = v.copy()
     for i in range(1, v.shape[0]):
-        cur = v[i]
+        cur, prev = v[i], out[i - 1]
         angle = np.linalg.norm(cur, axis=-1, keepdims=True)
-        axis = cur / np.where(angle < _SMALL, 1.0, angle)
+        prev_norm = np.linalg.norm(prev, axis=-1, keepdims=True)
+        # The identity has no axis of its own: its equivalents lie along any
+        # axis, so take the previous frame's.
+        axis = np.where(angle < _SMALL, prev / np.where(prev_norm < _SMALL, 1.0, prev_norm),
+                        cur / np.where(angle < _SMALL, 1.0, angle))
         best = cur
-        best_d = np.linalg.norm(cur - out[i - 1], axis=-1)
+        best_d = np.linalg.norm(cur - prev, axis=-1)
         for k in (-2, -1, 1, 2):
             cand = axis * (angle + 2.0 * np.pi * k)
-            d = np.linalg.norm(cand - out[i - 1], axis=-1)
-            better = (d < best_d) & (angle[..., 0] >= _SMALL)
+            d = np.linalg.norm(cand - prev, axis=-1)
+            better = d < best_d
             best = np.where(better[..., None], cand, best)
             best_d = np.where(better, d, best_d)
         out[i] = best

@@ -1,0 +1,50 @@
+"""Shared fixtures. Tests that need ../shared skip with a reason when it is absent (CI always has it)."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED = Path(os.environ.get("TRACKER_SHARED", REPO.parent / "shared"))
+MOCAP = SHARED / "mocap" / "cmu"
+BODYTRACK = SHARED / "bodytrack" / "sequenceB_1"
+
+#: Frame counts of every shared clip (README of ../shared/mocap; BVH headers).
+SHARED_CLIPS = {
+    "07/07_01.amc": 316, "07/07_02.amc": 329, "07/07_09.amc": 306, "07/07_10.amc": 301, "07/07_11.amc": 315,
+    "49/49_18.amc": 1102, "49/49_19.amc": 957, "49/49_20.amc": 898,
+    "bvh/10_01.bvh": 802, "bvh/10_03.bvh": 363, "bvh/11_01.bvh": 598, "bvh/131_01.bvh": 994,
+}
+
+
+def need_shared(path: Path) -> Path:
+    if not path.exists():
+        pytest.skip(f"shared data not found at {path} (set TRACKER_SHARED or place ../shared beside the repo)")
+    return path
+
+
+@pytest.fixture(scope="session")
+def mocap_dir() -> Path:
+    return need_shared(MOCAP)
+
+
+@pytest.fixture(scope="session")
+def bodytrack_dir() -> Path:
+    return need_shared(BODYTRACK)
+
+
+@pytest.fixture(scope="session")
+def walk_07_01(mocap_dir):
+    """07_01 retargeted at 60 Hz (the realistic clip most tests use)."""
+    from data_tools.asf_amc import asf_amc_clip
+    from data_tools.retarget import retarget
+
+    return retarget(asf_amc_clip(mocap_dir / "07" / "07.asf", mocap_dir / "07" / "07_01.amc"), fps=60)
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(12345)

@@ -1,0 +1,47 @@
+import subprocess
+import sys
+
+import numpy as np
+
+from tracker.cli import main
+
+
+def test_help_lists_commands():
+    out = subprocess.run([sys.executable, "-m", "tracker", "--help"], capture_output=True, text=True)
+    assert out.returncode == 0 and "convert" in out.stdout and "demo" in out.stdout
+
+
+def test_convert_writes_clip(mocap_dir, tmp_path, capsys):
+    out = tmp_path / "clip.npz"
+    assert main(["convert", "--mocap", str(mocap_dir / "07" / "07_02.amc"), "--fps", "30", "--out", str(out)]) == 0
+    line = capsys.readouterr().out.strip()
+    assert line.startswith("07_02.amc: 83 frames at 30 fps, mean retarget residual") and line.count("\n") == 0
+    with np.load(out) as d:
+        assert d["poses"].shape == (83, 40) and d["markers"].shape == (83, 15, 3)
+        assert d["model_markers"].shape == (83, 15, 3) and float(d["fps"]) == 30 and "lengths" in str(d["shape"])
+
+
+def test_convert_bad_inputs_exit_2(mocap_dir, tmp_path):
+    amc = (mocap_dir / "07" / "07_01.amc").read_text().splitlines()
+    broken = tmp_path / "07_01.amc"
+    broken.write_text("\n".join(amc[:100]) + "\n")
+    cases = [
+        ["--mocap", str(broken), "--skeleton", str(mocap_dir / "07" / "07.asf")],
+        ["--mocap", str(tmp_path / "missing.bvh")],
+        ["--mocap", str(mocap_dir / "07" / "07_01.amc"), "--fps", "0"],
+        ["--mocap", str(mocap_dir / "07" / "07_01.amc"), "--fps", "-5"],
+        ["--mocap", str(mocap_dir / "07" / "07_01.amc"), "--fps", "240"],
+    ]
+    for args in cases:
+        r = subprocess.run([sys.executable, "-m", "tracker", "convert", *args, "--out", str(tmp_path / "o.npz")],
+                           capture_output=True, text=True)
+        assert r.returncode == 2, args
+        err = r.stderr.strip()
+        assert err and "\n" not in err and "Traceback" not in err, err
+
+
+def test_demo(tmp_path, capsys):
+    assert main(["demo", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "07_01" in out and "07_02" in out and "mocap.cs.cmu.edu" in out
+    assert (tmp_path / "07_01.npz").exists()

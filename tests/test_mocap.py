@@ -1,0 +1,147 @@
+import numpy as np
+import pytest
+
+from data_tools.asf_amc import asf_amc_clip, read_asf
+from data_tools.bvh import bvh_clip
+from data_tools.load import load_mocap
+from data_tools.mocap import marker_positions, resample
+from tests.conftest import SHARED_CLIPS
+from tracker.errors import InputError
+
+
+@pytest.mark.parametrize("rel", sorted(SHARED_CLIPS))
+def test_every_shared_clip_loads_plausibly(mocap_dir, rel):
+    clip = load_mocap(mocap_dir / rel)
+    assert clip.n_frames == SHARED_CLIPS[rel]
+    assert clip.fps == pytest.approx(120.0, rel=1e-4)
+    m = marker_positions(clip)
+    assert np.all(np.isfinite(m))
+    # Stature: head marker above the floor (the lowest foot point of the clip) when upright
+    # (95th percentile over frames; the kicks and 131_01 bend over much of the time).
+    floor = m[:, [11, 14, 17, 18], 2].min()
+    head_height = np.percentile(m[:, 2, 2], 95) - floor
+    assert 1400 < head_height < 2000
+    assert -60 < m[..., 2].min() < 120  # feet reach the floor
+    assert np.all(m[:, 2, 2] > m[:, 0, 2])  # head above pelvis
+
+
+@pytest.mark.parametrize("rel", ["07/07_01.amc", "07/07_02.amc", "07/07_09.amc", "07/07_10.amc", "07/07_11.amc"])
+def test_walking_speed(mocap_dir, rel):
+    clip = load_mocap(mocap_dir / rel)
+    pelvis = marker_positions(clip)[:, 0, :2]
+    speed = np.linalg.norm(pelvis[-1] - pelvis[0]) / 1000 / ((clip.n_frames - 1) / clip.fps)
+    assert 0.8 < speed < 2.0
+
+
+def test_bvh_units_inferred(mocap_dir):
+    assert "cm" in bvh_clip(mocap_dir / "bvh" / "10_01.bvh").notes[0]
+    assert "1/0.45 inch" in bvh_clip(mocap_dir / "bvh" / "131_01.bvh").notes[0]
+    explicit = bvh_clip(mocap_dir / "bvh" / "10_01.bvh", mm_per_unit=10.0)
+    assert not explicit.notes
+
+
+def test_resample_keeps_every_kth_frame(mocap_dir):
+    clip = load_mocap(mocap_dir / "07" / "07_01.amc")
+    half = resample(clip, 60)
+    assert half.n_frames == 158 and half.fps == 60
+    assert np.array_equal(half.positions, clip.positions[::2])
+    odd = resample(clip, 50)
+    assert odd.n_frames == int((clip.n_frames - 1) / 120 * 50) + 1
+    with pytest.raises(InputError, match="up to"):
+        resample(clip, 240)
+    with pytest.raises(InputError, match="positive"):
+        resample(clip, 0)
+
+
+# --- bad input -------------------------------------------------------------
+
+@pytest.fixture
+def cmu07(mocap_dir, tmp_path):
+    asf = tmp_path / "07.asf"
+    asf.write_text((mocap_dir / "07" / "07.asf").read_text())
+    amc_lines = (mocap_dir / "07" / "07_01.amc").read_text().splitlines()[:200]
+    return asf, amc_lines
+
+
+def write(tmp_path, name, lines):
+    p = tmp_path / name
+    p.write_text("\n".join(lines) + "\n")
+    return p
+
+
+def test_truncated_amc(cmu07, tmp_path):
+    asf, lines = cmu07
+    amc = write(tmp_path, "07_01.amc", lines[:-3])  # the last frame loses its last bones
+    with pytest.raises(InputError) as err:
+        asf_amc_clip(asf, amc)
+    assert "07_01.amc" in str(err.value) and "truncated" in str(err.value)
+
+
+def test_amc_bone_missing_from_asf(cmu07, tmp_path):
+    asf, lines = cmu07
+    lines = list(lines)
+    k = next(i for i, s in enumerate(lines) if s.startswith("rtibia"))
+    lines[k] = lines[k].replace("rtibia", "rshin")
+    amc = write(tmp_path, "07_01.amc", lines)
+    with pytest.raises(InputError) as err:
+        asf_amc_clip(asf, amc)
+    assert f"07_01.amc:{k + 1}:" in str(err.value) and "rshin" in str(err.value)
+
+
+def test_amc_nan_value(cmu07, tmp_path):
+    asf, lines = cmu07
+    lines = list(lines)
+    k = next(i for i, s in enumerate(lines) if s.startswith("lfemur"))
+    lines[k] = "lfemur nan 1 2"
+    with pytest.raises(InputError, match=rf"07_01.amc:{k + 1}:.*NaN"):
+        asf_amc_clip(asf, write(tmp_path, "07_01.amc", lines))
+
+
+def test_amc_non_numeric(cmu07, tmp_path):
+    asf, lines = cmu07
+    lines = list(lines)
+    k = next(i for i, s in enumerate(lines) if s.startswith("lfemur"))
+    lines[k] = "lfemur 1 two 3"
+    with pytest.raises(InputError, match=rf"07_01.amc:{k + 1}:.*expected numbers"):
+        asf_amc_clip(asf, write(tmp_path, "07_01.amc", lines))
+
+
+def test_malformed_asf(mocap_dir, tmp_path):
+    lines = (mocap_dir / "07" / "07.asf").read_text().splitlines()
+    k = next(i for i, s in enumerate(lines) if s.strip().startswith("length") and i > 20)
+    bad = list(lines)
+    bad[k] = "     length abc"
+    with pytest.raises(InputError, match=rf"07.asf:{k + 1}:.*bone length"):
+        read_asf(write(tmp_path, "07.asf", bad))
+    cut = lines[: len(lines) // 3]
+    with pytest.raises(InputError, match="07.asf"):
+        read_asf(write(tmp_path, "07.asf", cut))
+
+
+def test_bvh_bad_inputs(mocap_dir, tmp_path):
+    lines = (mocap_dir / "bvh" / "10_03.bvh").read_text().splitlines()
+    motion = next(i for i, s in enumerate(lines) if s.startswith("MOTION"))
+    truncated = write(tmp_path, "t.bvh", lines[:-5])
+    with pytest.raises(InputError, match=r"t.bvh: header says 363 frames but the file has 358"):
+        bvh_clip(truncated)
+    zero_rate = list(lines)
+    zero_rate[motion + 2] = "Frame Time: 0"
+    with pytest.raises(InputError, match=rf"z.bvh:{motion + 3}:.*frame time must be positive"):
+        bvh_clip(write(tmp_path, "z.bvh", zero_rate))
+    nan = list(lines)
+    vals = nan[motion + 10].split()
+    vals[4] = "inf"
+    nan[motion + 10] = " ".join(vals)
+    with pytest.raises(InputError, match=rf"n.bvh:{motion + 11}:.*NaN or infinite"):
+        bvh_clip(write(tmp_path, "n.bvh", nan))
+    short = list(lines)
+    short[motion + 10] = " ".join(short[motion + 10].split()[:-1])
+    with pytest.raises(InputError, match=rf"s.bvh:{motion + 11}:.*channels"):
+        bvh_clip(write(tmp_path, "s.bvh", short))
+
+
+def test_unknown_format(tmp_path):
+    p = tmp_path / "clip.c3d"
+    p.write_text("x")
+    with pytest.raises(InputError, match="unknown mocap format"):
+        load_mocap(p)

@@ -1,0 +1,53 @@
+import numpy as np
+import pytest
+
+from data_tools.clip_io import load_converted_clip, save_converted_clip
+from tracker.body import standing_height
+from tracker.errors import InputError
+from tracker.kinematics import markers
+
+
+def test_retarget_residual_07_01(walk_07_01):
+    r = walk_07_01
+    assert r.poses.shape == (158, 40) and r.markers.shape == (158, 15, 3)
+    assert r.mean_residual < 15.0  # the bound; measured 0.71 mm
+    assert r.mean_residual < 2.0  # what we actually achieve, with margin
+    assert np.allclose(markers(r.model, r.poses), r.model_markers)
+
+
+def test_retargeted_poses_are_valid_and_plausible(walk_07_01):
+    r = walk_07_01
+    assert np.all(r.model.within_limits(r.poses))
+    assert 1400 < standing_height(r.model) < 2000
+    # Walking: the knees bend through a real range, the heading is steady and the root exp map continuous.
+    knee = r.poses[:, r.model.dof_index("left_knee_flexion")]
+    assert np.degrees(knee.max() - knee.min()) > 40
+    assert np.abs(np.diff(r.poses[:, 3:6], axis=0)).max() < 0.2
+
+
+def test_ground_truth_is_the_mocaps_own_joints(walk_07_01, mocap_dir):
+    from data_tools.load import load_mocap
+    from data_tools.mocap import marker_positions, resample
+
+    clip = resample(load_mocap(mocap_dir / "07" / "07_01.amc"), 60)
+    assert np.array_equal(walk_07_01.markers, marker_positions(clip)[:, :15])
+
+
+def test_converted_clip_round_trip(walk_07_01, tmp_path):
+    path = tmp_path / "clip.npz"
+    save_converted_clip(walk_07_01, path)
+    back = load_converted_clip(path)
+    assert np.array_equal(back.poses, walk_07_01.poses)
+    assert np.array_equal(back.markers, walk_07_01.markers)
+    assert back.fps == 60 and back.shape.to_dict() == walk_07_01.model.shape.to_dict()
+    assert np.allclose(markers(back.model, back.poses), walk_07_01.model_markers)
+
+
+def test_converted_clip_bad_file(tmp_path):
+    p = tmp_path / "bad.npz"
+    np.savez(p, poses=np.zeros((3, 40)))
+    with pytest.raises(InputError, match="bad.npz.*lacks"):
+        load_converted_clip(p)
+    p.write_text("not a zip")
+    with pytest.raises(InputError, match="cannot read"):
+        load_converted_clip(p)

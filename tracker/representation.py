@@ -1,0 +1,203 @@
+"""The body-centred invariant pose representation (Taylor 2009, Sec. 3.2), forward and inverse.
+
+A pose sequence ``(..., T, 40)`` becomes ``(..., T, 40)`` invariant features:
+the root's six numbers are replaced by
+
+=====  ==================  ===============================================
+index  name                meaning
+=====  ==================  ===============================================
+0      forward_velocity    ground-plane step to the next frame along the heading (mm/frame)
+1      lateral_velocity    the same step toward the body's left (mm/frame)
+2      height              root z (mm)
+3      pitch               root pitch (rad), see below
+4      roll                root roll (rad)
+5      yaw_rate            heading change to the next frame (rad/frame)
+=====  ==================  ===============================================
+
+and the 34 joint numbers stay as they are. The root rotation is decomposed as
+``R = Rz(yaw) Ry(pitch) Rx(roll)`` (the body faces +x at rest, so yaw is the
+heading of its forward axis, Taylor's eq. 3.9). Taylor's pitch and roll
+(eqs. 3.7, 3.8) are angles of the body axes with the vertical; his roll leaves
+the sign of the lean ambiguous, so we use the equivalent Euler pair, which is
+exactly invertible while the body is less than 90 degrees from upright.
+
+Velocities are forward differences (eqs. 3.10-3.16): frame t holds the step
+from t to t+1; the last frame repeats the step before it (constant velocity).
+The inverse integrates heading and ground position from a known start
+(``start_xy`` mm and ``start_yaw`` rad of frame 0). Forward then inverse
+reproduces the poses to float precision; root exp maps come back continuous in
+time (see :func:`tracker.rotations.continuous_exp_maps`).
+
+:class:`FeatureNormaliser` drops constant dimensions and scales the rest to
+zero mean, unit variance (Sec. 3.2.5); it is saved with every learned prior.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from tracker.errors import InputError
+from tracker.rotations import (
+    continuous_exp_maps, exp_map_to_matrix, matrix_to_exp_map, matrix_to_yaw_pitch_roll, yaw_pitch_roll_to_matrix,
+)
+
+ROOT_FEATURE_NAMES = ("forward_velocity", "lateral_velocity", "height", "pitch", "roll", "yaw_rate")
+N_ROOT = 6
+
+
+def feature_names(dof_names: Sequence[str]) -> list[str]:
+    """Names of the invariant features for a pose layout whose first 6 numbers are the root."""
+    return list(ROOT_FEATURE_NAMES) + list(dof_names[N_ROOT:])
+
+
+def _check(poses: np.ndarray, what: str) -> np.ndarray:
+    poses = np.asarray(poses, dtype=float)
+    if poses.ndim < 2 or poses.shape[-1] < N_ROOT + 1:
+        raise InputError(f"{what} must have shape (..., T, D) with D > 6, got {poses.shape}")
+    if poses.shape[-2] < 2:
+        raise InputError(f"{what} need at least 2 frames to define velocities, got {poses.shape[-2]}")
+    if not np.all(np.isfinite(poses)):
+        raise InputError(f"{what} contain NaN or infinite values")
+    return poses
+
+
+def heading(poses: np.ndarray) -> np.ndarray:
+    """Unwrapped heading (yaw, rad) ``(..., T)`` of poses ``(..., T, D)``."""
+    yaw, _, _ = matrix_to_yaw_pitch_roll(exp_map_to_matrix(poses[..., 3:6]))
+    return np.unwrap(yaw, axis=-1)
+
+
+def poses_to_invariant(poses: np.ndarray) -> np.ndarray:
+    """Invariant features ``(..., T, D)`` of pose sequences ``(..., T, D)`` (see module docstring)."""
+    poses = _check(poses, "poses")
+    R = exp_map_to_matrix(poses[..., 3:6])
+    yaw, pitch, roll = matrix_to_yaw_pitch_roll(R)
+    yaw = np.unwrap(yaw, axis=-1)
+    step = np.diff(poses[..., :2], axis=-2)  # (..., T-1, 2)
+    step = np.concatenate([step, step[..., -1:, :]], axis=-2)
+    dyaw = np.diff(yaw, axis=-1)
+    dyaw = np.concatenate([dyaw, dyaw[..., -1:]], axis=-1)
+    c, s = np.cos(yaw), np.sin(yaw)
+    forward = step[..., 0] * c + step[..., 1] * s
+    lateral = -step[..., 0] * s + step[..., 1] * c
+    root = np.stack([forward, lateral, poses[..., 2], pitch, roll, dyaw], axis=-1)
+    return np.concatenate([root, poses[..., N_ROOT:]], axis=-1)
+
+
+def invariant_to_poses(features: np.ndarray, start_xy: np.ndarray, start_yaw: np.ndarray) -> np.ndarray:
+    """Pose sequences ``(..., T, D)`` from invariant features ``(..., T, D)``.
+
+    ``start_xy`` ``(..., 2)`` (mm) and ``start_yaw`` ``(...)`` (rad) are the
+    ground position and heading of frame 0. Frame t's position and heading are
+    integrated from the steps held by frames 0 .. t-1.
+    """
+    f = np.asarray(features, dtype=float)
+    if f.ndim < 2 or f.shape[-1] < N_ROOT + 1:
+        raise InputError(f"features must have shape (..., T, D) with D > 6, got {f.shape}")
+    start_xy = np.asarray(start_xy, float)
+    start_yaw = np.asarray(start_yaw, float)
+    zeros = np.zeros(f.shape[:-2] + (1,))
+    yaw = start_yaw[..., None] + np.concatenate([zeros, np.cumsum(f[..., :-1, 5], axis=-1)], axis=-1)
+    c, s = np.cos(yaw), np.sin(yaw)
+    dx = f[..., 0] * c - f[..., 1] * s
+    dy = f[..., 0] * s + f[..., 1] * c
+    x = start_xy[..., 0, None] + np.concatenate([zeros, np.cumsum(dx[..., :-1], axis=-1)], axis=-1)
+    y = start_xy[..., 1, None] + np.concatenate([zeros, np.cumsum(dy[..., :-1], axis=-1)], axis=-1)
+    R = yaw_pitch_roll_to_matrix(yaw, f[..., 3], f[..., 4])
+    rot = continuous_exp_maps(matrix_to_exp_map(R), time_axis=-2)
+    root = np.concatenate([np.stack([x, y, f[..., 2]], axis=-1), rot], axis=-1)
+    return np.concatenate([root, f[..., N_ROOT:]], axis=-1)
+
+
+def start_of(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Ground position ``(..., 2)`` and heading ``(...)`` of frame 0 of ``(..., T, D)`` poses."""
+    poses = np.asarray(poses, float)
+    return poses[..., 0, :2], heading(poses[..., :1, :])[..., 0]
+
+
+@dataclass
+class FeatureNormaliser:
+    """Zero-mean, unit-variance scaling of invariant features, dropping constant dimensions.
+
+    ``mean``, ``std`` ``(D,)``; ``keep`` ``(D,)`` bool. ``transform`` maps
+    ``(..., D)`` -> ``(..., K)`` (K kept dimensions); ``inverse`` maps back,
+    restoring dropped dimensions to their (constant) training value.
+    """
+
+    mean: np.ndarray
+    std: np.ndarray
+    keep: np.ndarray
+    names: list[str]
+
+    #: A dimension whose standard deviation is below this (mm or rad) is constant.
+    CONSTANT_TOL = 1e-6
+
+    @classmethod
+    def fit(cls, features: np.ndarray | Sequence[np.ndarray], names: Sequence[str]) -> "FeatureNormaliser":
+        """Statistics of features ``(T, D)`` or a list of such arrays (several clips)."""
+        arrays = [features] if isinstance(features, np.ndarray) else list(features)
+        if not arrays:
+            raise InputError("no feature arrays to fit normalisation statistics on")
+        X = np.concatenate([np.asarray(a, float).reshape(-1, np.asarray(a).shape[-1]) for a in arrays])
+        if X.shape[-1] != len(names):
+            raise InputError(f"features have {X.shape[-1]} dimensions but {len(names)} names were given")
+        mean = X.mean(axis=0)
+        std = X.std(axis=0)
+        keep = std > cls.CONSTANT_TOL
+        return cls(mean, np.where(keep, std, 1.0), keep, list(names))
+
+    @property
+    def n_kept(self) -> int:
+        return int(self.keep.sum())
+
+    @property
+    def kept_names(self) -> list[str]:
+        return [n for n, k in zip(self.names, self.keep) if k]
+
+    def transform(self, features: np.ndarray) -> np.ndarray:
+        f = np.asarray(features, float)
+        if f.shape[-1] != self.mean.size:
+            raise InputError(f"features have {f.shape[-1]} dimensions; this normaliser expects {self.mean.size}")
+        return ((f - self.mean) / self.std)[..., self.keep]
+
+    def inverse(self, normalised: np.ndarray) -> np.ndarray:
+        z = np.asarray(normalised, float)
+        if z.shape[-1] != self.n_kept:
+            raise InputError(f"normalised features have {z.shape[-1]} dimensions; expected {self.n_kept}")
+        out = np.broadcast_to(self.mean, z.shape[:-1] + self.mean.shape).copy()
+        out[..., self.keep] = z * self.std[self.keep] + self.mean[self.keep]
+        return out
+
+    def to_arrays(self, prefix: str = "normaliser_") -> dict[str, np.ndarray]:
+        return {prefix + "mean": self.mean, prefix + "std": self.std, prefix + "keep": self.keep,
+                prefix + "names": np.array(self.names)}
+
+    @classmethod
+    def from_arrays(cls, arrays, prefix: str = "normaliser_", source: str | None = None) -> "FeatureNormaliser":
+        try:
+            mean = np.asarray(arrays[prefix + "mean"], float)
+            std = np.asarray(arrays[prefix + "std"], float)
+            keep = np.asarray(arrays[prefix + "keep"], bool)
+            names = [str(n) for n in arrays[prefix + "names"]]
+        except KeyError as exc:
+            raise InputError(f"normalisation statistics lack {exc.args[0]!r}", source) from None
+        if not (mean.shape == std.shape == keep.shape == (len(names),)):
+            raise InputError("normalisation statistics have inconsistent shapes", source)
+        if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(std)) and np.all(std > 0)):
+            raise InputError("normalisation statistics must be finite with positive scales", source)
+        return cls(mean, std, keep, names)
+
+    def save(self, path: str | Path) -> None:
+        np.savez(path, **self.to_arrays())
+
+    @classmethod
+    def load(cls, path: str | Path) -> "FeatureNormaliser":
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                return cls.from_arrays(data, source=str(path))
+        except (OSError, ValueError) as exc:
+            raise InputError(f"cannot read normalisation statistics: {exc}", path) from None
+
