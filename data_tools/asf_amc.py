@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from data_tools.mocap import MM_PER_INCH, Y_UP_TO_Z_UP, MocapClip, check_fps
+from data_tools.mocap import MM_PER_INCH, Y_UP_TO_Z_UP, MocapClip, check_fps, parse_floats, read_lines
 from tracker.errors import InputError
 from tracker.rotations import euler_to_matrix
 
@@ -62,25 +62,12 @@ class AsfSkeleton:
         return {c: p for p, cs in self.children.items() for c in cs}
 
 
-def _floats(tokens: list[str], n: int | None, path, line: int, what: str) -> np.ndarray:
-    try:
-        vals = np.array([float(t) for t in tokens])
-    except ValueError:
-        raise InputError(f"{what}: expected numbers, got {' '.join(tokens)!r}", path, line) from None
-    if n is not None and vals.size != n:
-        raise InputError(f"{what}: expected {n} numbers, got {vals.size}", path, line)
-    if not np.all(np.isfinite(vals)):
-        raise InputError(f"{what}: NaN or infinite value", path, line)
-    return vals
 
 
 def read_asf(path: str | Path) -> AsfSkeleton:
     """Parse an ASF skeleton file; errors name the file and line."""
     path = Path(path)
-    try:
-        lines = path.read_text(errors="replace").splitlines()
-    except OSError as exc:
-        raise InputError(f"cannot read skeleton file: {exc.strerror}", path) from None
+    lines = read_lines(path, "skeleton file")
     length_scale, degrees = 1.0, True
     root_order = ["tx", "ty", "tz", "rx", "ry", "rz"]
     root_axis, root_pos, root_ori = "xyz", np.zeros(3), np.zeros(3)
@@ -101,15 +88,11 @@ def read_asf(path: str | Path) -> AsfSkeleton:
         if tok[0].startswith(":"):
             section = tok[0][1:].lower()
             seen_sections.add(section)
-            if section in ("name", "version", "documentation"):
-                continue
-            if section == "units" or section in ("root", "bonedata", "hierarchy"):
-                continue
             continue
         key = tok[0].lower()
         if section == "units":
             if key == "length":
-                length_scale = _floats(tok[1:2], 1, path, ln, "units length")[0]
+                length_scale = parse_floats(tok[1:2], 1, path, ln, "units length")[0]
                 if length_scale <= 0:
                     raise InputError(f"units length must be positive, got {length_scale}", path, ln)
             elif key == "angle":
@@ -125,9 +108,9 @@ def read_asf(path: str | Path) -> AsfSkeleton:
             elif key == "axis":
                 root_axis = _axis_order(tok[1:2], path, ln)
             elif key == "position":
-                root_pos = _floats(tok[1:], 3, path, ln, "root position")
+                root_pos = parse_floats(tok[1:], 3, path, ln, "root position")
             elif key == "orientation":
-                root_ori = _floats(tok[1:], 3, path, ln, "root orientation")
+                root_ori = parse_floats(tok[1:], 3, path, ln, "root orientation")
         elif section == "bonedata":
             if key == "begin":
                 bone = {"line": ln, "dofs": [], "axis": np.zeros(3), "axis_order": "xyz"}
@@ -151,13 +134,13 @@ def read_asf(path: str | Path) -> AsfSkeleton:
                     raise InputError("bone name missing", path, ln)
                 bone["name"] = tok[1]
             elif key == "direction":
-                bone["direction"] = _floats(tok[1:], 3, path, ln, "bone direction")
+                bone["direction"] = parse_floats(tok[1:], 3, path, ln, "bone direction")
             elif key == "length":
-                bone["length"] = _floats(tok[1:2], 1, path, ln, "bone length")[0]
+                bone["length"] = parse_floats(tok[1:2], 1, path, ln, "bone length")[0]
                 if bone["length"] < 0:
                     raise InputError(f"bone length must be non-negative, got {bone['length']}", path, ln)
             elif key == "axis":
-                bone["axis"] = _floats(tok[1:4], 3, path, ln, "bone axis")
+                bone["axis"] = parse_floats(tok[1:4], 3, path, ln, "bone axis")
                 bone["axis_order"] = _axis_order(tok[4:5], path, ln)
             elif key == "dof":
                 dofs = [t.lower() for t in tok[1:]]
@@ -206,10 +189,7 @@ def read_amc(path: str | Path, skeleton: AsfSkeleton) -> dict[str, np.ndarray]:
     bone (a truncated last frame is an error), values are finite.
     """
     path = Path(path)
-    try:
-        lines = path.read_text(errors="replace").splitlines()
-    except OSError as exc:
-        raise InputError(f"cannot read motion file: {exc.strerror}", path) from None
+    lines = read_lines(path, "motion file")
     n_dof = {name: len(b.dofs) for name, b in skeleton.bones.items()}
     n_dof["root"] = 6
     moving = {name for name, n in n_dof.items() if n > 0}
@@ -244,7 +224,7 @@ def read_amc(path: str | Path, skeleton: AsfSkeleton) -> dict[str, np.ndarray]:
         name = tok[0]
         if name not in n_dof:
             raise InputError(f"bone '{name}' is not in the skeleton {Path(skeleton.path).name}", path, ln)
-        vals = _floats(tok[1:], n_dof[name], path, ln, f"bone '{name}'")
+        vals = parse_floats(tok[1:], n_dof[name], path, ln, f"bone '{name}'")
         if name in frames[-1]:
             raise InputError(f"bone '{name}' appears twice in frame {len(frames)}", path, ln)
         frames[-1][name] = vals

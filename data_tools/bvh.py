@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from data_tools.mocap import MM_PER_INCH, Y_UP_TO_Z_UP, MocapClip, check_finite
+from data_tools.mocap import MM_PER_INCH, Y_UP_TO_Z_UP, MocapClip, check_finite, parse_floats, read_lines
 from tracker.errors import InputError
 from tracker.rotations import euler_to_matrix
 
@@ -55,10 +55,7 @@ class BvhFile:
 def read_bvh(path: str | Path) -> BvhFile:
     """Parse a BVH file; errors name the file and line."""
     path = Path(path)
-    try:
-        lines = path.read_text(errors="replace").splitlines()
-    except OSError as exc:
-        raise InputError(f"cannot read BVH file: {exc.strerror}", path) from None
+    lines = read_lines(path, "BVH file")
     joints: list[BvhJoint] = []
     stack: list[int] = []  # joint indices; -2 marks an End Site block
     pending: tuple[str, int] | None = None
@@ -102,7 +99,7 @@ def read_bvh(path: str | Path) -> BvhFile:
             if stack.pop() == -2:
                 in_end = False
         elif key == "OFFSET":
-            vals = _floats(tok[1:], 3, path, ln, "OFFSET")
+            vals = parse_floats(tok[1:], 3, path, ln, "OFFSET")
             if in_end:
                 owner = next((s for s in reversed(stack) if s >= 0), None)
                 if owner is None:
@@ -189,16 +186,6 @@ def read_bvh(path: str | Path) -> BvhFile:
     return BvhFile(str(path), joints, header["time"], frames, header["frames"])
 
 
-def _floats(tokens, n, path, line, what) -> np.ndarray:
-    try:
-        vals = np.array([float(t) for t in tokens])
-    except ValueError:
-        raise InputError(f"{what}: expected numbers, got {' '.join(tokens)!r}", path, line) from None
-    if vals.size != n:
-        raise InputError(f"{what}: expected {n} numbers, got {vals.size}", path, line)
-    if not np.all(np.isfinite(vals)):
-        raise InputError(f"{what}: NaN or infinite value", path, line)
-    return vals
 
 
 def _positions(bvh: BvhFile, frames: np.ndarray) -> tuple[np.ndarray, list[str]]:

@@ -167,3 +167,24 @@ def check_finite(values: np.ndarray, path: str | Path, line_of_row=None, what: s
         row = int(np.argwhere(bad)[0][0])
         line = None if line_of_row is None else line_of_row(row)
         raise InputError(f"NaN or infinite {what}", path, line)
+
+
+def read_lines(path: Path, what: str) -> list[str]:
+    """The lines of a text file; an unreadable file is an :class:`InputError` naming it."""
+    try:
+        return Path(path).read_text(errors="replace").splitlines()
+    except OSError as exc:
+        raise InputError(f"cannot read {what}: {exc.strerror}", path) from None
+
+
+def parse_floats(tokens: list[str], n: int | None, path, line: int, what: str) -> np.ndarray:
+    """Parse ``tokens`` as ``n`` finite numbers (any count if ``n`` is None); errors name file and line."""
+    try:
+        vals = np.array([float(t) for t in tokens])
+    except ValueError:
+        raise InputError(f"{what}: expected numbers, got {' '.join(tokens)!r}", path, line) from None
+    if n is not None and vals.size != n:
+        raise InputError(f"{what}: expected {n} numbers, got {vals.size}", path, line)
+    if not np.all(np.isfinite(vals)):
+        raise InputError(f"{what}: NaN or infinite value", path, line)
+    return vals

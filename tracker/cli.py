@@ -1,4 +1,4 @@
-"""Command line: ``python -m tracker <command>`` (the contract is in docs/cli.md).
+"""Command line: ``python -m tracker <command>`` (the contract: DESIGN.md "Command line", README).
 
 Every bad input ends with a one-line reason on stderr and exit status 2.
 """
