@@ -17,8 +17,6 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
-from typing import Sequence
-
 import numpy as np
 
 from tracker.errors import InputError
@@ -481,13 +479,3 @@ def standing_height(model: BodyModel) -> float:
     fk = forward_kinematics(model, model.rest_pose())
     return float(fk.points[model.point_index("head"), 2])
 
-
-def dof_blocks(model: BodyModel) -> dict[str, Sequence[int]]:
-    """Pose indices grouped by joint (``'left_elbow'`` -> its dof indices)."""
-    return {link.name if link.joint == FREE else _joint_name(link, model): link.dofs for link in model.links
-            if link.dofs}
-
-
-def _joint_name(link: Link, model: BodyModel) -> str:
-    first = model.dof_names[link.dofs[0]]
-    return first.rsplit("_", 1)[0]
