@@ -166,13 +166,12 @@ def _root_from_points(points: np.ndarray) -> np.ndarray:
 
 
 def _residuals(model: BodyModel, poses: np.ndarray, targets: np.ndarray, point_idx: np.ndarray,
-               jacobian: bool = False):
+               prior_w: np.ndarray, jacobian: bool = False):
     """Weighted point residuals and the angle prior ``T x R`` (and their Jacobian ``T x R x D``)."""
     fk = forward_kinematics(model, poses)
     pts = fk.points[..., point_idx, :]
     T = poses.shape[0]
     r_pts = ((pts - targets) * _POINT_WEIGHTS[:, None]).reshape(T, -1)
-    prior_w = _angle_prior_weights(model)
     r = np.concatenate([r_pts, prior_w * poses[:, 6:]], axis=-1)
     if not jacobian:
         return r
@@ -196,7 +195,8 @@ def fit_poses(model: BodyModel, targets: np.ndarray, init: np.ndarray, iteration
     point_idx = np.array([model.point_index(n) for n in FIT_POINTS])
     T, D = init.shape
     q = model.clip_to_limits(init)
-    r = _residuals(model, q, targets, point_idx)
+    prior_w = _angle_prior_weights(model)
+    r = _residuals(model, q, targets, point_idx, prior_w)
     cost = np.einsum("tr,tr->t", r, r)
     mu = np.full(T, 1e-3)
     eye = np.eye(D)
@@ -206,13 +206,13 @@ def fit_poses(model: BodyModel, targets: np.ndarray, init: np.ndarray, iteration
         if idx.size == 0:
             break
         qa = q[idx]
-        ra, J = _residuals(model, qa, targets[idx], point_idx, jacobian=True)
+        ra, J = _residuals(model, qa, targets[idx], point_idx, prior_w, jacobian=True)
         JtJ = np.swapaxes(J, 1, 2) @ J
         g = np.einsum("nrd,nr->nd", J, ra)
         A = JtJ + mu[idx, None, None] * (eye * np.diagonal(JtJ, axis1=1, axis2=2)[:, None, :] + 1e-9 * eye)
         step = -np.linalg.solve(A, g[..., None])[..., 0]
         q_new = model.clip_to_limits(qa + step)
-        r_new = _residuals(model, q_new, targets[idx], point_idx)
+        r_new = _residuals(model, q_new, targets[idx], point_idx, prior_w)
         c_new = np.einsum("tr,tr->t", r_new, r_new)
         better = c_new < cost[idx]
         gain = (cost[idx] - c_new) / np.maximum(cost[idx], 1e-12)

@@ -88,21 +88,13 @@ def test_amc_bone_missing_from_asf(cmu07, tmp_path):
     assert f"07_01.amc:{k + 1}:" in str(err.value) and "rshin" in str(err.value)
 
 
-def test_amc_nan_value(cmu07, tmp_path):
+@pytest.mark.parametrize("bad_line, message", [("lfemur nan 1 2", "NaN"), ("lfemur 1 two 3", "expected numbers")])
+def test_amc_bad_values(cmu07, tmp_path, bad_line, message):
     asf, lines = cmu07
     lines = list(lines)
     k = next(i for i, s in enumerate(lines) if s.startswith("lfemur"))
-    lines[k] = "lfemur nan 1 2"
-    with pytest.raises(InputError, match=rf"07_01.amc:{k + 1}:.*NaN"):
-        asf_amc_clip(asf, write(tmp_path, "07_01.amc", lines))
-
-
-def test_amc_non_numeric(cmu07, tmp_path):
-    asf, lines = cmu07
-    lines = list(lines)
-    k = next(i for i, s in enumerate(lines) if s.startswith("lfemur"))
-    lines[k] = "lfemur 1 two 3"
-    with pytest.raises(InputError, match=rf"07_01.amc:{k + 1}:.*expected numbers"):
+    lines[k] = bad_line
+    with pytest.raises(InputError, match=rf"07_01.amc:{k + 1}:.*{message}"):
         asf_amc_clip(asf, write(tmp_path, "07_01.amc", lines))
 
 
