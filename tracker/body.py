@@ -33,10 +33,15 @@ class Link:
     """One rigid frame of the kinematic tree.
 
     ``offset`` (3,) mm: position of this link's origin (its joint centre) in the
-    parent link's frame. ``joint`` is ``'free'`` (6 pose numbers: x, y, z in mm
-    then an exp map), ``'ball'`` (3: an exp map), or ``'euler'`` (one angle per
-    row of ``axes``, each a unit axis in the parent frame, applied left to right).
-    ``dofs`` are the indices of this joint's numbers in the pose vector.
+    parent link's frame. ``joint`` is ``'free'`` (x, y, z in mm then the
+    orientation: an exp map, or one angle per row of ``axes`` when ``axes`` is
+    given), ``'ball'`` (3: an exp map), or ``'euler'`` (one angle per row of
+    ``axes``, each a unit axis, applied left to right). ``dofs`` are the indices
+    of this joint's numbers in the pose vector. ``rotation`` (3x3, row-major,
+    optional) is a fixed rotation between the parent frame and the joint:
+    ``R_parent_from_link = rotation @ R_joint(q)``; the 15-cone model has none
+    (every link frame equals the world axes at rest), the PARSEC 10-cone model
+    uses it for its flipped limb frames.
     """
 
     name: str
@@ -45,6 +50,7 @@ class Link:
     joint: str
     dofs: tuple[int, ...] = ()
     axes: tuple[tuple[float, float, float], ...] = ()
+    rotation: tuple[tuple[float, float, float], ...] | None = None
 
 
 @dataclass(frozen=True)

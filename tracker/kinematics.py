@@ -72,18 +72,29 @@ def _tables(model: BodyModel) -> dict:
         depth[i] = depth[link.parent] + 1
     levels = [np.flatnonzero(depth == d) for d in range(1, depth.max() + 1)]
     ball = [i for i, link in enumerate(links) if link.joint == BALL]
+    root = links[0]
+    root_euler = bool(root.axes)
+    if len(root.dofs) != (3 + len(root.axes) if root_euler else 6):
+        raise ValueError(f"{model.name}: the root needs 3 position dofs and an exp map or one angle per axis")
     euler_factors = []  # (link index, dof index, axis) for every single-axis factor, in order
     for i, link in enumerate(links):
-        if link.joint == EULER:
-            if len(link.axes) != len(link.dofs) or not link.axes:
+        if link.joint == EULER or (i == 0 and root_euler):
+            dofs = link.dofs[3:] if i == 0 else link.dofs
+            if len(link.axes) != len(dofs) or not link.axes:
                 raise ValueError(f"{model.name}: euler link {link.name} needs one axis per dof")
-            for dof, axis in zip(link.dofs, link.axes):
+            for dof, axis in zip(dofs, link.axes):
                 euler_factors.append((i, dof, np.asarray(axis, float)))
+    fixed = np.array([np.eye(3) if link.rotation is None else np.asarray(link.rotation, float) for link in links])
+    if np.abs(fixed @ np.swapaxes(fixed, -1, -2) - np.eye(3)).max() > 1e-9 or np.any(np.linalg.det(fixed) < 0):
+        raise ValueError(f"{model.name}: every fixed link rotation must be a rotation matrix")
     tables = {
         "parents": np.array([link.parent for link in links]),
         "offsets": np.array([link.offset for link in links], float),
         "levels": levels,
         "root_dofs": np.array(links[0].dofs),
+        "root_euler": root_euler,
+        "fixed": fixed,
+        "has_fixed": any(link.rotation is not None for link in links),
         "ball_links": np.array(ball, int),
         "ball_dofs": np.array([links[i].dofs for i in ball], int).reshape(-1, 3),
         "euler_links": np.array([f[0] for f in euler_factors], int),
@@ -104,7 +115,8 @@ def local_rotations(model: BodyModel, poses: np.ndarray) -> np.ndarray:
     batch = poses.shape[:-1]
     R = np.broadcast_to(np.eye(3), batch + (len(model.links), 3, 3)).copy()
     rd = t["root_dofs"]
-    R[..., 0, :, :] = exp_map_to_matrix(poses[..., rd[3:6]])
+    if not t["root_euler"]:
+        R[..., 0, :, :] = exp_map_to_matrix(poses[..., rd[3:6]])
     if len(t["ball_links"]):
         R[..., t["ball_links"], :, :] = exp_map_to_matrix(poses[..., t["ball_dofs"]])
     if len(t["euler_links"]):
@@ -116,6 +128,8 @@ def local_rotations(model: BodyModel, poses: np.ndarray) -> np.ndarray:
         R[..., links[first], :, :] = factors[..., first, :, :]
         for j in np.flatnonzero(~first):
             R[..., links[j], :, :] = R[..., links[j], :, :] @ factors[..., j, :, :]
+    if t["has_fixed"]:
+        R = t["fixed"] @ R
     return R
 
 
@@ -207,19 +221,24 @@ def point_jacobians(model: BodyModel, poses: np.ndarray, fk: Kinematics | None =
     pivots = np.zeros(batch + (D, 3))
     R, o = fk.rotations, fk.origins
     rd = t["root_dofs"]
-    # Root rotation: parent frame is the world.
-    axes[..., rd[3:6], :] = np.swapaxes(_left_jacobian(poses[..., rd[3:6]]), -1, -2)
-    pivots[..., rd[3:6], :] = o[..., 0, None, :]
+    # Frame each joint rotates in: its parent's world rotation times the fixed
+    # rotation (the world, possibly rotated, for the root).
     parents = t["parents"]
+    parent_R = np.concatenate([np.broadcast_to(np.eye(3), batch + (1, 3, 3)), R[..., parents[1:], :, :]], axis=-3)
+    if t["has_fixed"]:
+        parent_R = parent_R @ t["fixed"]
+    if not t["root_euler"]:
+        axes[..., rd[3:6], :] = np.swapaxes(parent_R[..., 0, :, :] @ _left_jacobian(poses[..., rd[3:6]]), -1, -2)
+        pivots[..., rd[3:6], :] = o[..., 0, None, :]
     if len(t["ball_links"]):
         bl = t["ball_links"]
         Jl = _left_jacobian(poses[..., t["ball_dofs"]])  # B x nb x 3 x 3
-        w = R[..., parents[bl], :, :] @ Jl  # columns are the world axes of the 3 dofs
+        w = parent_R[..., bl, :, :] @ Jl  # columns are the world axes of the 3 dofs
         axes[..., t["ball_dofs"], :] = np.swapaxes(w, -1, -2)
         pivots[..., t["ball_dofs"], :] = o[..., bl, None, :]
     if len(t["euler_links"]):
         el, ed, ea = t["euler_links"], t["euler_dofs"], t["euler_axes"]
-        pre = R[..., parents[el], :, :].copy()  # rotation before each factor: parent @ earlier factors
+        pre = parent_R[..., el, :, :].copy()  # rotation before each factor: parent @ fixed @ earlier factors
         factors = exp_map_to_matrix(poses[..., ed, None] * ea)
         for j in range(1, len(el)):
             if el[j] == el[j - 1]:

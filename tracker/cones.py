@@ -1,0 +1,71 @@
+"""Points on and inside a body model's truncated cones, batched over poses.
+
+A segment (see :class:`tracker.body.Segment`) is a truncated cone with an
+elliptical cross-section. In its segment frame (``Kinematics.segment_frames``:
+x = width, y = depth, z = axis, origin at the proximal end) the point at axial
+fraction ``s`` in [0, 1], angle ``phi`` and radial fraction ``rho`` in [0, 1] is
+``(rho r(s) cos phi, rho r(s) d sin phi, s L)`` with ``r(s) = r0 + s (r1 - r0)``.
+All lengths are millimetres.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from tracker.body import BodyModel
+
+
+def segment_table(model: BodyModel) -> dict[str, np.ndarray]:
+    """Per-segment ``(S,)`` arrays: ``length``, ``r0`` (proximal radius), ``r1`` (distal), ``depth`` scale."""
+    cache = model._cache
+    if "segment_table" not in cache:
+        segs = model.segments
+        cache["segment_table"] = {
+            "length": np.array([s.length for s in segs], float),
+            "r0": np.array([s.radius_proximal for s in segs], float),
+            "r1": np.array([s.radius_distal for s in segs], float),
+            "depth": np.array([s.depth_scale for s in segs], float),
+        }
+    return cache["segment_table"]
+
+
+def cone_points(model: BodyModel, frames: np.ndarray, s: np.ndarray, phi: np.ndarray,
+                rho: np.ndarray | float = 1.0) -> np.ndarray:
+    """World points ``(..., S, K, 3)`` (mm) at cone coordinates ``s``, ``phi``, ``rho`` (each ``(K,)`` or scalar).
+
+    ``frames`` ``(..., S, 4, 4)``: segment frames from
+    :meth:`tracker.kinematics.Kinematics.segment_frames`.
+    """
+    t = segment_table(model)
+    s, phi, rho = np.broadcast_arrays(np.asarray(s, float), np.asarray(phi, float), np.asarray(rho, float))
+    r = (t["r0"][:, None] + s[None, :] * (t["r1"] - t["r0"])[:, None]) * rho[None, :]  # S x K
+    local = np.stack([r * np.cos(phi)[None, :], r * t["depth"][:, None] * np.sin(phi)[None, :],
+                      s[None, :] * t["length"][:, None]], axis=-1)  # S x K x 3
+    return np.einsum("...sij,skj->...ski", frames[..., :3, :3], local) + frames[..., None, :3, 3]
+
+
+def surface_grid(n_along: int, n_around: int) -> tuple[np.ndarray, np.ndarray]:
+    """Cone coordinates ``(s, phi)``, each ``(n_along * n_around,)``, of rings from end to end."""
+    s = np.linspace(0.0, 1.0, n_along)
+    phi = np.linspace(0.0, 2 * np.pi, n_around, endpoint=False)
+    S, P = np.meshgrid(s, phi, indexing="ij")
+    return S.ravel(), P.ravel()
+
+
+def volume_grid(n_along: int, n_around: int, radial: tuple[float, ...] = (0.0, 0.5)) -> tuple[np.ndarray, ...]:
+    """Cone coordinates ``(s, phi, rho)`` of points strictly inside a cone.
+
+    Axial fractions are the centres of ``n_along`` equal slices; each radial
+    fraction in ``radial`` below 1 gets ``n_around`` angles (one point on the
+    axis for 0).
+    """
+    s_vals = (np.arange(n_along) + 0.5) / n_along
+    s_list, phi_list, rho_list = [], [], []
+    for rho in radial:
+        if not 0.0 <= rho < 1.0:
+            raise ValueError(f"radial fractions must lie in [0, 1), got {rho}")
+        phis = np.array([0.0]) if rho == 0.0 else np.linspace(0, 2 * np.pi, n_around, endpoint=False)
+        S, P = np.meshgrid(s_vals, phis, indexing="ij")
+        s_list.append(S.ravel())
+        phi_list.append(P.ravel())
+        rho_list.append(np.full(S.size, rho))
+    return np.concatenate(s_list), np.concatenate(phi_list), np.concatenate(rho_list)
