@@ -14,27 +14,14 @@ import numpy as np
 from tracker.body import BodyModel
 from tracker.errors import InputError
 from tracker.parsec_body import BODYTRACK_DOF_NAMES, ten_cone_model
+from tracker.textfiles import read_numbers
 
 N_POSE = len(BODYTRACK_DOF_NAMES)
 
 
-def _read_numbers(path: Path, what: str) -> np.ndarray:
-    try:
-        tokens = Path(path).read_text().split()
-    except OSError as exc:
-        raise InputError(f"cannot read {what}: {exc.strerror}", path) from None
-    try:
-        values = np.array([float(x) for x in tokens])
-    except ValueError as exc:
-        raise InputError(f"non-numeric value in {what} ({exc})", path) from None
-    if not np.all(np.isfinite(values)):
-        raise InputError(f"{what} contains NaN or infinite values", path)
-    return values
-
-
 def read_body_shape(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     """``BodyShapeParameters.txt`` -> (limbs ``10 x 4``, lengths ``(18,)``), mm."""
-    v = _read_numbers(Path(path), "body shape file")
+    v = read_numbers(path, "body shape file")
     if v.size != 58:
         raise InputError(f"expected 58 numbers (10 cones x 4, then 18 lengths), found {v.size}", path)
     return v[:40].reshape(10, 4), v[40:]
@@ -42,7 +29,7 @@ def read_body_shape(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
 
 def read_poses(path: str | Path) -> np.ndarray:
     """A pose file (``InitialPose.txt``, or one pose of 31 numbers per line) -> ``T x 31``."""
-    v = _read_numbers(Path(path), "pose file")
+    v = read_numbers(path, "pose file")
     if v.size == 0 or v.size % N_POSE:
         raise InputError(f"expected a multiple of {N_POSE} numbers (one bodytrack pose each), found {v.size}", path)
     return v.reshape(-1, N_POSE)
@@ -58,7 +45,7 @@ class PoseParameters:
 
 
 def read_pose_parameters(path: str | Path) -> PoseParameters:
-    v = _read_numbers(Path(path), "pose parameter file")
+    v = read_numbers(path, "pose parameter file")
     if v.size != 3 * N_POSE:
         raise InputError(f"expected {3 * N_POSE} numbers (31 std devs, 31 lower, 31 upper limits), found {v.size}",
                          path)

@@ -151,20 +151,24 @@ def frame_path(root: Path, camera: str, frame: int) -> Path:
     return Path(root) / "images" / camera / FRAME_NAME.format(frame)
 
 
-def _frame_files(folder: Path, pattern: str) -> list[int]:
+def _camera_frames(folder: Path, label: str, pattern: str, name_format: str,
+                   first: tuple[int, str] | None) -> list[Path]:
+    """The frame files ``0..n-1`` of one camera folder (file names matching ``pattern``, numbered by its group).
+
+    ``first`` is (frame count, name) of the first camera, which this one must match.
+    """
+    if not folder.is_dir():
+        raise InputError(f"{label} is missing", folder)
     rx = re.compile(pattern)
     numbers = sorted(int(m.group(1)) for p in folder.iterdir() if (m := rx.fullmatch(p.name)))
-    return numbers
-
-
-def _contiguous(numbers: list[int], folder: Path, name_of) -> int:
-    """Check frames 0..n-1 are all there; returns n."""
     if not numbers:
         raise InputError("no frames found", folder)
     for expected, got in enumerate(numbers):
         if expected != got:
-            raise InputError(f"frame {expected} is missing (expected {name_of(expected)})", folder)
-    return len(numbers)
+            raise InputError(f"frame {expected} is missing (expected {name_format.format(expected)})", folder)
+    if first is not None and len(numbers) != first[0]:
+        raise InputError(f"{folder.name} has {len(numbers)} frames but {first[1]} has {first[0]}", folder)
+    return [folder / name_format.format(k) for k in range(len(numbers))]
 
 
 def write_groundtruth(root: Path, poses: np.ndarray, markers: np.ndarray, fps: float) -> None:
@@ -216,23 +220,17 @@ def _read_own(root: Path) -> Sequence:
     shape = meta.get("body_shape")
     model = fifteen_cone_model(BodyShape.from_dict(shape, str(root / "meta.json")) if shape else None)
     image_paths, backgrounds = [], []
-    n_frames = None
     for cam in rig.cameras:
-        folder = root / "images" / cam.name
-        if not folder.is_dir():
-            raise InputError(f"camera folder for {cam.name!r} is missing", folder)
-        n = _contiguous(_frame_files(folder, r"(\d{6})\.png"), folder, FRAME_NAME.format)
-        if n_frames is not None and n != n_frames:
-            raise InputError(f"camera {cam.name!r} has {n} frames but {rig.names[0]!r} has {n_frames}", folder)
-        n_frames = n
-        image_paths.append([frame_path(root, cam.name, k) for k in range(n)])
+        first = (len(image_paths[0]), rig.names[0]) if image_paths else None
+        image_paths.append(_camera_frames(root / "images" / cam.name, f"camera folder for {cam.name!r}",
+                                          r"(\d{6})\.png", FRAME_NAME, first))
         bg = root / "background" / f"{cam.name}.png"
         backgrounds.append(bg if bg.exists() else None)
     gt = None
     if (root / "groundtruth.npz").exists():
         gt = read_groundtruth(root / "groundtruth.npz", model.n_dofs)
-        if len(gt.poses) != n_frames:
-            raise InputError(f"ground truth has {len(gt.poses)} frames but the images have {n_frames}",
+        if len(gt.poses) != len(image_paths[0]):
+            raise InputError(f"ground truth has {len(gt.poses)} frames but the images have {len(image_paths[0])}",
                              root / "groundtruth.npz")
     fps = gt.fps if gt else meta.get("fps")
     seq = Sequence(root=root, layout=OWN, rig=rig, model=model, image_paths=image_paths,
@@ -263,20 +261,11 @@ def _read_bodytrack(root: Path, width: int = 640, height: int = 480) -> Sequence
     rig = CameraRig([read_bodytrack_calibration(p, f"CAM{i + 1}", width, height) for i, p in enumerate(cal_files)])
     model, params = bodytrack_model(root)
     image_paths, mask_paths = [], []
-    n_frames = None
     for i in range(len(cal_files)):
-        lists = []
-        for prefix in ("CAM", "FG"):
-            folder = root / f"{prefix}{i + 1}"
-            if not folder.is_dir():
-                raise InputError(f"camera folder {prefix}{i + 1} is missing", folder)
-            n = _contiguous(_frame_files(folder, r"image(\d{4})\.bmp"), folder, BODYTRACK_FRAME.format)
-            if n_frames is not None and n != n_frames:
-                raise InputError(f"{prefix}{i + 1} has {n} frames but CAM1 has {n_frames}", folder)
-            n_frames = n
-            lists.append([folder / BODYTRACK_FRAME.format(f) for f in range(n)])
-        image_paths.append(lists[0])
-        mask_paths.append(lists[1])
+        for prefix, lists in (("CAM", image_paths), ("FG", mask_paths)):
+            first = (len(image_paths[0]), "CAM1") if image_paths else None
+            lists.append(_camera_frames(root / f"{prefix}{i + 1}", f"camera folder {prefix}{i + 1}",
+                                        r"image(\d{4})\.bmp", BODYTRACK_FRAME, first))
     initial = read_poses(root / "InitialPose.txt") if (root / "InitialPose.txt").exists() else None
     seq = Sequence(root=root, layout=BODYTRACK, rig=rig, model=model, image_paths=image_paths,
                    background_paths=[None] * len(rig), mask_paths=mask_paths, groundtruth=None,

@@ -1,8 +1,8 @@
 """Synthetic multi-view sequences: real mocap, retargeted, rendered into a calibrated rig (``python -m tracker synth``).
 
 The clip is retargeted to the 15-cone model at the requested rate, the chosen
-frames are cut out, and the walk is moved so that its ground-plane path is
-centred on the capture area (the shift is recorded in ``meta.json``). The
+frames are cut out, and the walk is moved so that the whole clip's ground-plane
+path is centred on the capture area (the shift is recorded in ``meta.json``). The
 person is rendered with :mod:`data_tools.render` (a mesh that differs from the
 tracker's model) over a cluttered room, and the sequence is written in the
 project's layout (:mod:`data_tools.sequence`).
@@ -94,7 +94,7 @@ def synthesize(result: RetargetResult, out: str | Path, settings: SynthSettings,
     span = select_frames(result, s.start, s.frames, source)
     poses = result.poses[span].copy()
     markers = result.markers[span].copy()
-    path_xy = poses[:, :2]
+    path_xy = result.poses[:, :2]  # the whole clip, so a cut-out keeps its place in the room
     shift = (path_xy.min(axis=0) + path_xy.max(axis=0)) / 2.0
     poses[:, :2] -= shift
     markers[..., :2] -= shift

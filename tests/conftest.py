@@ -48,3 +48,22 @@ def walk_07_01(mocap_dir):
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(12345)
+
+
+@pytest.fixture(scope="session")
+def walk_07_11(mocap_dir):
+    """07_11 (the held-out walk) retargeted at 60 Hz: the clip synthetic-sequence tests render."""
+    from data_tools.asf_amc import asf_amc_clip
+    from data_tools.retarget import retarget
+
+    return retarget(asf_amc_clip(mocap_dir / "07" / "07.asf", mocap_dir / "07" / "07_11.amc"), fps=60)
+
+
+@pytest.fixture(scope="session")
+def synthetic_walk(walk_07_11, tmp_path_factory):
+    """A 6-frame, 4-view synthetic sequence of 07_11 at the default noise, with the renderer's exact masks."""
+    from data_tools.synth import SynthSettings, synthesize
+
+    out = synthesize(walk_07_11, tmp_path_factory.mktemp("seq") / "walk", SynthSettings(start=40, frames=6),
+                     source="07_11.amc", keep_masks=True)
+    return out

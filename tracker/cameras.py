@@ -23,6 +23,7 @@ import numpy as np
 
 from tracker.errors import InputError
 from tracker.rotations import exp_map_to_matrix
+from tracker.textfiles import read_numbers
 
 
 @dataclass(frozen=True)
@@ -214,18 +215,9 @@ def read_bodytrack_calibration(path: str | Path, name: str | None = None, width:
     ``om`` must agree with ``R`` (it is the same rotation as a Rodrigues vector).
     """
     path = Path(path)
-    try:
-        tokens = path.read_text().split()
-    except OSError as exc:
-        raise InputError(f"cannot read calibration file: {exc.strerror}", path) from None
-    try:
-        v = np.array([float(x) for x in tokens])
-    except ValueError as exc:
-        raise InputError(f"non-numeric value in calibration file ({exc})", path) from None
+    v = read_numbers(path, "calibration file")
     if v.size != 25:
         raise InputError(f"expected 25 numbers (fc2 cc2 alpha1 kc5 R9 T3 om3), found {v.size}", path)
-    if not np.all(np.isfinite(v)):
-        raise InputError("calibration contains NaN or infinite values", path)
     fc, cc, alpha, kc, R, T, om = v[0:2], v[2:4], v[4], v[5:10], v[10:19].reshape(3, 3), v[19:22], v[22:25]
     cam = make_camera(name or path.stem, width, height, fc[0], fc[1], cc[0], cc[1], R, T, skew=alpha, dist=kc,
                       source=str(path))

@@ -1,0 +1,128 @@
+"""Renderer and observation pipeline: background subtraction against the renderer's exact masks."""
+import numpy as np
+import pytest
+
+from data_tools.raster import rasterize
+from data_tools.sequence import read_sequence
+from data_tools.synth import SynthSettings, synthesize
+from likelihoods.observations import ObservationParams, edge_map, observe, silhouette
+from tracker.visualize import model_masks
+
+
+def iou(a: np.ndarray, b: np.ndarray) -> float:
+    return float((a & b).sum() / (a | b).sum())
+
+
+def silhouette_ious(out) -> list[float]:
+    seq = read_sequence(out.root)
+    return [iou(silhouette(seq.image(k, v), seq.background(v)), out.masks[k][v])
+            for k in range(seq.n_frames) for v in range(seq.n_views)]
+
+
+def test_rasterizer_depth_order_and_coverage():
+    # Two squares (two triangles each) over pixels 2..7; the nearer one (depth 100) is drawn second.
+    sq = np.array([[2.0, 2.0], [7.0, 2.0], [7.0, 7.0], [2.0, 7.0]])
+    pix = np.concatenate([sq, sq + [2.0, 0.0]])
+    depth = np.array([200.0] * 4 + [100.0] * 4)
+    faces = np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]])
+    f = rasterize(pix, depth, faces, 12, 10)
+    assert f.pixel.size == 6 * 8  # columns 2..9, rows 2..7
+    ys, xs = np.divmod(f.pixel, 12)
+    near = f.face >= 2
+    assert np.all(near == (xs >= 4)) and np.allclose(f.depth[near], 100.0) and np.allclose(f.depth[~near], 200.0)
+    assert np.allclose(f.bary.sum(axis=1), 1.0)
+    # A scene closer than both hides everything.
+    assert rasterize(pix, depth, faces, 12, 10, zbuffer=np.full((10, 12), 50.0)).pixel.size == 0
+
+
+def test_person_is_rendered_in_every_view_with_jittered_widths(synthetic_walk):
+    meta = read_sequence(synthetic_walk.root).meta
+    factors = np.array(meta["render_width_factors"])
+    assert factors.shape == (15,) and np.all(np.abs(factors - 1) <= 0.1) and np.std(factors) > 0.01
+    for views in synthetic_walk.masks:
+        for m in views:
+            assert 1500 < m.sum() < 8000  # a person about 170 px tall
+
+
+def test_background_subtraction_default_noise(synthetic_walk):
+    ious = silhouette_ious(synthetic_walk)
+    assert min(ious) > 0.8 and np.mean(ious) > 0.9
+
+
+def test_background_subtraction_clean_frames(walk_07_11, tmp_path):
+    out = synthesize(walk_07_11, tmp_path / "clean", SynthSettings(start=80, frames=3, noise=0.0, seed=1),
+                     keep_masks=True)
+    assert min(silhouette_ious(out)) > 0.9
+
+
+def test_lighting_change_is_compensated(walk_07_11, tmp_path):
+    out = synthesize(walk_07_11, tmp_path / "light", SynthSettings(start=80, frames=2, lighting_change=0.3, seed=2),
+                     keep_masks=True)
+    ious = silhouette_ious(out)
+    assert min(ious) > 0.8
+    seq = read_sequence(out.root)
+    raw = silhouette(seq.image(1, 0), seq.background(0), ObservationParams(compensate_gain=False))
+    assert iou(raw, out.masks[1][0]) < 0.5  # without compensation the whole scene differs from the plate
+
+
+def test_occluder_hides_the_person_in_camera_0(walk_07_11, tmp_path):
+    # In 07_11 the walk passes behind the pillar around frames 20-60 (fully hidden near frame 36).
+    free = synthesize(walk_07_11, tmp_path / "a", SynthSettings(start=20, frames=3, seed=4), keep_masks=True)
+    occl = synthesize(walk_07_11, tmp_path / "b", SynthSettings(start=20, frames=3, seed=4, occluder=True),
+                      keep_masks=True)
+    for k in range(3):
+        assert free.masks[k][0].sum() - occl.masks[k][0].sum() > 500
+        assert not np.any(occl.masks[k][0] & ~free.masks[k][0])
+        assert np.array_equal(free.masks[k][1], occl.masks[k][1])  # other views unaffected
+
+
+def test_missing_camera_is_black(walk_07_11, tmp_path):
+    out = synthesize(walk_07_11, tmp_path / "m", SynthSettings(start=0, frames=2, missing_camera=2))
+    seq = read_sequence(out.root)
+    assert not seq.image(1, 2).any() and seq.image(1, 1).any()
+
+
+def test_projected_ground_truth_covers_rendered_person(synthetic_walk):
+    seq = read_sequence(synthetic_walk.root)
+    for k in range(seq.n_frames):
+        masks = model_masks(seq.model, seq.groundtruth.poses[k], seq.rig)
+        for v in range(seq.n_views):
+            assert iou(masks[v], synthetic_walk.masks[k][v]) > 0.6
+
+
+def test_edge_map_range_and_falloff(synthetic_walk):
+    seq = read_sequence(synthetic_walk.root)
+    obs = observe([seq.image(0, v) for v in range(4)], [seq.background(v) for v in range(4)])
+    e = obs.edges
+    assert e.dtype == np.float32 and e.min() >= 0.0 and e.max() == pytest.approx(1.0)
+    # Edges sit on the silhouette boundary: the map is high there and falls to ~0 far from the person.
+    sil = obs.silhouettes[0] > 0.5
+    import cv2
+    boundary = sil & ~cv2.erode(sil.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    far = ~cv2.dilate(sil.astype(np.uint8), np.ones((61, 61), np.uint8)).astype(bool)
+    assert e[0][boundary].mean() > 0.6 and e[0][far].max() < 1e-3
+    # Smooth fall-off: one pixel from an isolated line the value is exp(-1 / (2 sigma^2)).
+    img = np.zeros((40, 40), np.uint8)
+    img[:, 20:] = 200
+    line = edge_map(img)
+    assert line[20, 19] == pytest.approx(1.0) and 0.3 < line[20, 24] < 0.9 and line[20, 35] < 0.01
+
+
+def test_bodytrack_initial_pose_inside_masks(bodytrack_dir):
+    from tracker.cones import cone_points, volume_grid
+    from tracker.kinematics import forward_kinematics
+
+    seq = read_sequence(bodytrack_dir)
+    assert seq.layout == "bodytrack" and seq.n_views == 4 and seq.n_frames == 1 and seq.model.n_dofs == 31
+    frames = forward_kinematics(seq.model, seq.initial_poses[0]).segment_frames()
+    pts = cone_points(seq.model, frames, *volume_grid(8, 8, (0.0, 0.5, 0.8)))
+    pix, depth = seq.rig.project(pts.reshape(-1, 3))
+    for v in range(4):
+        mask = seq.mask(0, v)
+        xy = np.rint(pix[v]).astype(int)
+        ok = (xy[:, 0] >= 0) & (xy[:, 0] < 640) & (xy[:, 1] >= 0) & (xy[:, 1] < 480) & (depth[v] > 0)
+        inside = np.zeros(len(xy), bool)
+        inside[ok] = mask[xy[ok, 1], xy[ok, 0]]
+        assert inside.mean() > 0.8, v
+    obs = observe([seq.image(0, v) for v in range(4)], masks=[seq.mask(0, v) for v in range(4)])
+    assert obs.silhouettes.shape == (4, 480, 640) and 0 < obs.edges.mean() < 0.5
