@@ -149,12 +149,26 @@ class CameraRig:
         X = np.asarray(points_world, float)
         # (..., 1, K, 3) @ (V, 3, 3)^T -> (..., V, K, 3)
         Xc = np.einsum("vij,...kj->...vki", self.R, X) + self.t[:, None, :]
+        return self.camera_to_pixels(Xc)
+
+    def project_each(self, points_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Project view-specific world points ``(..., V, K, 3)``: view ``v``'s points into camera ``v`` only.
+
+        Returns pixels ``(..., V, K, 2)`` and depths ``(..., V, K)`` as :meth:`project`.
+        """
+        X = np.asarray(points_world)
+        Xc = np.einsum("vij,...vkj->...vki", self.R.astype(X.dtype), X) + self.t[:, None, :].astype(X.dtype)
+        return self.camera_to_pixels(Xc)
+
+    def camera_to_pixels(self, Xc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Camera coordinates ``(..., V, K, 3)`` (mm, view ``v`` in camera ``v``) -> pixels and depths."""
+        dt = Xc.dtype if Xc.dtype in (np.float32, np.float64) else np.dtype(np.float64)
         z = Xc[..., 2]
-        z_safe = np.where(np.abs(z) < 1e-9, 1e-9, z)
+        z_safe = np.where(np.abs(z) < 1e-9, dt.type(1e-9), z)
         x = Xc[..., 0] / z_safe
         y = Xc[..., 1] / z_safe
         if self.has_distortion:
-            k1, k2, p1, p2, k3 = (self.dist[:, i, None] for i in range(5))
+            k1, k2, p1, p2, k3 = (self.dist[:, i, None].astype(dt) for i in range(5))
             r2 = x * x + y * y
             radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
             xy = x * y
@@ -162,8 +176,9 @@ class CameraRig:
             yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * xy
         else:
             xd, yd = x, y
-        u = self.focal[:, 0, None] * (xd + self.skew[:, None] * yd) + self.principal[:, 0, None]
-        v = self.focal[:, 1, None] * yd + self.principal[:, 1, None]
+        f, c, sk = self.focal.astype(dt), self.principal.astype(dt), self.skew.astype(dt)
+        u = f[:, 0, None] * (xd + sk[:, None] * yd) + c[:, 0, None]
+        v = f[:, 1, None] * yd + c[:, 1, None]
         return np.stack([u, v], axis=-1), z
 
 

@@ -69,3 +69,48 @@ def volume_grid(n_along: int, n_around: int, radial: tuple[float, ...] = (0.0, 0
         phi_list.append(P.ravel())
         rho_list.append(np.full(S.size, rho))
     return np.concatenate(s_list), np.concatenate(phi_list), np.concatenate(rho_list)
+
+
+def contour_angles(model: BodyModel, frames: np.ndarray, centres: np.ndarray) -> np.ndarray:
+    """Angles ``phi`` ``(..., V, S, 2)`` of the two occluding-contour lines of every cone seen from each centre.
+
+    ``frames`` ``(..., S, 4, 4)`` segment frames; ``centres`` ``V x 3`` camera
+    centres (mm, world). A ruling at angle ``phi`` of the cone is a contour
+    line when the tangent plane along it contains the camera centre ``c``
+    (segment coordinates): ``A cos phi + B sin phi = C`` with ``A = d L c_x``,
+    ``B = L c_y``, ``C = d (L r0 + (r1 - r0) c_z)``. When no ruling qualifies
+    (a camera looking down the cone's axis) the widest pair across the view
+    direction is used.
+    """
+    t = segment_table(model)
+    R = frames[..., :3, :3]  # ... x S x 3 x 3
+    o = frames[..., :3, 3]
+    rel = centres[:, None, :] - o[..., None, :, :]  # ... x V x S x 3
+    c = np.einsum("...sji,...vsj->...vsi", R, rel)  # centre in segment coordinates
+    L, d, r0, dr = t["length"], t["depth"], t["r0"], t["r1"] - t["r0"]
+    A = d * L * c[..., 0]
+    B = L * c[..., 1]
+    C = d * (L * r0 + dr * c[..., 2])
+    base = np.arctan2(B, A)
+    norm = np.sqrt(A * A + B * B)
+    ratio = np.clip(C / np.maximum(norm, 1e-12), -1.0, 1.0)
+    half = np.where(np.abs(C) < norm, np.arccos(ratio), np.pi / 2)
+    return np.stack([base - half, base + half], axis=-1)
+
+
+def contour_endpoints(model: BodyModel, frames: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """World end points ``(..., V, S, 2, 2, 3)`` (line, proximal/distal end, xyz; mm) of the contour lines at
+    ``angles`` ``(..., V, S, 2)``. Each contour line is a straight ruling of the cone between them."""
+    t = segment_table(model)
+    R = frames[..., :3, :3]
+    o = frames[..., :3, 3]
+    ends = np.stack([t["r0"], t["r1"]], axis=-1)  # S x 2
+    cos = np.cos(angles)[..., None, None]  # ... V S 2 1 1
+    sin = np.sin(angles)[..., None, None]
+    u0 = R[..., None, :, None, None, :, 0]  # ... 1 S 1 1 3
+    u1 = R[..., None, :, None, None, :, 1]
+    u2 = R[..., None, :, None, None, :, 2]
+    r = ends[:, None, :, None]  # S 1 2 1
+    along = (np.array([0.0, 1.0])[None, :] * t["length"][:, None])[:, None, :, None]  # S 1 2 1
+    return (o[..., None, :, None, None, :] + along * u2 + (r * cos) * u0 + (r * t["depth"][:, None, None, None]
+                                                                          * sin) * u1)

@@ -1,0 +1,57 @@
+"""The motion-prior interface the particle filter relies on (DESIGN.md "Particle filter").
+
+A prior of order ``N`` samples the next pose of every particle from that
+particle's own last ``N`` poses (the augmented state of Isard & Blake), plus
+any per-particle state of its own (e.g. GPDM latent coordinates). Shapes:
+histories ``P x N x D`` (oldest first), poses ``P x D``; per-particle state is
+``None``, an array with ``P`` on its leading axis, or a dict of such arrays.
+"""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Any
+
+import numpy as np
+
+PriorState = Any
+
+
+def reindex_state(state: PriorState, idx: np.ndarray) -> PriorState:
+    """Per-particle state after resampling: rows ``idx`` of every array (``None`` stays ``None``)."""
+    if state is None:
+        return None
+    if isinstance(state, dict):
+        return {k: reindex_state(v, idx) for k, v in state.items()}
+    return state[idx]
+
+
+class MotionPrior(ABC):
+    """Samples ``p(x_t | x_{t-N} .. x_{t-1})`` for a batch of particles."""
+
+    #: How many past poses the prior conditions on.
+    order: int = 1
+    #: Name used on the command line and in results.
+    name: str = "prior"
+
+    def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
+        """Per-particle state from the known initial poses ``n0 x D`` (none by default)."""
+        return None
+
+    @abstractmethod
+    def sample(self, history: np.ndarray, available: int, state: PriorState,
+               rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
+        """Next poses ``P x D`` from histories ``P x N x D``.
+
+        ``available`` (1..N) says how many of the most recent history entries
+        are real poses; older slots repeat the earliest known pose. A prior
+        that needs more history than is available must fall back to a lower
+        order (Taylor 2009, Sec. 6.4: "growing" the history).
+        """
+
+    def reindex(self, state: PriorState, idx: np.ndarray) -> PriorState:
+        return reindex_state(state, idx)
+
+    @abstractmethod
+    def diffusion_std(self) -> np.ndarray:
+        """Per-dof standard deviation ``(D,)`` (pose units per frame) of the prior's one-step noise: the scale
+        annealed filter layers diffuse particles with."""
