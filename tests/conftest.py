@@ -67,3 +67,25 @@ def synthetic_walk(walk_07_11, tmp_path_factory):
     out = synthesize(walk_07_11, tmp_path_factory.mktemp("seq") / "walk", SynthSettings(start=40, frames=6),
                      source="07_11.amc", keep_masks=True)
     return out
+
+
+@pytest.fixture(scope="session")
+def random_walk_std(mocap_dir):
+    """Zero-velocity scale from the training walks 07_01 and 07_02 at 60 Hz (rms frame-to-frame change)."""
+    from data_tools.asf_amc import asf_amc_clip
+    from data_tools.retarget import retarget
+    from priors.random_walk import step_rms
+
+    asf = mocap_dir / "07" / "07.asf"
+    return step_rms([retarget(asf_amc_clip(asf, mocap_dir / "07" / f"07_{i}.amc"), fps=60).poses
+                     for i in ("01", "02")])
+
+
+@pytest.fixture(scope="session")
+def walk_32_frames(walk_07_11, tmp_path_factory):
+    """The first 32 frames of the held-out walk 07_11 rendered into 4 views (default noise, seed 0)."""
+    from data_tools.sequence import read_sequence
+    from data_tools.synth import SynthSettings, synthesize
+
+    out = synthesize(walk_07_11, tmp_path_factory.mktemp("seq32") / "walk", SynthSettings(frames=32))
+    return read_sequence(out.root)

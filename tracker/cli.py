@@ -128,9 +128,13 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--out", required=True, help="output folder")
     t.add_argument("--video", help="also write an overlay video of the estimates (.mp4)")
 
-    d = sub.add_parser("demo", help="run the built-in demo on the shipped sample walks",
-                       description="Convert the shipped CMU subject-7 walks and print a summary of each.")
+    d = sub.add_parser("demo", help="render, track and score a shipped walk (the built-in default job)",
+                       description="Render 1.5 s of the shipped CMU walk 07_02 into 4 cameras, track it with the "
+                                   "zero-velocity prior (1000 particles), print the marker error and write the "
+                                   "error-per-frame plot and an overlay video.")
     d.add_argument("--out", default="demo_output", help="output folder (default ./demo_output)")
+    d.add_argument("--frames", type=_number(int, 4, strict=False), default=90,
+                   help="frames to render and track (default 90: 1.5 s)")
     return p
 
 
@@ -158,22 +162,62 @@ def cmd_convert(args: argparse.Namespace) -> int:
     return 0
 
 
+def error_plot(path: Path, curves: dict[str, tuple[np.ndarray, np.ndarray]], title: str) -> None:
+    """Marker error per frame (mm), one line per run: ``{label: (frames, errors)}``; PNG via matplotlib."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 3.5), dpi=120)
+    for name, (frames, errs) in curves.items():
+        ax.plot(frames, errs, label=f"{name} (mean {np.mean(errs):.0f} mm)")
+    ax.set_xlabel("frame")
+    ax.set_ylabel("marker error (mm)")
+    ax.set_title(title)
+    ax.set_ylim(bottom=0)
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from data_tools.load import load_mocap
+    from data_tools.retarget import retarget
     from data_tools.samples import CMU_ATTRIBUTION, sample_walks
-    from tracker.body import standing_height
+    from data_tools.sequence import read_sequence
+    from data_tools.synth import SynthSettings, synthesize
+    from priors.random_walk import ZeroVelocityPrior, step_rms
+    from tracker.experiment import track
+    from tracker.filter import FilterSettings
 
     out = Path(args.out)
     asf, walks = sample_walks()
-    print(f"Converting {len(walks)} shipped walks of CMU subject 7 to the 15-cone body model (60 Hz):")
-    for amc in walks:
-        target = out / (amc.stem + ".npz")
-        _, r = _convert_one(amc, asf, 60.0, None, target)
-        root = r.poses[:, :2]
-        path_m = float(np.linalg.norm(np.diff(root, axis=0), axis=1).sum()) / 1000.0
-        secs = (len(r.poses) - 1) / r.fps
-        print(f"  {amc.stem}: {len(r.poses)} frames ({secs:.2f} s), walked {path_m:.2f} m at "
-              f"{path_m / secs:.2f} m/s, subject {standing_height(r.model) / 1000:.2f} m tall, "
-              f"retarget residual {r.mean_residual:.2f} mm -> {target}")
+    train, test = walks  # 07_01 sets the random-walk scale, 07_02 is rendered and tracked
+    print(f"1/3 Rendering {args.frames} frames of CMU walk {test.stem} into 4 cameras (60 Hz, 640x480)")
+    result = retarget(load_mocap(test, asf), fps=60.0)
+    synthesize(result, out / "sequence", SynthSettings(frames=args.frames), source=f"{test.name} (shipped sample)",
+               progress=lambda it: tqdm(it, desc="rendering", unit="frame"))
+    seq = read_sequence(out / "sequence")
+    prior = ZeroVelocityPrior(step_rms([retarget(load_mocap(train, asf), fps=60.0).poses]))
+    print(f"2/3 Tracking with the zero-velocity prior (scale from {train.stem}), 1000 particles, 4 views")
+    with tqdm(total=args.frames - 2, desc="tracking", unit="frame") as bar:
+        run = track(seq, prior, FilterSettings(n_particles=1000), seed=0,
+                    on_frame=lambda k, e: (bar.update(1), bar.set_postfix(error_mm=f"{e:.0f}")))
+    res = write_results(out / "track", run, seq, prior.name, 1000, 0, {})
+    print(f"   mean marker error {res['mean_error_mm']:.1f} ± {res['std_error_mm']:.1f} mm over {res['frames']} "
+          f"frames, {run.seconds_per_frame:.3f} s per frame -> {out / 'track'}")
+    print("3/3 Writing the error plot and the overlay video")
+    frames = np.arange(run.first_tracked, len(run.poses))
+    error_plot(out / "error_per_frame.png", {"zero-velocity": (frames, run.errors)},
+               f"Tracking CMU {test.stem}, 4 views, 1000 particles")
+    write_video(out / "overlay.mp4", overlay_frames(seq, run.poses, run.views, run.errors, run.first_tracked),
+                seq.fps)
+    print(f"   {out / 'error_per_frame.png'}, {out / 'overlay.mp4'}")
     print(CMU_ATTRIBUTION)
     return 0
 
@@ -401,19 +445,17 @@ def cmd_track(args: argparse.Namespace) -> int:
                               annealing_layers=args.annealing_layers)
     lparams = LikelihoodParams(sharpness=args.sharpness, bidirectional=args.bidirectional)
     T = args.frames or seq.n_frames
-    bar = tqdm(total=T, desc=f"tracking ({args.prior})", unit="frame")
     errors: list[float] = []
+    with tqdm(total=T, desc=f"tracking ({args.prior})", unit="frame") as bar:
+        def on_frame(k: int, err: float | None) -> None:
+            bar.update(1)
+            if err is not None:
+                errors.append(err)
+                bar.set_postfix(error_mm=f"{err:.0f}", mean_mm=f"{np.mean(errors):.0f}")
 
-    def on_frame(k: int, err: float | None) -> None:
-        bar.update(1)
-        if err is not None:
-            errors.append(err)
-            bar.set_postfix(error_mm=f"{err:.0f}", mean_mm=f"{np.mean(errors):.0f}")
-
-    run = track(seq, prior, settings, args.seed, views, args.frames, args.known_frames, init, lparams,
-                on_frame=on_frame)
-    bar.update(T - bar.n)
-    bar.close()
+        run = track(seq, prior, settings, args.seed, views, args.frames, args.known_frames, init, lparams,
+                    on_frame=on_frame)
+        bar.update(T - bar.n)
     out = Path(args.out)
     result = write_results(out, run, seq, args.prior, args.particles, args.seed,
                            {"annealing_layers": args.annealing_layers, "resampling": args.resampling,
