@@ -66,6 +66,7 @@ class Sequence:
     fps: float | None
     meta: dict = field(default_factory=dict)
     diffusion_std: np.ndarray | None = None
+    _plates: dict = field(default_factory=dict, repr=False)
 
     @property
     def n_frames(self) -> int:
@@ -87,8 +88,13 @@ class Sequence:
         return read_image(self.image_paths[view][frame], self.rig[view].width, self.rig[view].height)
 
     def background(self, view: int) -> np.ndarray | None:
+        """The background plate of camera ``view`` (read once, then kept), or None."""
         path = self.background_paths[view]
-        return None if path is None else read_image(path, self.rig[view].width, self.rig[view].height)
+        if path is None:
+            return None
+        if view not in self._plates:
+            self._plates[view] = read_image(path, self.rig[view].width, self.rig[view].height)
+        return self._plates[view]
 
     def mask(self, frame: int, view: int) -> np.ndarray | None:
         """The provided foreground mask (bool ``H x W``), or None when the layout has none."""

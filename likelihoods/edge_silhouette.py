@@ -5,7 +5,7 @@ along its two occluding-contour lines (the rulings whose tangent plane
 contains the camera centre, :func:`tracker.cones.contour_angles`) and on a
 grid between them in the image. Contour points look up the edge map, grid
 points the silhouette (nearest pixel; a point outside the image or behind the
-camera reads 0). Per view::
+camera reads 0; the cost maps carry a border of cost 1). Per view::
 
     edge cost = mean over contour points of (1 - edge)^2
     silhouette cost = mean over grid points of (1 - silhouette)^2
@@ -64,60 +64,106 @@ class EdgeSilhouetteLikelihood:
         self.rig = rig
         self.params = params
         self.centres = np.array([c.centre for c in rig.cameras])
-        self.s = np.linspace(0.0, 1.0, params.n_along).astype(np.float32)
-        self.across = (np.arange(1, params.n_across + 1) / (params.n_across + 1)).astype(np.float32)
+        self.n_contour = 2 * params.n_along
+        self.weights = _sample_weights(params.n_along, params.n_across)  # 4 x N
+        self._prepared: tuple[int, _CostMaps] | None = None
 
     def __call__(self, poses: np.ndarray, obs: Observations) -> np.ndarray:
         return self.terms(poses, obs).log_likelihood
+
+    def _cost_maps(self, obs: Observations) -> "_CostMaps":
+        if self._prepared is None or self._prepared[0] != id(obs):
+            self._prepared = (id(obs), _CostMaps.of(obs))
+        return self._prepared[1]
 
     def terms(self, poses: np.ndarray, obs: Observations) -> LikelihoodTerms:
         poses = np.asarray(poses, float)
         P, V = len(poses), len(self.rig)
         if obs.n_views != V:
             raise ValueError(f"observations have {obs.n_views} views but the rig has {V} cameras")
-        H, W = obs.silhouettes.shape[1:]
+        maps = self._cost_maps(obs)
         valid = self.model.within_limits(poses)
         edge = np.ones((P, V))
         sil = np.ones((P, V))
         cover = np.ones((P, V)) if self.params.bidirectional else None
-        if valid.any():
-            frames = forward_kinematics(self.model, poses[valid]).segment_frames()
-            angles = contour_angles(self.model, frames, self.centres)  # p V S 2
-            ends = contour_endpoints(self.model, frames, angles).astype(np.float32)  # p V S 2 2 3
-            p, _, S = ends.shape[:3]
-            end_pix, depth = self.rig.project_each(ends.reshape(p, V, S * 4, 3))
-            end_pix = end_pix.reshape(p, V, S, 2, 2, 2)
-            front = np.all(depth.reshape(p, V, S, 4) > 0, axis=-1)  # p V S: the whole cone in front
-            # Contour samples: evenly spaced in the image along each projected line (a ruling projects to a
-            # straight segment; with lens distortion this is a sub-pixel approximation on a limb).
-            s_ = self.s[:, None]
-            pix = end_pix[..., 0:1, :] * (1 - s_) + end_pix[..., 1:2, :] * s_  # p V S 2 K 2
-            # Grid inside the projected cone: between the two contour lines, at the same axial fraction.
-            a = self.across[:, None, None]  # T x 1 x 1
-            grid = pix[:, :, :, None, 0] * (1 - a) + pix[:, :, :, None, 1] * a  # p V S T K 2
-            K, T = len(self.s), len(self.across)
-            in_front = np.broadcast_to(front[..., None, None], (p, V, S, 2, K))
-            grid_front = np.broadcast_to(front[..., None, None], (p, V, S, T, K))
-            e = _lookup(obs.edges, pix.reshape(p, V, -1, 2), in_front.reshape(p, V, -1))
-            s_val = _lookup(obs.silhouettes, grid.reshape(p, V, -1, 2), grid_front.reshape(p, V, -1))
-            edge[valid] = np.mean((1.0 - e) ** 2, axis=-1)
-            sil[valid] = np.mean((1.0 - s_val) ** 2, axis=-1)
-            if cover is not None:
-                cover[valid] = _uncovered(pix, in_front, obs, self.params.n_foreground)
+        # Blocks of particles keep the intermediates in cache: 256 at a time measured 1.5x faster than all
+        # 4000 at once (each block is still one batched pass over particles, views and points).
+        for start in range(0, P, BLOCK):
+            block = slice(start, start + BLOCK)
+            ok = valid[block]
+            if ok.any():
+                e, s, c = self._block_costs(poses[block][ok], obs, maps)
+                edge[block][ok], sil[block][ok] = e, s
+                if cover is not None:
+                    cover[block][ok] = c
         total = edge + sil + (cover if cover is not None else 0.0)
         ll = np.where(valid, -self.params.sharpness * total.sum(axis=1), -np.inf)
         return LikelihoodTerms(edge=edge, silhouette=sil, coverage=cover, log_likelihood=ll)
 
+    def _block_costs(self, poses: np.ndarray, obs: Observations, maps: "_CostMaps"):
+        """Edge, silhouette and (optional) coverage costs ``p x V`` of poses within the limits."""
+        V = len(self.rig)
+        frames = forward_kinematics(self.model, poses).segment_frames()
+        angles = contour_angles(self.model, frames, self.centres)  # p V S 2
+        ends = contour_endpoints(self.model, frames, angles, np.float32)  # p V S 2 2 3
+        p, _, S = ends.shape[:3]
+        corners, depth = self.rig.project_each(ends.reshape(p, V, S * 4, 3))
+        corners = corners.reshape(p, V, S, 4, 2)  # line 0 proximal, distal; line 1 proximal, distal
+        behind = np.any(depth.reshape(p, V, S, 4) <= 0, axis=-1)
+        corners[behind] = -1e6  # reads the border of the cost maps: cost 1
+        # Every sample is a fixed affine combination of the 4 corners: contour points spaced evenly
+        # along each projected line (a ruling projects to a straight segment; with lens distortion a
+        # sub-pixel approximation on a limb), then the grid between the lines. One matrix product.
+        pts = np.swapaxes(corners, -1, -2).reshape(-1, 4) @ self.weights  # (p V S 2) x N
+        pts = pts.reshape(p, V, S, 2, -1)
+        flat = maps.flat_index(pts[..., 0, :], pts[..., 1, :])  # p V S N
+        nc = self.n_contour
+        edge = maps.edge.take(flat[..., :nc]).reshape(p, V, -1).mean(axis=-1)
+        sil = maps.silhouette.take(flat[..., nc:]).reshape(p, V, -1).mean(axis=-1)
+        cover = _uncovered(corners, obs, self.params.n_foreground) if self.params.bidirectional else None
+        return edge, sil, cover
 
-def _lookup(maps: np.ndarray, pix: np.ndarray, ok: np.ndarray) -> np.ndarray:
-    """Nearest-pixel values of ``maps`` ``V x H x W`` at ``pix`` ``p x V x N x 2``; 0 off-image or where not ok."""
-    V, H, W = maps.shape
-    ix = np.rint(pix[..., 0]).astype(np.int32)
-    iy = np.rint(pix[..., 1]).astype(np.int32)
-    inside = ok & (ix >= 0) & (ix < W) & (iy >= 0) & (iy < H)
-    flat = (np.arange(V, dtype=np.int64)[:, None] * (H * W) + np.clip(iy, 0, H - 1) * W + np.clip(ix, 0, W - 1))
-    vals = np.take(maps.reshape(-1), flat)
-    return np.where(inside, vals, 0.0)
+
+def _sample_weights(n_along: int, n_across: int) -> np.ndarray:
+    """Weights ``4 x N`` of the samples on the corners (line 0 proximal, distal, line 1 proximal, distal):
+    ``2 n_along`` contour points, then ``n_across x n_along`` grid points."""
+    s = np.linspace(0.0, 1.0, n_along)
+    rows = [[1 - si, si, 0.0, 0.0] for si in s] + [[0.0, 0.0, 1 - si, si] for si in s]
+    for t in np.arange(1, n_across + 1) / (n_across + 1):
+        rows += [[(1 - t) * (1 - si), (1 - t) * si, t * (1 - si), t * si] for si in s]
+    return np.array(rows, np.float32).T
+
+
+#: Particles per block (see ``terms``).
+BLOCK = 256
+
+#: Border (pixels) of cost 1 around the cost maps, so that lookups need no bounds test.
+PAD = 32
+
+
+class _CostMaps:
+    """Per-frame cost maps ``(1 - edge)^2`` and ``(1 - silhouette)^2``, padded with cost 1, flattened."""
+
+    def __init__(self, edge: np.ndarray, silhouette: np.ndarray):
+        V, self.Hp, self.Wp = edge.shape
+        self.edge = edge.reshape(-1)
+        self.silhouette = silhouette.reshape(-1)
+        self.view_offset = (np.arange(V, dtype=np.int32) * (self.Hp * self.Wp))[None, :, None, None]
+
+    @classmethod
+    def of(cls, obs: Observations) -> "_CostMaps":
+        def padded(m: np.ndarray) -> np.ndarray:
+            V, H, W = m.shape
+            out = np.ones((V, H + 2 * PAD, W + 2 * PAD), np.float32)
+            out[:, PAD:PAD + H, PAD:PAD + W] = (1.0 - m) ** 2
+            return out
+        return cls(padded(obs.edges), padded(obs.silhouettes))
+
+    def flat_index(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Flat indices of the nearest pixels to ``(x, y)`` ``p x V x S x N`` (clamped to the border)."""
+        ix = np.clip(x + (PAD + 0.5), 0, self.Wp - 1).astype(np.int32)
+        iy = np.clip(y + (PAD + 0.5), 0, self.Hp - 1).astype(np.int32)
+        return iy * self.Wp + ix + self.view_offset
 
 
 def foreground_sample(silhouette: np.ndarray, n: int) -> np.ndarray:
@@ -129,21 +175,20 @@ def foreground_sample(silhouette: np.ndarray, n: int) -> np.ndarray:
     return np.stack([xs[idx], ys[idx]], axis=1).astype(np.float32)
 
 
-def _uncovered(pix: np.ndarray, in_front: np.ndarray, obs: Observations, n: int) -> np.ndarray:
+def _uncovered(corners: np.ndarray, obs: Observations, n: int) -> np.ndarray:
     """Fraction ``p x V`` of sampled foreground pixels outside every projected cone (a cone's projection is
-    taken as the quadrilateral of its contour lines' end points)."""
-    p, V, S = pix.shape[:3]
+    taken as the quadrilateral of its contour lines' end points, ``corners`` ``p x V x S x 4 x 2``)."""
+    p, V, S = corners.shape[:3]
     out = np.zeros((p, V))
+    quads = corners[..., [0, 1, 3, 2], :]  # around the quadrilateral
     for v in range(V):  # views only; particles, segments and pixels are batched
         fg = foreground_sample(obs.silhouettes[v], n)
         if len(fg) == 0:
             continue
-        quad = np.stack([pix[:, v, :, 0, 0], pix[:, v, :, 0, -1], pix[:, v, :, 1, -1], pix[:, v, :, 1, 0]],
-                        axis=2)  # p S 4 2
+        quad = quads[:, v]  # p S 4 2
         edge_vec = np.roll(quad, -1, axis=2) - quad
         rel = fg[None, None, None, :, :] - quad[:, :, :, None, :]  # p S 4 F 2
         cross = edge_vec[..., None, 0] * rel[..., 1] - edge_vec[..., None, 1] * rel[..., 0]  # p S 4 F
         inside = np.all(cross >= 0, axis=2) | np.all(cross <= 0, axis=2)  # p S F
-        inside &= np.all(in_front[:, v], axis=(2, 3))[:, :, None]
         out[:, v] = 1.0 - inside.any(axis=1).mean(axis=1)
     return out

@@ -157,7 +157,10 @@ class CameraRig:
         Returns pixels ``(..., V, K, 2)`` and depths ``(..., V, K)`` as :meth:`project`.
         """
         X = np.asarray(points_world)
-        Xc = np.einsum("vij,...vkj->...vki", self.R.astype(X.dtype), X) + self.t[:, None, :].astype(X.dtype)
+        dt = X.dtype if X.dtype in (np.float32, np.float64) else np.dtype(np.float64)
+        Xc = np.empty(X.shape, dt)
+        for v in range(len(self)):  # one matrix product per view (BLAS), batched over everything else
+            Xc[..., v, :, :] = X[..., v, :, :] @ self.R[v].T.astype(dt) + self.t[v].astype(dt)
         return self.camera_to_pixels(Xc)
 
     def camera_to_pixels(self, Xc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

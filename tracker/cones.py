@@ -83,14 +83,16 @@ def contour_angles(model: BodyModel, frames: np.ndarray, centres: np.ndarray) ->
     direction is used.
     """
     t = segment_table(model)
-    R = frames[..., :3, :3]  # ... x S x 3 x 3
-    o = frames[..., :3, 3]
-    rel = centres[:, None, :] - o[..., None, :, :]  # ... x V x S x 3
-    c = np.einsum("...sji,...vsj->...vsi", R, rel)  # centre in segment coordinates
+    R = frames[..., None, :, :3, :3]  # ... 1 S 3 3
+    rel = centres[:, None, :] - frames[..., None, :, :3, 3]  # ... V S 3
+    # Centre in segment coordinates, R^T rel, written out (small arrays; einsum is slower here).
+    cx = R[..., 0, 0] * rel[..., 0] + R[..., 1, 0] * rel[..., 1] + R[..., 2, 0] * rel[..., 2]
+    cy = R[..., 0, 1] * rel[..., 0] + R[..., 1, 1] * rel[..., 1] + R[..., 2, 1] * rel[..., 2]
+    cz = R[..., 0, 2] * rel[..., 0] + R[..., 1, 2] * rel[..., 1] + R[..., 2, 2] * rel[..., 2]
     L, d, r0, dr = t["length"], t["depth"], t["r0"], t["r1"] - t["r0"]
-    A = d * L * c[..., 0]
-    B = L * c[..., 1]
-    C = d * (L * r0 + dr * c[..., 2])
+    A = d * L * cx
+    B = L * cy
+    C = d * (L * r0 + dr * cz)
     base = np.arctan2(B, A)
     norm = np.sqrt(A * A + B * B)
     ratio = np.clip(C / np.maximum(norm, 1e-12), -1.0, 1.0)
@@ -98,19 +100,17 @@ def contour_angles(model: BodyModel, frames: np.ndarray, centres: np.ndarray) ->
     return np.stack([base - half, base + half], axis=-1)
 
 
-def contour_endpoints(model: BodyModel, frames: np.ndarray, angles: np.ndarray) -> np.ndarray:
+def contour_endpoints(model: BodyModel, frames: np.ndarray, angles: np.ndarray,
+                      dtype: type = np.float64) -> np.ndarray:
     """World end points ``(..., V, S, 2, 2, 3)`` (line, proximal/distal end, xyz; mm) of the contour lines at
-    ``angles`` ``(..., V, S, 2)``. Each contour line is a straight ruling of the cone between them."""
+    ``angles`` ``(..., V, S, 2)``, as ``dtype``. Each contour line is a straight ruling of the cone between
+    them: ``o + s L u_z + r(s) (cos phi u_x + d sin phi u_y)`` for ``s`` = 0, 1."""
     t = segment_table(model)
-    R = frames[..., :3, :3]
-    o = frames[..., :3, 3]
-    ends = np.stack([t["r0"], t["r1"]], axis=-1)  # S x 2
-    cos = np.cos(angles)[..., None, None]  # ... V S 2 1 1
-    sin = np.sin(angles)[..., None, None]
-    u0 = R[..., None, :, None, None, :, 0]  # ... 1 S 1 1 3
-    u1 = R[..., None, :, None, None, :, 1]
-    u2 = R[..., None, :, None, None, :, 2]
-    r = ends[:, None, :, None]  # S 1 2 1
-    along = (np.array([0.0, 1.0])[None, :] * t["length"][:, None])[:, None, :, None]  # S 1 2 1
-    return (o[..., None, :, None, None, :] + along * u2 + (r * cos) * u0 + (r * t["depth"][:, None, None, None]
-                                                                          * sin) * u1)
+    R = frames[..., :3, :3].astype(dtype)
+    o = frames[..., :3, 3].astype(dtype)
+    cos = np.cos(angles).astype(dtype)[..., None]  # ... V S 2 1
+    dsin = (np.sin(angles) * t["depth"][:, None]).astype(dtype)[..., None]
+    radial = cos * R[..., None, :, None, :, 0] + dsin * R[..., None, :, None, :, 1]  # ... V S 2 3
+    ends = np.stack([o, o + t["length"].astype(dtype)[:, None] * R[..., :, 2]], axis=-2)  # ... S 2 3
+    r = np.stack([t["r0"], t["r1"]], axis=-1).astype(dtype)  # S x 2
+    return ends[..., None, :, None, :, :] + r[:, None, :, None] * radial[..., :, :, None, :]
