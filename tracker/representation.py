@@ -201,3 +201,24 @@ class FeatureNormaliser:
         except (OSError, ValueError) as exc:
             raise InputError(f"cannot read normalisation statistics: {exc}", path) from None
 
+
+
+def next_poses(previous: np.ndarray, previous_features: np.ndarray, features: np.ndarray) -> np.ndarray:
+    """One step of the inverse for a batch: poses ``(..., D)`` at frame t.
+
+    ``previous`` ``(..., D)`` are the poses at t-1; ``previous_features``
+    ``(..., D)`` are frame t-1's invariant features, whose velocities and yaw
+    rate (the step t-1 -> t) move the root; ``features`` ``(..., D)`` give frame
+    t's height, pitch, roll and joints. The root exp map is kept on the branch
+    nearest the previous pose's, so particle means stay meaningful.
+    """
+    prev = np.asarray(previous, float)
+    pf = np.asarray(previous_features, float)
+    f = np.asarray(features, float)
+    yaw0 = heading(prev[..., None, :])[..., 0]
+    c, s = np.cos(yaw0), np.sin(yaw0)
+    x = prev[..., 0] + pf[..., 0] * c - pf[..., 1] * s
+    y = prev[..., 1] + pf[..., 0] * s + pf[..., 1] * c
+    R = yaw_pitch_roll_to_matrix(yaw0 + pf[..., 5], f[..., 3], f[..., 4])
+    rot = continuous_exp_maps(np.stack([prev[..., 3:6], matrix_to_exp_map(R)], axis=-2), time_axis=-2)[..., 1, :]
+    return np.concatenate([np.stack([x, y, f[..., 2]], axis=-1), rot, f[..., N_ROOT:]], axis=-1)

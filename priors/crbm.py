@@ -1,0 +1,410 @@
+"""Conditional Restricted Boltzmann Machine motion prior (Taylor 2009, Ch. 4 and Sec. 6.3-6.4), in torch.
+
+Model (Gaussian visible units with unit variance on normalised data, binary
+hidden units, order N)::
+
+    a_hat = a + A^T v_<t          b_hat = b + B^T v_<t          (eqs. 4.4, 4.7)
+    p(h_j = 1 | v_t, v_<t) = sigmoid(b_hat_j + sum_i W_ij v_i,t)  (eq. 4.5)
+    p(v_t | h_t, v_<t) = N(a_hat + W h_t, I)                      (eq. 4.6)
+    F(v_t | v_<t) = 1/2 |v_t - a_hat|^2 - sum_j softplus(W_j^T v_t + b_hat_j)   (eq. 4.18)
+
+``v_<t`` is the history, the N previous frames concatenated oldest first
+(``N*K`` numbers for K features). Data are the invariant features of
+:mod:`tracker.representation`, normalised by a :class:`FeatureNormaliser`
+(constant dimensions dropped).
+
+Training: CD-k on mini-batches of randomly permuted (N+1)-frame windows, built
+by indexing (frames are never copied into windows), with momentum, weight
+decay on W, A and B, learning rate 1e-3 (1e-5 for the autoregressive A), the
+mean-field approximations of Sec. 4.2.4 (expected visible values; binary hidden
+states driving reconstructions and the positive statistics, hidden
+probabilities in the negative statistics), Gaussian noise on the history
+(Sec. 6.4.1; by default per dimension the 99th percentile of the frame-to-frame
+change) and an optional sparsity target (Sec. 4.5.4, cross-entropy to a damped
+average activation). One seeded ``torch.Generator`` drives every random draw.
+
+Generation (Sec. 4.2.3): alternating Gibbs sampling from ``v = v_{t-1}``, with
+binary hidden samples, expected visible values and hidden probabilities on the
+final step. "Best guess" prediction descends the free energy (eq. 4.19).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+import torch
+
+from priors.base import MotionPrior, PriorState
+from tracker.errors import InputError
+from tracker.representation import FeatureNormaliser, feature_names, next_poses, poses_to_invariant
+
+FORMAT = "pose-tracker crbm v1"
+#: Invariant feature indices that move the root from frame t to t+1 (forward, lateral velocity, yaw rate).
+STEP_FEATURES = [0, 1, 5]
+
+
+@dataclass
+class CRBMConfig:
+    """Training settings (learning rates per mini-batch of averaged statistics)."""
+
+    order: int = 3
+    hidden: int = 150
+    epochs: int = 300
+    cd_k: int = 10
+    batch_size: int = 100
+    learning_rate: float = 1e-3
+    autoregressive_learning_rate: float = 1e-5
+    momentum: float = 0.9
+    weight_decay: float = 2e-4
+    history_noise: float | str = "auto"
+    sparsity_target: float | None = None
+    sparsity_cost: float = 0.1
+    seed: int = 0
+
+    def check(self) -> "CRBMConfig":
+        for name in ("order", "hidden", "epochs", "cd_k", "batch_size"):
+            if int(getattr(self, name)) < 1:
+                raise InputError(f"CRBM {name} must be at least 1, got {getattr(self, name)}")
+        if not (isinstance(self.history_noise, (int, float)) and self.history_noise >= 0) \
+                and self.history_noise != "auto":
+            raise InputError(f"history noise must be 'auto' or a non-negative number, got {self.history_noise!r}")
+        if self.sparsity_target is not None and not 0 < self.sparsity_target < 1:
+            raise InputError(f"sparsity target must lie in (0, 1), got {self.sparsity_target}")
+        return self
+
+
+class CRBM:
+    """Parameters and inference of one CRBM (float32 tensors on one device)."""
+
+    def __init__(self, n_visible: int, n_hidden: int, order: int, generator: torch.Generator | None = None,
+                 device: str | torch.device = "cpu"):
+        self.n_visible, self.n_hidden, self.order = n_visible, n_hidden, order
+        self.device = torch.device(device)
+        g = generator
+        kw = {"device": self.device, "dtype": torch.float32}
+        self.W = 0.01 * torch.randn(n_visible, n_hidden, generator=g, **kw)
+        self.A = 0.01 * torch.randn(order * n_visible, n_visible, generator=g, **kw)
+        self.B = 0.01 * torch.randn(order * n_visible, n_hidden, generator=g, **kw)
+        self.a = torch.zeros(n_visible, **kw)
+        self.b = torch.zeros(n_hidden, **kw)
+
+    PARAMS = ("W", "A", "B", "a", "b")
+
+    def state_dict(self) -> dict[str, torch.Tensor]:
+        return {k: getattr(self, k).detach().cpu().clone() for k in self.PARAMS}
+
+    def load_state_dict(self, state: dict[str, torch.Tensor]) -> None:
+        for k in self.PARAMS:
+            setattr(self, k, state[k].to(self.device, torch.float32))
+
+    def biases(self, history: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Dynamic biases ``a_hat`` ``B x K`` and ``b_hat`` ``B x H`` from histories ``B x (N K)``."""
+        return self.a + history @ self.A, self.b + history @ self.B
+
+    def hidden_probabilities(self, v: torch.Tensor, b_hat: torch.Tensor) -> torch.Tensor:
+        return torch.sigmoid(v @ self.W + b_hat)
+
+    def free_energy(self, v: torch.Tensor, history: torch.Tensor) -> torch.Tensor:
+        """Free energy ``(B,)`` of frames ``v`` ``B x K`` given histories (eq. 4.18)."""
+        a_hat, b_hat = self.biases(history)
+        return 0.5 * ((v - a_hat) ** 2).sum(-1) - torch.nn.functional.softplus(v @ self.W + b_hat).sum(-1)
+
+    def gibbs(self, history: torch.Tensor, steps: int, generator: torch.Generator | None,
+              init: torch.Tensor | None = None) -> torch.Tensor:
+        """Next frames ``B x K`` by alternating Gibbs sampling from ``init`` (default: the last history frame).
+
+        Binary hidden samples, expected visible values; the final visible update uses the hidden
+        probabilities (Sec. 4.2.4).
+        """
+        a_hat, b_hat = self.biases(history)
+        v = history[:, -self.n_visible:] if init is None else init
+        for step in range(steps):
+            p = self.hidden_probabilities(v, b_hat)
+            h = p if step == steps - 1 else torch.bernoulli(p, generator=generator)
+            v = a_hat + h @ self.W.T
+        return v
+
+    def best_guess(self, history: torch.Tensor, iterations: int = 30, init: torch.Tensor | None = None
+                   ) -> torch.Tensor:
+        """The frame minimising the free energy given the history (eq. 4.19), by L-BFGS from ``init``."""
+        a_hat, b_hat = (x.detach() for x in self.biases(history))
+        v = (history[:, -self.n_visible:] if init is None else init).detach().clone().requires_grad_(True)
+        opt = torch.optim.LBFGS([v], lr=1.0, max_iter=iterations, line_search_fn="strong_wolfe")
+
+        def closure():
+            opt.zero_grad()
+            f = (0.5 * ((v - a_hat) ** 2).sum() - torch.nn.functional.softplus(v @ self.W + b_hat).sum())
+            f.backward()
+            return f
+
+        opt.step(closure)
+        return v.detach()
+
+
+# ---------------------------------------------------------------------------
+# Training data
+# ---------------------------------------------------------------------------
+
+@dataclass
+class WindowData:
+    """Normalised features of all training clips, concatenated ``T x K``, and the start indices ``(M,)`` of
+    every (N+1)-frame window that lies inside one clip and avoids each clip's last frame (whose velocities
+    are only a repeat of the step before)."""
+
+    frames: torch.Tensor
+    starts: torch.Tensor
+    normaliser: FeatureNormaliser
+
+
+def make_windows(clips: Sequence[np.ndarray], order: int, dof_names: Sequence[str],
+                 normaliser: FeatureNormaliser | None = None) -> WindowData:
+    feats = [poses_to_invariant(np.asarray(c, float))[:-1] for c in clips]
+    if normaliser is None:
+        normaliser = FeatureNormaliser.fit(feats, feature_names(dof_names))
+    normed = [normaliser.transform(f) for f in feats]
+    starts, offset = [], 0
+    for f in normed:
+        n = len(f) - order
+        if n > 0:
+            starts.append(offset + np.arange(n))
+        offset += len(f)
+    if not starts:
+        raise InputError(f"the training clips are too short for order {order} (need more than {order + 2} frames)")
+    return WindowData(torch.tensor(np.concatenate(normed), dtype=torch.float32),
+                      torch.tensor(np.concatenate(starts)), normaliser)
+
+
+def history_noise_scale(data: WindowData) -> torch.Tensor:
+    """Per-dimension noise for the history: the 99th percentile of |frame-to-frame change| in the data."""
+    idx = data.starts
+    diffs = (data.frames[idx + 1] - data.frames[idx]).abs()
+    return torch.quantile(diffs, 0.99, dim=0)
+
+
+# ---------------------------------------------------------------------------
+# The trained model: CRBM + normaliser + the settings it was trained with
+# ---------------------------------------------------------------------------
+
+@dataclass
+class CRBMModel:
+    crbm: CRBM
+    normaliser: FeatureNormaliser
+    config: CRBMConfig
+    fps: float
+    body_model: str
+    dof_names: list[str]
+    sources: list[str]
+    pose_step_rms: np.ndarray
+    reconstruction_errors: list[float] = field(default_factory=list)
+    training_seconds: float = 0.0
+
+    @property
+    def order(self) -> int:
+        return self.crbm.order
+
+    def save(self, path: str | Path) -> None:
+        n = self.normaliser
+        doc = {
+            "format": FORMAT, "params": self.crbm.state_dict(), "config": asdict(self.config), "fps": float(self.fps),
+            "body_model": self.body_model, "dof_names": list(self.dof_names), "sources": list(self.sources),
+            "pose_step_rms": torch.tensor(self.pose_step_rms, dtype=torch.float64),
+            "normaliser": {"mean": torch.tensor(n.mean), "std": torch.tensor(n.std), "keep": torch.tensor(n.keep),
+                           "names": list(n.names)},
+            "reconstruction_errors": [float(e) for e in self.reconstruction_errors],
+            "training_seconds": float(self.training_seconds),
+        }
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        torch.save(doc, path)
+
+    def check_compatible(self, body_model: str, dof_names: Sequence[str], fps: float | None,
+                         source: str | Path | None = None) -> None:
+        """Refuse a sequence this model was not trained for, saying what differs."""
+        problems = []
+        if body_model != self.body_model:
+            problems.append(f"body model {body_model!r} (trained on {self.body_model!r})")
+        elif list(dof_names) != self.dof_names:
+            problems.append("a different pose layout")
+        if fps is not None and abs(fps - self.fps) > 1e-6:
+            problems.append(f"{fps:g} fps (trained at {self.fps:g} fps; velocities are per frame)")
+        if problems:
+            raise InputError("CRBM model does not fit this sequence: " + "; ".join(problems), source)
+
+
+def load_crbm(path: str | Path, device: str = "cpu") -> CRBMModel:
+    path = Path(path)
+    try:
+        doc = torch.load(path, map_location="cpu", weights_only=True)
+    except FileNotFoundError:
+        raise InputError("model file not found", path) from None
+    except Exception as exc:  # torch raises many types for a corrupt or foreign file
+        raise InputError(f"cannot read model file ({type(exc).__name__}: {str(exc)[:120]})", path) from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise InputError(f"not a CRBM model file (expected format {FORMAT!r})", path)
+    cfg = CRBMConfig(**doc["config"])
+    params = doc["params"]
+    n_vis, n_hid = params["W"].shape
+    crbm = CRBM(n_vis, n_hid, cfg.order, device=device)
+    crbm.load_state_dict(params)
+    n = doc["normaliser"]
+    normaliser = FeatureNormaliser(n["mean"].numpy(), n["std"].numpy(), n["keep"].numpy().astype(bool),
+                                   list(n["names"]))
+    if normaliser.n_kept != n_vis:
+        raise InputError(f"model has {n_vis} visible units but its normaliser keeps {normaliser.n_kept}", path)
+    return CRBMModel(crbm, normaliser, cfg, float(doc["fps"]), doc["body_model"], list(doc["dof_names"]),
+                     list(doc["sources"]), doc["pose_step_rms"].numpy(), list(doc["reconstruction_errors"]),
+                     float(doc["training_seconds"]))
+
+
+# ---------------------------------------------------------------------------
+# Training
+# ---------------------------------------------------------------------------
+
+def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_names: Sequence[str],
+               body_model: str = "15-cone", sources: Sequence[str] = (),
+               progress: Callable[[int, float], None] | None = None,
+               checkpoint: tuple[Path, int] | None = None, device: str = "cpu") -> CRBMModel:
+    """Train a CRBM on pose clips (each ``T x D`` at ``fps``) with CD-k.
+
+    ``progress(epoch, reconstruction_error)`` is called after every epoch;
+    ``checkpoint = (path, every)`` saves the model every ``every`` epochs.
+    """
+    cfg = config.check()
+    t0 = time.perf_counter()
+    g = torch.Generator(device=device).manual_seed(cfg.seed)
+    data = make_windows(clips, cfg.order, dof_names)
+    frames = data.frames.to(device)
+    K, N, H = frames.shape[1], cfg.order, cfg.hidden
+    crbm = CRBM(K, H, N, generator=g, device=device)
+    noise = history_noise_scale(data).to(device) if cfg.history_noise == "auto" else \
+        torch.full((K,), float(cfg.history_noise), device=device)
+    noise = noise.repeat(N)
+    steps = torch.arange(N + 1, device=device)
+    velocity = {k: torch.zeros_like(getattr(crbm, k)) for k in CRBM.PARAMS}
+    rates = {"W": cfg.learning_rate, "A": cfg.autoregressive_learning_rate, "B": cfg.learning_rate,
+             "a": cfg.learning_rate, "b": cfg.learning_rate}
+    activity = torch.full((H,), cfg.sparsity_target or 0.0, device=device)
+    pose_rms = np.sqrt(np.mean(np.concatenate([np.diff(np.asarray(c, float), axis=0) for c in clips]) ** 2, axis=0))
+    model = CRBMModel(crbm, data.normaliser, cfg, fps, body_model, list(dof_names), list(sources), pose_rms)
+    starts = data.starts.to(device)
+    for epoch in range(cfg.epochs):
+        order = starts[torch.randperm(len(starts), generator=g, device=device)]
+        err_sum, count = 0.0, 0
+        for i in range(0, len(order), cfg.batch_size):
+            idx = order[i:i + cfg.batch_size, None] + steps  # B x (N+1) frame indices: windows by indexing
+            window = frames[idx]
+            v0 = window[:, -1]
+            hist = window[:, :-1].reshape(len(idx), N * K)
+            if cfg.history_noise:
+                hist = hist + torch.randn(hist.shape, generator=g, device=device) * noise
+            a_hat, b_hat = crbm.biases(hist)
+            p0 = crbm.hidden_probabilities(v0, b_hat)
+            h0 = torch.bernoulli(p0, generator=g)
+            h = h0
+            for _ in range(cfg.cd_k):
+                vk = a_hat + h @ crbm.W.T
+                pk = crbm.hidden_probabilities(vk, b_hat)
+                h = torch.bernoulli(pk, generator=g)
+            n = len(idx)
+            dv, dh = v0 - vk, h0 - pk
+            grads = {"W": (v0.T @ h0 - vk.T @ pk) / n, "A": hist.T @ dv / n, "B": hist.T @ dh / n,
+                     "a": dv.mean(0), "b": dh.mean(0)}
+            if cfg.sparsity_target is not None:
+                activity = 0.9 * activity + 0.1 * p0.mean(0)
+                push = cfg.sparsity_cost * (cfg.sparsity_target - activity)
+                grads["b"] = grads["b"] + push
+                grads["W"] = grads["W"] + v0.mean(0)[:, None] * push[None, :]
+                grads["B"] = grads["B"] + hist.mean(0)[:, None] * push[None, :]
+            for k in CRBM.PARAMS:
+                param = getattr(crbm, k)
+                decay = cfg.weight_decay * param if k in ("W", "A", "B") else 0.0
+                velocity[k] = cfg.momentum * velocity[k] + rates[k] * (grads[k] - decay)
+                setattr(crbm, k, param + velocity[k])
+            err_sum += float(((v0 - vk) ** 2).sum())
+            count += n * K
+        model.reconstruction_errors.append(err_sum / count)
+        if not math.isfinite(model.reconstruction_errors[-1]):
+            raise InputError(f"CRBM training diverged at epoch {epoch + 1} (reconstruction error is not finite); "
+                             "lower the learning rate")
+        if progress is not None:
+            progress(epoch + 1, model.reconstruction_errors[-1])
+        if checkpoint is not None and (epoch + 1) % checkpoint[1] == 0:
+            model.training_seconds = time.perf_counter() - t0
+            model.save(checkpoint[0])
+    model.training_seconds = time.perf_counter() - t0
+    return model
+
+
+# ---------------------------------------------------------------------------
+# As a tracking prior
+# ---------------------------------------------------------------------------
+
+class CRBMPrior(MotionPrior):
+    """Samples every particle's next pose from its own history with a CRBM (one batch, torch).
+
+    Given several models (e.g. orders 1, 3, 6) the highest order whose history is available is used, so
+    higher orders start by "growing" the history with lower ones (Taylor 2009, Sec. 6.4). The filter keeps
+    ``order`` = the highest order poses per particle; the prior's own per-particle state is the pending
+    step (forward, lateral velocity, yaw rate) of the newest history frame, which the previous sample
+    chose: with forward differences a frame's features hold the step *to the next* frame.
+    """
+
+    name = "crbm"
+
+    def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = 30, noise: float = 0.0, seed: int = 0,
+                 device: str = "cpu"):
+        if not models:
+            raise InputError("the CRBM prior needs at least one model")
+        self.models = sorted(models, key=lambda m: m.order)
+        first = self.models[0]
+        for m in self.models[1:]:
+            if m.dof_names != first.dof_names or abs(m.fps - first.fps) > 1e-6 or m.body_model != first.body_model:
+                raise InputError("CRBM models for one prior must share body model, pose layout and frame rate")
+        if gibbs_steps < 1:
+            raise InputError(f"Gibbs steps must be at least 1, got {gibbs_steps}")
+        self.order = self.models[-1].order
+        self.gibbs_steps = gibbs_steps
+        self.noise = float(noise)
+        self.device = torch.device(device)
+        self.generator = torch.Generator(device=self.device).manual_seed(seed)
+        for m in self.models:
+            m.crbm.W, m.crbm.A, m.crbm.B, m.crbm.a, m.crbm.b = (
+                getattr(m.crbm, k).to(self.device) for k in CRBM.PARAMS)
+
+    def model_for(self, available: int) -> CRBMModel:
+        usable = [m for m in self.models if m.order <= available]
+        return usable[-1] if usable else self.models[0]
+
+    def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
+        """The pending step of the last known frame: the step between the last two known poses (or none)."""
+        known = np.atleast_2d(known)
+        if len(known) >= 2:
+            step = poses_to_invariant(known[-2:])[-1, STEP_FEATURES]
+        else:
+            step = np.zeros(len(STEP_FEATURES))
+        # The generator follows the filter's seed, so runs are reproducible per seed.
+        self.generator.manual_seed(int(rng.integers(2 ** 62)))
+        return np.repeat(step[None], n_particles, axis=0)
+
+    def sample(self, history: np.ndarray, available: int, state: PriorState,
+               rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
+        model = self.model_for(available)
+        n = model.order
+        feats = poses_to_invariant(history[:, -n - 1:] if history.shape[1] > n else
+                                   np.concatenate([history[:, :1], history], axis=1))[:, -n:]
+        feats[:, -1, STEP_FEATURES] = state
+        z = model.normaliser.transform(feats)  # P x n x K
+        hist = torch.tensor(z.reshape(len(z), -1), dtype=torch.float32, device=self.device)
+        with torch.no_grad():
+            v = model.crbm.gibbs(hist, self.gibbs_steps, self.generator)
+            if self.noise > 0:
+                v = v + self.noise * torch.randn(v.shape, generator=self.generator, device=self.device)
+        f_next = model.normaliser.inverse(v.cpu().double().numpy())
+        poses = next_poses(history[:, -1], feats[:, -1], f_next)
+        return poses, f_next[:, STEP_FEATURES]
+
+    def diffusion_std(self) -> np.ndarray:
+        return self.models[-1].pose_step_rms
