@@ -77,6 +77,12 @@ class CRBMConfig:
         return self
 
 
+def bernoulli(p: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
+    """Binary samples with probabilities ``p`` (``torch.rand < p``: several times faster than
+    ``torch.bernoulli`` with an explicit generator on CPU)."""
+    return (torch.rand(p.shape, generator=generator, device=p.device, dtype=p.dtype) < p).to(p.dtype)
+
+
 class CRBM:
     """Parameters and inference of one CRBM (float32 tensors on one device)."""
 
@@ -108,6 +114,7 @@ class CRBM:
     def hidden_probabilities(self, v: torch.Tensor, b_hat: torch.Tensor) -> torch.Tensor:
         return torch.sigmoid(v @ self.W + b_hat)
 
+
     def free_energy(self, v: torch.Tensor, history: torch.Tensor) -> torch.Tensor:
         """Free energy ``(B,)`` of frames ``v`` ``B x K`` given histories (eq. 4.18)."""
         a_hat, b_hat = self.biases(history)
@@ -124,7 +131,7 @@ class CRBM:
         v = history[:, -self.n_visible:] if init is None else init
         for step in range(steps):
             p = self.hidden_probabilities(v, b_hat)
-            h = p if step == steps - 1 else torch.bernoulli(p, generator=generator)
+            h = p if step == steps - 1 else bernoulli(p, generator)
             v = a_hat + h @ self.W.T
         return v
 
@@ -302,12 +309,12 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
                 hist = hist + torch.randn(hist.shape, generator=g, device=device) * noise
             a_hat, b_hat = crbm.biases(hist)
             p0 = crbm.hidden_probabilities(v0, b_hat)
-            h0 = torch.bernoulli(p0, generator=g)
+            h0 = bernoulli(p0, g)
             h = h0
             for _ in range(cfg.cd_k):
                 vk = a_hat + h @ crbm.W.T
                 pk = crbm.hidden_probabilities(vk, b_hat)
-                h = torch.bernoulli(pk, generator=g)
+                h = bernoulli(pk, g)
             n = len(idx)
             dv, dh = v0 - vk, h0 - pk
             grads = {"W": (v0.T @ h0 - vk.T @ pk) / n, "A": hist.T @ dv / n, "B": hist.T @ dh / n,
@@ -346,7 +353,8 @@ class CRBMPrior(MotionPrior):
     """Samples every particle's next pose from its own history with a CRBM (one batch, torch).
 
     Given several models (e.g. orders 1, 3, 6) the highest order whose history is available is used, so
-    higher orders start by "growing" the history with lower ones (Taylor 2009, Sec. 6.4). The filter keeps
+    higher orders start by "growing" the history with lower ones (Taylor 2009, Sec. 6.4). ``mode`` is
+    ``'gibbs'`` (samples, for tracking) or ``'free-energy'`` (the best guess, for prediction). The filter keeps
     ``order`` = the highest order poses per particle; the prior's own per-particle state is the pending
     step (forward, lateral velocity, yaw rate) of the newest history frame, which the previous sample
     chose: with forward differences a frame's features hold the step *to the next* frame.
@@ -355,7 +363,7 @@ class CRBMPrior(MotionPrior):
     name = "crbm"
 
     def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = 30, noise: float = 0.0, seed: int = 0,
-                 device: str = "cpu"):
+                 device: str = "cpu", mode: str = "gibbs"):
         if not models:
             raise InputError("the CRBM prior needs at least one model")
         self.models = sorted(models, key=lambda m: m.order)
@@ -365,6 +373,9 @@ class CRBMPrior(MotionPrior):
                 raise InputError("CRBM models for one prior must share body model, pose layout and frame rate")
         if gibbs_steps < 1:
             raise InputError(f"Gibbs steps must be at least 1, got {gibbs_steps}")
+        if mode not in ("gibbs", "free-energy"):
+            raise InputError(f"CRBM prior mode must be 'gibbs' or 'free-energy', got {mode!r}")
+        self.mode = mode
         self.order = self.models[-1].order
         self.gibbs_steps = gibbs_steps
         self.noise = float(noise)
@@ -398,8 +409,11 @@ class CRBMPrior(MotionPrior):
         feats[:, -1, STEP_FEATURES] = state
         z = model.normaliser.transform(feats)  # P x n x K
         hist = torch.tensor(z.reshape(len(z), -1), dtype=torch.float32, device=self.device)
+        if self.mode == "free-energy":  # the deterministic best guess (eq. 4.19)
+            v = model.crbm.best_guess(hist)
         with torch.no_grad():
-            v = model.crbm.gibbs(hist, self.gibbs_steps, self.generator)
+            if self.mode == "gibbs":
+                v = model.crbm.gibbs(hist, self.gibbs_steps, self.generator)
             if self.noise > 0:
                 v = v + self.noise * torch.randn(v.shape, generator=self.generator, device=self.device)
         f_next = model.normaliser.inverse(v.cpu().double().numpy())

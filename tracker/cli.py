@@ -96,13 +96,40 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--out", help="output image (.png)")
     w.add_argument("--video", help="also write every frame to this video (.mp4)")
 
+    r = sub.add_parser("train", help="train a learned motion prior (CRBM) on mocap clips",
+                       description="Retarget the clips to the 15-cone model at --fps, convert them to the invariant "
+                                   "representation and train a CRBM with contrastive divergence; the model file keeps "
+                                   "its normalisation statistics and the data settings it was trained with.")
+    r.add_argument("--prior", required=True, choices=["crbm"], help="which prior to train")
+    r.add_argument("--mocap", required=True, nargs="+", metavar="FILE", help="training clips (.amc or .bvh)")
+    r.add_argument("--skeleton", nargs="+", metavar="ASF",
+                   help="ASF skeleton(s): one for all .amc clips or one per clip (default: <subject>.asf beside each)")
+    r.add_argument("--fps", type=_positive_float, default=60.0, help="frame rate of the training data (default 60)")
+    r.add_argument("--order", type=_positive_int, default=3, help="CRBM order N (default 3)")
+    r.add_argument("--hidden", type=_positive_int, default=150, help="hidden units (default 150)")
+    r.add_argument("--epochs", type=_positive_int, default=500, help="passes through the data (default 500)")
+    r.add_argument("--cd-k", type=_positive_int, default=10, help="Gibbs steps of contrastive divergence (default 10)")
+    r.add_argument("--batch-size", type=_positive_int, default=100, help="windows per mini-batch (default 100)")
+    r.add_argument("--history-noise", default="auto",
+                   help="std of the noise added to the history in training (normalised units), or 'auto' (default)")
+    r.add_argument("--sparsity", type=float, default=None, metavar="TARGET",
+                   help="target mean activation of the hidden units (default: no sparsity term)")
+    r.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    r.add_argument("--checkpoint-every", type=_positive_int, default=None, metavar="EPOCHS",
+                   help="also save the model every this many epochs")
+    r.add_argument("--out", required=True, help="output model file (.pt)")
+
     t = sub.add_parser("track", help="track a person through a sequence with a particle filter",
                        description="Track a sequence (our layout or PARSEC bodytrack) with an SIR particle filter "
                                    "and an edge + silhouette likelihood; writes OUTDIR/result.json and "
                                    "OUTDIR/estimates.npz.")
     t.add_argument("sequence", metavar="DIR", help="sequence folder")
-    t.add_argument("--prior", required=True, choices=["zero-velocity", "constant-velocity"],
+    t.add_argument("--prior", required=True, choices=["zero-velocity", "constant-velocity", "crbm"],
                    help="motion prior")
+    t.add_argument("--model", nargs="+", metavar="MODEL",
+                   help="trained prior model(s); for crbm several orders (e.g. 1 and 3) grow the history")
+    t.add_argument("--gibbs-steps", type=_positive_int, default=30,
+                   help="CRBM: alternating Gibbs steps per sample (default 30)")
     t.add_argument("--particles", type=_positive_int, default=1000, help="number of particles (default 1000)")
     t.add_argument("--views", default=None, help="comma-separated camera indices (default: all)")
     t.add_argument("--frames", type=_positive_int, default=None,
@@ -426,6 +453,72 @@ def overlay_frames(seq, poses: np.ndarray, views: list[int], errors=None, first:
                     for i, v in enumerate(views)])
 
 
+def _training_clips(files: list[str], skeletons: list[str] | None, fps: float):
+    from data_tools.load import load_mocap
+    from data_tools.retarget import retarget
+
+    if skeletons and len(skeletons) not in (1, len(files)):
+        raise InputError(f"give one --skeleton for all clips or one per clip ({len(files)}), got {len(skeletons)}")
+    results = []
+    for i, f in enumerate(files):
+        skel = None if not skeletons else skeletons[0 if len(skeletons) == 1 else i]
+        if skel is not None and not str(f).lower().endswith(".amc"):
+            skel = None
+        results.append(retarget(load_mocap(f, skel), fps=fps))
+    return results
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from priors.crbm import CRBMConfig, train_crbm
+
+    out = Path(args.out)
+    noise = args.history_noise
+    if noise != "auto":
+        try:
+            noise = float(noise)
+        except ValueError:
+            raise InputError(f"--history-noise must be 'auto' or a number, got {noise!r}") from None
+    config = CRBMConfig(order=args.order, hidden=args.hidden, epochs=args.epochs, cd_k=args.cd_k,
+                        batch_size=args.batch_size, history_noise=noise, sparsity_target=args.sparsity,
+                        seed=args.seed).check()
+    results = _training_clips(args.mocap, args.skeleton, args.fps)
+    model0 = results[0].model
+    frames = sum(len(r.poses) for r in results)
+    print(f"training a CRBM of order {args.order} with {args.hidden} hidden units on {len(results)} clip(s), "
+          f"{frames} frames at {args.fps:g} fps")
+    with tqdm(total=args.epochs, desc="CD-%d" % args.cd_k, unit="epoch") as bar:
+        def progress(epoch: int, err: float) -> None:
+            bar.update(1)
+            bar.set_postfix(reconstruction=f"{err:.4f}")
+
+        model = train_crbm([r.poses for r in results], config, args.fps, model0.dof_names, model0.name,
+                           [str(f) for f in args.mocap], progress,
+                           (out, args.checkpoint_every) if args.checkpoint_every else None)
+    model.save(out)
+    errs = model.reconstruction_errors
+    print(f"reconstruction error {errs[0]:.4f} (epoch 1) -> {errs[-1]:.4f} (epoch {len(errs)}), "
+          f"{model.training_seconds:.1f} s -> {out}")
+    return 0
+
+
+def build_prior(args: argparse.Namespace, seq):
+    """The prior named on the command line, checked against the sequence."""
+    if args.prior in ("zero-velocity", "constant-velocity"):
+        if args.model:
+            raise InputError(f"--model is for learned priors; {args.prior} takes its scale from --train-mocap")
+        return build_random_walk_prior(args.prior, seq, args.train_mocap, args.prior_scale)
+    from priors.crbm import CRBMPrior, load_crbm
+
+    if not args.model:
+        raise InputError("--prior crbm needs --model MODEL (train one with python -m tracker train --prior crbm)")
+    models = [load_crbm(m) for m in args.model]
+    for path, m in zip(args.model, models):
+        m.check_compatible(seq.model.name, seq.model.dof_names, seq.fps, path)
+    return CRBMPrior(models, gibbs_steps=args.gibbs_steps, seed=args.seed)
+
+
 def cmd_track(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
@@ -439,7 +532,7 @@ def cmd_track(args: argparse.Namespace) -> int:
     views = _parse_views(args.views, seq.n_views)
     if args.frames is not None and args.frames > seq.n_frames:
         raise InputError(f"--frames {args.frames} is past the end of the sequence ({seq.n_frames} frames)", seq.root)
-    prior = build_random_walk_prior(args.prior, seq, args.train_mocap, args.prior_scale)
+    prior = build_prior(args, seq)
     init = _read_init(args.init) if args.init else None
     settings = FilterSettings(n_particles=args.particles, resampling=args.resampling,
                               annealing_layers=args.annealing_layers)
@@ -474,7 +567,8 @@ def cmd_track(args: argparse.Namespace) -> int:
     return 0
 
 
-COMMANDS = {"convert": cmd_convert, "synth": cmd_synth, "show": cmd_show, "track": cmd_track, "demo": cmd_demo}
+COMMANDS = {"convert": cmd_convert, "synth": cmd_synth, "show": cmd_show, "train": cmd_train, "track": cmd_track,
+            "demo": cmd_demo}
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -1,0 +1,143 @@
+"""CRBM prior: training, scoring, generation, save/load, compatibility checks, CLI."""
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import torch
+
+from priors.crbm import CRBMConfig, CRBMPrior, load_crbm, make_windows, train_crbm
+from tracker.body import DOF_NAMES
+from tracker.errors import InputError
+from tracker.representation import poses_to_invariant
+
+
+@pytest.fixture(scope="module")
+def walks(mocap_dir):
+    """The four training walks of subject 7 at 60 Hz (07_11 stays held out)."""
+    from data_tools.asf_amc import asf_amc_clip
+    from data_tools.retarget import retarget
+
+    asf = mocap_dir / "07" / "07.asf"
+    return [retarget(asf_amc_clip(asf, mocap_dir / "07" / f"07_{i}.amc"), fps=60).poses
+            for i in ("01", "02", "09", "10")]
+
+
+@pytest.fixture(scope="module")
+def crbm3(walks):
+    return train_crbm(walks, CRBMConfig(order=3, hidden=100, epochs=150, seed=1), 60.0, DOF_NAMES)
+
+
+def test_windows_are_indexed_not_copied(walks):
+    data = make_windows(walks[:2], 3, DOF_NAMES)
+    n0 = len(walks[0]) - 1  # each clip's last frame (a repeated step) is dropped
+    assert data.frames.shape[0] == n0 + len(walks[1]) - 1
+    assert len(data.starts) == (n0 - 3) + (len(walks[1]) - 1 - 3)
+    assert not np.any((data.starts.numpy() > n0 - 4) & (data.starts.numpy() < n0))  # none straddles clips
+
+
+def test_contrastive_divergence_lowers_reconstruction_error(crbm3):
+    errs = crbm3.reconstruction_errors
+    assert len(errs) == 150 and errs[-1] < 0.4 * errs[0] and np.mean(errs[-10:]) < np.mean(errs[:10])
+
+
+def test_training_is_deterministic(walks):
+    cfg = CRBMConfig(order=1, hidden=20, epochs=3, seed=5)
+    a = train_crbm(walks[:1], cfg, 60.0, DOF_NAMES).crbm.state_dict()
+    b = train_crbm(walks[:1], cfg, 60.0, DOF_NAMES).crbm.state_dict()
+    assert all(torch.equal(a[k], b[k]) for k in a)
+
+
+def test_free_energy_lower_on_real_than_time_shuffled(crbm3, walk_07_11):
+    held_out = walk_07_11.poses
+    real = make_windows([held_out], 3, DOF_NAMES, crbm3.normaliser)
+    shuffled_poses = held_out[np.random.default_rng(0).permutation(len(held_out))]
+    fake = make_windows([shuffled_poses], 3, DOF_NAMES, crbm3.normaliser)
+
+    def mean_free_energy(data):
+        idx = data.starts[:, None] + torch.arange(4)
+        w = data.frames[idx]
+        return float(crbm3.crbm.free_energy(w[:, -1], w[:, :-1].reshape(len(w), -1)).mean())
+
+    assert mean_free_energy(real) < mean_free_energy(fake) - 10.0
+
+
+def test_free_energy_descent_finds_a_minimum(crbm3, walks):
+    data = make_windows(walks[:1], 3, DOF_NAMES, crbm3.normaliser)
+    idx = data.starts[:50, None] + torch.arange(4)
+    w = data.frames[idx]
+    hist = w[:, :-1].reshape(50, -1)
+    start = w[:, -2]
+    best = crbm3.crbm.best_guess(hist, init=start)
+    assert float(crbm3.crbm.free_energy(best, hist).sum()) < float(crbm3.crbm.free_energy(start, hist).sum())
+    v = best.clone().requires_grad_(True)
+    crbm3.crbm.free_energy(v, hist).sum().backward()
+    assert float(v.grad.abs().max()) < 1e-2
+
+
+def test_generated_walk_stays_in_range_and_keeps_walking(crbm3, walks):
+    prior = CRBMPrior([crbm3], gibbs_steps=30, seed=3)
+    start = walks[0][:4]
+    state = prior.start(start, 1, np.random.default_rng(0))
+    hist = start[None, -3:]
+    out = []
+    for _ in range(500):
+        x, state = prior.sample(hist, 3, state, None)
+        hist = np.concatenate([hist[:, 1:], x[:, None]], axis=1)
+        out.append(x[0])
+    gen = poses_to_invariant(np.array(out))
+    train = np.concatenate([poses_to_invariant(w) for w in walks])
+    assert np.all(np.isfinite(gen))
+    span = train.max(0) - train.min(0)
+    # Within the training range, up to a quarter of its span (measured: head_x, the worst, 12% beyond).
+    assert np.all(gen.min(0) >= train.min(0) - 0.25 * span) and np.all(gen.max(0) <= train.max(0) + 0.25 * span)
+    speed = gen[-200:, 0].mean()  # forward mm per frame
+    per_clip = [poses_to_invariant(w)[:, 0].mean() for w in walks]
+    assert min(per_clip) * 0.8 < speed < max(per_clip) * 1.2
+    knee = np.array(out)[-120:, DOF_NAMES.index("left_knee_flexion")]
+    assert np.ptp(knee) > 0.5  # still stepping (training walks swing the knee through ~1.2 rad)
+
+
+def test_save_load_gives_identical_samples(crbm3, walks, tmp_path):
+    crbm3.save(tmp_path / "m.pt")
+    loaded = load_crbm(tmp_path / "m.pt")
+    hist = np.repeat(walks[1][None, 10:13], 64, axis=0)
+
+    def draw(model):
+        prior = CRBMPrior([model], gibbs_steps=10)
+        state = prior.start(walks[1][:13], 64, np.random.default_rng(9))
+        return prior.sample(hist, 3, state, None)[0]
+
+    assert np.array_equal(draw(crbm3), draw(loaded))
+    assert loaded.fps == 60.0 and loaded.order == 3 and loaded.dof_names == list(DOF_NAMES)
+
+
+def test_model_and_sequence_mismatch_is_refused(crbm3, tmp_path):
+    with pytest.raises(InputError, match="30 fps .trained at 60 fps"):
+        crbm3.check_compatible("15-cone", DOF_NAMES, 30.0)
+    with pytest.raises(InputError, match="body model 'bodytrack-10-cone'"):
+        crbm3.check_compatible("bodytrack-10-cone", [f"d{i}" for i in range(31)], None)
+    (tmp_path / "junk.pt").write_bytes(b"not a model")
+    with pytest.raises(InputError, match="cannot read model file"):
+        load_crbm(tmp_path / "junk.pt")
+
+
+def test_train_and_track_cli(mocap_dir, walk_32_frames, tmp_path):
+    model = tmp_path / "c1.pt"
+    amc = str(mocap_dir / "07" / "07_01.amc")
+    r = subprocess.run([sys.executable, "-m", "tracker", "train", "--prior", "crbm", "--mocap", amc, "--order", "1",
+                        "--epochs", "20", "--hidden", "30", "--out", str(model)], capture_output=True, text=True)
+    assert r.returncode == 0 and "reconstruction error" in r.stdout, r.stderr[-500:]
+    r = subprocess.run([sys.executable, "-m", "tracker", "track", str(walk_32_frames.root), "--prior", "crbm",
+                        "--model", str(model), "--particles", "100", "--frames", "5", "--out", str(tmp_path / "t")],
+                       capture_output=True, text=True)
+    assert r.returncode == 0 and "crbm" in r.stdout, r.stderr[-500:]
+    for args, expected in [(["train", "--prior", "crbm", "--mocap", amc, "--order", "0", "--out", str(model)],
+                            "must be at least 1"),
+                           (["track", str(walk_32_frames.root), "--prior", "crbm", "--out", str(tmp_path / "u")],
+                            "needs --model"),
+                           (["track", str(walk_32_frames.root), "--prior", "crbm", "--model", str(tmp_path / "no.pt"),
+                             "--out", str(tmp_path / "u")], "model file not found")]:
+        r = subprocess.run([sys.executable, "-m", "tracker", *args], capture_output=True, text=True)
+        last = r.stderr.strip().splitlines()[-1]
+        assert r.returncode == 2 and expected in last and "Traceback" not in r.stderr, (args, r.stderr[-300:])
