@@ -47,6 +47,7 @@ def test_demo(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path), "--frames", "8"]) == 0
     out = capsys.readouterr().out
     assert "07_02" in out and "mean marker error" in out and "mocap.cs.cmu.edu" in out
-    res = json.loads((tmp_path / "track" / "result.json").read_text())
-    assert res["frames"] == 6 and res["mean_error_mm"] < 100
+    for name in ("zero-velocity", "crbm"):
+        res = json.loads((tmp_path / f"track_{name}" / "result.json").read_text())
+        assert res["frames"] == 6 and res["mean_error_mm"] < 100 and res["prior"] == name
     assert (tmp_path / "overlay.mp4").stat().st_size > 1000 and (tmp_path / "error_per_frame.png").exists()

@@ -130,6 +130,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="trained prior model(s); for crbm several orders (e.g. 1 and 3) grow the history")
     t.add_argument("--gibbs-steps", type=_positive_int, default=30,
                    help="CRBM: alternating Gibbs steps per sample (default 30)")
+    t.add_argument("--root-noise", type=_non_negative_float, default=5.0, metavar="MM",
+                   help="CRBM: ground-plane diffusion of each sample in mm (default 5)")
     t.add_argument("--particles", type=_positive_int, default=1000, help="number of particles (default 1000)")
     t.add_argument("--views", default=None, help="comma-separated camera indices (default: all)")
     t.add_argument("--frames", type=_positive_int, default=None,
@@ -156,9 +158,10 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--video", help="also write an overlay video of the estimates (.mp4)")
 
     d = sub.add_parser("demo", help="render, track and score a shipped walk (the built-in default job)",
-                       description="Render 1.5 s of the shipped CMU walk 07_02 into 4 cameras, track it with the "
-                                   "zero-velocity prior (1000 particles), print the marker error and write the "
-                                   "error-per-frame plot and an overlay video.")
+                       description="Render 1.5 s of the shipped CMU walk 07_02 into 4 cameras, train a CRBM on "
+                                   "the other shipped walk, track with the zero-velocity and the CRBM prior (1000 "
+                                   "particles), print both errors and write the error-per-frame plot and an "
+                                   "overlay video.")
     d.add_argument("--out", default="demo_output", help="output folder (default ./demo_output)")
     d.add_argument("--frames", type=_number(int, 4, strict=False), default=90,
                    help="frames to render and track (default 90: 1.5 s)")
@@ -218,31 +221,41 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from data_tools.samples import CMU_ATTRIBUTION, sample_walks
     from data_tools.sequence import read_sequence
     from data_tools.synth import SynthSettings, synthesize
+    from priors.crbm import CRBMConfig, CRBMPrior, train_crbm
     from priors.random_walk import ZeroVelocityPrior, step_rms
     from tracker.experiment import track
     from tracker.filter import FilterSettings
 
     out = Path(args.out)
     asf, walks = sample_walks()
-    train, test = walks  # 07_01 sets the random-walk scale, 07_02 is rendered and tracked
-    print(f"1/3 Rendering {args.frames} frames of CMU walk {test.stem} into 4 cameras (60 Hz, 640x480)")
+    train, test = walks  # 07_01 trains the priors, 07_02 is rendered and tracked
+    print(f"1/4 Rendering {args.frames} frames of CMU walk {test.stem} into 4 cameras (60 Hz, 640x480)")
     result = retarget(load_mocap(test, asf), fps=60.0)
     synthesize(result, out / "sequence", SynthSettings(frames=args.frames), source=f"{test.name} (shipped sample)",
                progress=lambda it: tqdm(it, desc="rendering", unit="frame"))
     seq = read_sequence(out / "sequence")
-    prior = ZeroVelocityPrior(step_rms([retarget(load_mocap(train, asf), fps=60.0).poses]))
-    print(f"2/3 Tracking with the zero-velocity prior (scale from {train.stem}), 1000 particles, 4 views")
-    with tqdm(total=args.frames - 2, desc="tracking", unit="frame") as bar:
-        run = track(seq, prior, FilterSettings(n_particles=1000), seed=0,
-                    on_frame=lambda k, e: (bar.update(1), bar.set_postfix(error_mm=f"{e:.0f}")))
-    res = write_results(out / "track", run, seq, prior.name, 1000, 0, {})
-    print(f"   mean marker error {res['mean_error_mm']:.1f} ± {res['std_error_mm']:.1f} mm over {res['frames']} "
-          f"frames, {run.seconds_per_frame:.3f} s per frame -> {out / 'track'}")
-    print("3/3 Writing the error plot and the overlay video")
-    frames = np.arange(run.first_tracked, len(run.poses))
-    error_plot(out / "error_per_frame.png", {"zero-velocity": (frames, run.errors)},
-               f"Tracking CMU {test.stem}, 4 views, 1000 particles")
-    write_video(out / "overlay.mp4", overlay_frames(seq, run.poses, run.views, run.errors, run.first_tracked),
+    train_poses = retarget(load_mocap(train, asf), fps=60.0).poses
+    print(f"2/4 Training a first-order CRBM (150 hidden units, CD-10, 300 epochs) on {train.stem}")
+    crbm = train_crbm([train_poses], CRBMConfig(order=1, hidden=150, epochs=300), 60.0, seq.model.dof_names,
+                      seq.model.name, [train.name])
+    crbm.save(out / "crbm1.pt")
+    print(f"   {crbm.training_seconds:.1f} s, reconstruction error {crbm.reconstruction_errors[0]:.3f} -> "
+          f"{crbm.reconstruction_errors[-1]:.3f} -> {out / 'crbm1.pt'}")
+    priors = {"zero-velocity": ZeroVelocityPrior(step_rms([train_poses])), "crbm": CRBMPrior([crbm])}
+    print("3/4 Tracking with each prior, 1000 particles, 4 views, seed 0")
+    runs = {}
+    for name, prior in priors.items():
+        with tqdm(total=args.frames - 2, desc=name, unit="frame") as bar:
+            runs[name] = track(seq, prior, FilterSettings(n_particles=1000), seed=0,
+                               on_frame=lambda k, e: (bar.update(1), bar.set_postfix(error_mm=f"{e:.0f}")))
+        res = write_results(out / f"track_{name}", runs[name], seq, name, 1000, 0, {})
+        print(f"   {name}: mean marker error {res['mean_error_mm']:.1f} ± {res['std_error_mm']:.1f} mm over "
+              f"{res['frames']} frames, {runs[name].seconds_per_frame:.3f} s per frame -> {out / f'track_{name}'}")
+    print("4/4 Writing the error plot and the overlay video (CRBM estimates)")
+    curves = {name: (np.arange(r.first_tracked, len(r.poses)), r.errors) for name, r in runs.items()}
+    error_plot(out / "error_per_frame.png", curves, f"Tracking CMU {test.stem}, 4 views, 1000 particles")
+    best = runs["crbm"]
+    write_video(out / "overlay.mp4", overlay_frames(seq, best.poses, best.views, best.errors, best.first_tracked),
                 seq.fps)
     print(f"   {out / 'error_per_frame.png'}, {out / 'overlay.mp4'}")
     print(CMU_ATTRIBUTION)
@@ -516,7 +529,7 @@ def build_prior(args: argparse.Namespace, seq):
     models = [load_crbm(m) for m in args.model]
     for path, m in zip(args.model, models):
         m.check_compatible(seq.model.name, seq.model.dof_names, seq.fps, path)
-    return CRBMPrior(models, gibbs_steps=args.gibbs_steps, seed=args.seed)
+    return CRBMPrior(models, gibbs_steps=args.gibbs_steps, seed=args.seed, root_noise_mm=args.root_noise)
 
 
 def cmd_track(args: argparse.Namespace) -> int:
