@@ -73,7 +73,8 @@ class EdgeSilhouetteLikelihood:
 
     def _cost_maps(self, obs: Observations) -> "_CostMaps":
         if self._prepared is None or self._prepared[0] != id(obs):
-            self._prepared = (id(obs), _CostMaps.of(obs))
+            n_fg = self.params.n_foreground if self.params.bidirectional else 0
+            self._prepared = (id(obs), _CostMaps.of(obs, n_fg))
         return self._prepared[1]
 
     def terms(self, poses: np.ndarray, obs: Observations) -> LikelihoodTerms:
@@ -142,22 +143,25 @@ PAD = 32
 
 
 class _CostMaps:
-    """Per-frame cost maps ``(1 - edge)^2`` and ``(1 - silhouette)^2``, padded with cost 1, flattened."""
+    """Per-frame cost maps ``(1 - edge)^2`` and ``(1 - silhouette)^2``, padded with cost 1, flattened, and
+    (for the bidirectional term) a fixed sample of foreground pixels per view."""
 
-    def __init__(self, edge: np.ndarray, silhouette: np.ndarray):
+    def __init__(self, edge: np.ndarray, silhouette: np.ndarray, foreground: list[np.ndarray]):
         V, self.Hp, self.Wp = edge.shape
+        self.foreground = foreground
         self.edge = edge.reshape(-1)
         self.silhouette = silhouette.reshape(-1)
         self.view_offset = (np.arange(V, dtype=np.int32) * (self.Hp * self.Wp))[None, :, None, None]
 
     @classmethod
-    def of(cls, obs: Observations) -> "_CostMaps":
+    def of(cls, obs: Observations, n_foreground: int = 0) -> "_CostMaps":
         def padded(m: np.ndarray) -> np.ndarray:
             V, H, W = m.shape
             out = np.ones((V, H + 2 * PAD, W + 2 * PAD), np.float32)
             out[:, PAD:PAD + H, PAD:PAD + W] = (1.0 - m) ** 2
             return out
-        return cls(padded(obs.edges), padded(obs.silhouettes))
+        fg = [foreground_sample(sil, n_foreground) for sil in obs.silhouettes] if n_foreground else []
+        return cls(padded(obs.edges), padded(obs.silhouettes), fg)
 
     def flat_index(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Flat indices of the nearest pixels to ``(x, y)`` ``p x V x S x N`` (clamped to the border)."""
@@ -175,14 +179,15 @@ def foreground_sample(silhouette: np.ndarray, n: int) -> np.ndarray:
     return np.stack([xs[idx], ys[idx]], axis=1).astype(np.float32)
 
 
-def _uncovered(corners: np.ndarray, obs: Observations, n: int) -> np.ndarray:
-    """Fraction ``p x V`` of sampled foreground pixels outside every projected cone (a cone's projection is
-    taken as the quadrilateral of its contour lines' end points, ``corners`` ``p x V x S x 4 x 2``)."""
+def _uncovered(corners: np.ndarray, foreground: list[np.ndarray]) -> np.ndarray:
+    """Fraction ``p x V`` of the sampled foreground pixels (``F x 2`` per view) outside every projected cone (a
+    cone's projection is taken as the quadrilateral of its contour lines' end points, ``corners``
+    ``p x V x S x 4 x 2``)."""
     p, V, S = corners.shape[:3]
     out = np.zeros((p, V))
     quads = corners[..., [0, 1, 3, 2], :]  # around the quadrilateral
     for v in range(V):  # views only; particles, segments and pixels are batched
-        fg = foreground_sample(obs.silhouettes[v], n)
+        fg = foreground[v]
         if len(fg) == 0:
             continue
         quad = quads[:, v]  # p S 4 2
