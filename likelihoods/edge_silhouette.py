@@ -121,7 +121,7 @@ class EdgeSilhouetteLikelihood:
         nc = self.n_contour
         edge = maps.edge.take(flat[..., :nc]).reshape(p, V, -1).mean(axis=-1)
         sil = maps.silhouette.take(flat[..., nc:]).reshape(p, V, -1).mean(axis=-1)
-        cover = _uncovered(corners, obs, self.params.n_foreground) if self.params.bidirectional else None
+        cover = _uncovered(corners, maps.foreground) if self.params.bidirectional else None
         return edge, sil, cover
 
 
