@@ -93,7 +93,7 @@ class EdgeSilhouetteLikelihood:
             block = slice(start, start + BLOCK)
             ok = valid[block]
             if ok.any():
-                e, s, c = self._block_costs(poses[block][ok], obs, maps)
+                e, s, c = self._block_costs(poses[block][ok], maps)
                 edge[block][ok], sil[block][ok] = e, s
                 if cover is not None:
                     cover[block][ok] = c
@@ -101,7 +101,7 @@ class EdgeSilhouetteLikelihood:
         ll = np.where(valid, -self.params.sharpness * total.sum(axis=1), -np.inf)
         return LikelihoodTerms(edge=edge, silhouette=sil, coverage=cover, log_likelihood=ll)
 
-    def _block_costs(self, poses: np.ndarray, obs: Observations, maps: "_CostMaps"):
+    def _block_costs(self, poses: np.ndarray, maps: "_CostMaps"):
         """Edge, silhouette and (optional) coverage costs ``p x V`` of poses within the limits."""
         V = len(self.rig)
         frames = forward_kinematics(self.model, poses).segment_frames()
