@@ -1,0 +1,339 @@
+"""Gaussian Process Dynamical Model (Wang 2005, Ch. 3-5), in torch float64: learning and mean prediction.
+
+Model, for latent coordinates ``X`` (``N x d``, several sequences in one shared
+space) and observations ``Y`` (``N x D``, normalised invariant features):
+
+* observation GP (eq. 3.5-3.6): ``k_Y(x, x') = b1 exp(-b2/2 |x - x'|^2) + delta / b3``,
+  with a per-dimension scale ``W`` (closed-form update, eq. 4.3);
+* dynamics GP (eq. 3.9), first order (input ``x_{t-1}``) or second order
+  (input ``[x_{t-1}, x_{t-2}]``, eq. 3.13), with an RBF kernel or linear+RBF
+  (eq. 3.10): ``a1 exp(-sum_k a_{1+k}/2 |x_k - x'_k|^2) [+ sum_k a_lin,k x_k^T x'_k] + delta / a_noise``.
+  Outputs are ``x_t`` for every frame with enough history in its own sequence;
+  the first frames of each sequence get an isotropic unit Gaussian prior.
+
+Learning minimises the negative log-posterior (eq. 4.2, with the balanced
+prior ``M sum ln b`` of eq. 5.2) over ``X`` and the log hyperparameters by
+L-BFGS with autograd; ``W`` is set in closed form every few iterations. Every
+log-determinant and solve goes through a Cholesky factor (no explicit
+inverse); a kernel matrix that is not positive definite raises an
+:class:`InputError` that says which one and why.
+
+Prediction (eqs. 4.4-4.5): ``mu_X(x) = X_out^T K_X^-1 k_X(x)``,
+``sigma_X^2(x) = k_X(x, x) - k_X(x)^T K_X^-1 k_X(x)``, and the same for the
+pose through the observation GP.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+import torch
+
+from tracker.errors import InputError
+
+FORMAT = "pose-tracker gpdm v1"
+DYNAMICS = ("rbf", "linear+rbf")
+
+
+@dataclass
+class GPDMConfig:
+    latent_dim: int = 3
+    dynamics: str = "linear+rbf"
+    order: int = 1
+    balance: float = 1.0
+    iterations: int = 300
+    w_update_every: int = 10
+    seed: int = 0
+
+    def check(self) -> "GPDMConfig":
+        if self.latent_dim < 1:
+            raise InputError(f"latent dimension must be at least 1, got {self.latent_dim}")
+        if self.dynamics not in DYNAMICS:
+            raise InputError(f"dynamics kernel must be one of {', '.join(DYNAMICS)}, got {self.dynamics!r}")
+        if self.order not in (1, 2):
+            raise InputError(f"GPDM order must be 1 or 2, got {self.order}")
+        if not self.balance > 0:
+            raise InputError(f"the balance M must be positive, got {self.balance}")
+        if self.iterations < 1 or self.w_update_every < 1:
+            raise InputError("iterations and the W update interval must be at least 1")
+        return self
+
+
+def _sqdist(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    return ((a[:, None, :] - b[None, :, :]) ** 2).sum(-1)
+
+
+def _cholesky(K: torch.Tensor, what: str) -> torch.Tensor:
+    L, info = torch.linalg.cholesky_ex(K)
+    if int(info) != 0:
+        raise InputError(f"the {what} kernel matrix is not positive definite (Cholesky failed at row {int(info)}): "
+                         "latent points coincide while the noise term is too small; check the data for repeated "
+                         "frames or lower the noise precision")
+    return L
+
+
+def dynamics_pairs(lengths: Sequence[int], order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the dynamics outputs ``(M,)`` and their inputs ``M x order`` (``x_{t-1}``, then ``x_{t-2}``)
+    into the concatenated frames of sequences of the given lengths."""
+    outs, ins, offset = [], [], 0
+    for n in lengths:
+        t = np.arange(order, n)
+        outs.append(offset + t)
+        ins.append(np.stack([offset + t - k for k in range(1, order + 1)], axis=1))
+        offset += n
+    return np.concatenate(outs), np.concatenate(ins).reshape(-1, order)
+
+
+def sequence_starts(lengths: Sequence[int], order: int) -> np.ndarray:
+    """Indices of each sequence's first ``order`` frames (they have no dynamics input)."""
+    offs = np.concatenate([[0], np.cumsum(lengths)[:-1]])
+    return np.concatenate([o + np.arange(min(order, n)) for o, n in zip(offs, lengths)])
+
+
+class GPDM:
+    """A GPDM's parameters (torch float64) and its objective and predictions."""
+
+    def __init__(self, Y: np.ndarray, lengths: Sequence[int], config: GPDMConfig, X: np.ndarray | None = None):
+        self.config = cfg = config.check()
+        Y = np.asarray(Y, float)
+        if Y.ndim != 2 or sum(lengths) != len(Y):
+            raise InputError(f"observations must be N x D with N = sum of sequence lengths, got {Y.shape} and "
+                             f"{list(lengths)}")
+        if min(lengths) <= cfg.order:
+            raise InputError(f"every sequence needs more than {cfg.order} frames for order-{cfg.order} dynamics")
+        self.Y = torch.tensor(Y, dtype=torch.float64)
+        self.lengths = [int(n) for n in lengths]
+        out_idx, in_idx = dynamics_pairs(self.lengths, cfg.order)
+        self.out_idx, self.in_idx = torch.tensor(out_idx), torch.tensor(in_idx)
+        self.start_idx = torch.tensor(sequence_starts(self.lengths, cfg.order))
+        d = cfg.latent_dim
+        if X is None:
+            X = pca_init(Y, d)
+        self.X = torch.tensor(X, dtype=torch.float64).requires_grad_(True)
+        n_rbf = cfg.order  # one inverse width per lag
+        n_lin = cfg.order if cfg.dynamics == "linear+rbf" else 0
+        self.log_alpha = torch.zeros(1 + n_rbf + n_lin + 1, dtype=torch.float64, requires_grad=True)
+        self.log_beta = torch.zeros(3, dtype=torch.float64, requires_grad=True)
+        with torch.no_grad():  # start with moderate noise: precision 100 for Y, 10 for the dynamics
+            self.log_beta[2] = math.log(100.0)
+            self.log_alpha[-1] = math.log(10.0)
+        self.W = torch.ones(Y.shape[1], dtype=torch.float64)
+        self.objective_history: list[float] = []
+        self.training_seconds = 0.0
+
+    # --- kernels -----------------------------------------------------------
+    def _k_y(self, A: torch.Tensor, B: torch.Tensor) -> torch.Tensor:
+        b = self.log_beta.exp()
+        return b[0] * torch.exp(-0.5 * b[1] * _sqdist(A, B))
+
+    def _k_x(self, A: torch.Tensor, B: torch.Tensor) -> torch.Tensor:
+        """Dynamics kernel between inputs ``n x (order d)`` (lags concatenated)."""
+        a = self.log_alpha.exp()
+        o, d = self.config.order, self.config.latent_dim
+        expo = torch.zeros(A.shape[0], B.shape[0], dtype=A.dtype)
+        for k in range(o):
+            expo = expo + a[1 + k] * _sqdist(A[:, k * d:(k + 1) * d], B[:, k * d:(k + 1) * d])
+        K = a[0] * torch.exp(-0.5 * expo)
+        if self.config.dynamics == "linear+rbf":
+            for k in range(o):
+                K = K + a[1 + o + k] * (A[:, k * d:(k + 1) * d] @ B[:, k * d:(k + 1) * d].T)
+        return K
+
+    def dynamics_inputs(self, X: torch.Tensor | None = None) -> torch.Tensor:
+        X = self.X if X is None else X
+        return X[self.in_idx].reshape(len(self.in_idx), -1)
+
+    # --- objective ---------------------------------------------------------
+    def objective(self) -> torch.Tensor:
+        """Negative log-posterior (eq. 4.2 / 5.2), up to a constant."""
+        cfg = self.config
+        X, Y = self.X, self.Y
+        N, D = Y.shape
+        d = cfg.latent_dim
+        a = self.log_alpha.exp()
+        b = self.log_beta.exp()
+        Xin = self.dynamics_inputs()
+        Xout = X[self.out_idx]
+        KX = self._k_x(Xin, Xin) + torch.eye(len(Xin), dtype=X.dtype) / a[-1]
+        LX = _cholesky(KX, "dynamics")
+        KY = self._k_y(X, X) + torch.eye(N, dtype=X.dtype) / b[2]
+        LY = _cholesky(KY, "observation")
+        half_logdet = lambda L: torch.log(torch.diagonal(L)).sum()  # noqa: E731  (= 1/2 ln|K|)
+        sx = torch.linalg.solve_triangular(LX, Xout, upper=False)
+        sy = torch.linalg.solve_triangular(LY, Y * self.W, upper=False)
+        dyn = d * half_logdet(LX) + 0.5 * (sx ** 2).sum() + self.log_alpha.sum()
+        rec = (-N * torch.log(self.W).sum() + D * half_logdet(LY) + 0.5 * (sy ** 2).sum()
+               + cfg.balance * self.log_beta.sum())
+        start = 0.5 * (X[self.start_idx] ** 2).sum()
+        return dyn + rec + start
+
+    def update_W(self) -> None:
+        """Closed-form scales (eq. 4.3): ``w_k = sqrt(N / (y_k^T K_Y^-1 y_k))``."""
+        with torch.no_grad():
+            N = self.Y.shape[0]
+            KY = self._k_y(self.X, self.X) + torch.eye(N, dtype=torch.float64) / self.log_beta.exp()[2]
+            LY = _cholesky(KY, "observation")
+            s = torch.linalg.solve_triangular(LY, self.Y, upper=False)
+            self.W = torch.sqrt(N / (s ** 2).sum(0).clamp_min(1e-12))
+
+    def parameters(self) -> list[torch.Tensor]:
+        return [self.X, self.log_alpha, self.log_beta]
+
+    # --- prediction --------------------------------------------------------
+    def prepare(self) -> "GPDMPredictor":
+        return GPDMPredictor.of(self)
+
+
+@dataclass
+class GPDMPredictor:
+    """Everything mean prediction needs, as plain tensors (no autograd)."""
+
+    config: GPDMConfig
+    X: torch.Tensor
+    Y: torch.Tensor
+    W: torch.Tensor
+    log_alpha: torch.Tensor
+    log_beta: torch.Tensor
+    in_idx: torch.Tensor
+    out_idx: torch.Tensor
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    @classmethod
+    def of(cls, m: GPDM) -> "GPDMPredictor":
+        return cls(m.config, m.X.detach().clone(), m.Y.clone(), m.W.clone(), m.log_alpha.detach().clone(),
+                   m.log_beta.detach().clone(), m.in_idx.clone(), m.out_idx.clone())
+
+    def _model(self) -> GPDM:
+        g = GPDM.__new__(GPDM)
+        g.config, g.X, g.Y, g.W = self.config, self.X, self.Y, self.W
+        g.log_alpha, g.log_beta, g.in_idx, g.out_idx = self.log_alpha, self.log_beta, self.in_idx, self.out_idx
+        return g
+
+    def _factors(self) -> dict:
+        if not self._cache:
+            g = self._model()
+            a, b = self.log_alpha.exp(), self.log_beta.exp()
+            Xin = g.dynamics_inputs()
+            KX = g._k_x(Xin, Xin) + torch.eye(len(Xin), dtype=torch.float64) / a[-1]
+            LX = _cholesky(KX, "dynamics")
+            KY = g._k_y(self.X, self.X) + torch.eye(len(self.X), dtype=torch.float64) / b[2]
+            LY = _cholesky(KY, "observation")
+            self._cache.update(g=g, Xin=Xin, LX=LX, LY=LY,
+                               alpha_X=torch.cholesky_solve(self.X[self.out_idx], LX),
+                               alpha_Y=torch.cholesky_solve(self.Y, LY))
+        return self._cache
+
+    def predict_latent(self, inputs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Mean ``B x d`` and variance ``(B,)`` of the next latent point for dynamics inputs ``B x (order d)``."""
+        f = self._factors()
+        k = f["g"]._k_x(inputs, f["Xin"])  # B x M
+        mean = k @ f["alpha_X"]
+        v = torch.linalg.solve_triangular(f["LX"], k.T, upper=False)
+        kxx = f["g"]._k_x(inputs[:1], inputs[:1])[0, 0] if self.config.dynamics == "rbf" else None
+        a = self.log_alpha.exp()
+        if kxx is None:  # linear term depends on the input
+            o, d = self.config.order, self.config.latent_dim
+            kxx = a[0] + sum(a[1 + o + j] * (inputs[:, j * d:(j + 1) * d] ** 2).sum(-1) for j in range(o))
+        var = kxx + 1.0 / a[-1] - (v ** 2).sum(0)
+        return mean, var.clamp_min(1e-12) * torch.ones(len(inputs), dtype=torch.float64)
+
+    def predict_pose(self, latent: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Mean ``B x D`` (normalised features) and per-dimension variance ``B x D`` of poses at latent points."""
+        f = self._factors()
+        k = f["g"]._k_y(latent, self.X)
+        mean = k @ f["alpha_Y"]
+        v = torch.linalg.solve_triangular(f["LY"], k.T, upper=False)
+        b = self.log_beta.exp()
+        var = (b[0] + 1.0 / b[2] - (v ** 2).sum(0)).clamp_min(1e-12)
+        return mean, var[:, None] / self.W[None, :] ** 2
+
+    def simulate(self, start: torch.Tensor, steps: int) -> torch.Tensor:
+        """Mean-prediction trajectory ``steps x d`` from ``start`` (``order x d``, newest last)."""
+        o, d = self.config.order, self.config.latent_dim
+        hist = [start[i] for i in range(o)]
+        out = []
+        for _ in range(steps):
+            inp = torch.cat([hist[-1 - k] for k in range(o)])[None]
+            x, _ = self.predict_latent(inp)
+            hist.append(x[0])
+            out.append(x[0])
+        return torch.stack(out)
+
+
+def pca_init(Y: np.ndarray, d: int) -> np.ndarray:
+    """The top ``d`` principal components of centred ``Y`` (``N x d``), scaled to unit variance per axis."""
+    Yc = Y - Y.mean(0)
+    U, S, _ = np.linalg.svd(Yc, full_matrices=False)
+    X = U[:, :d] * S[:d]
+    return X / X.std(0).clip(min=1e-12)
+
+
+def train_gpdm(Y: np.ndarray, lengths: Sequence[int], config: GPDMConfig,
+               progress: Callable[[int, float], None] | None = None) -> GPDM:
+    """Learn a GPDM on observations ``Y`` (``N x D``, sequences concatenated) by L-BFGS."""
+    t0 = time.perf_counter()
+    torch.manual_seed(config.seed)
+    model = GPDM(Y, lengths, config)
+    model.update_W()
+    opt = torch.optim.LBFGS(model.parameters(), lr=1.0, max_iter=config.w_update_every,
+                            line_search_fn="strong_wolfe", history_size=20)
+
+    def closure():
+        opt.zero_grad()
+        value = model.objective()
+        value.backward()
+        return value
+
+    done = 0
+    while done < config.iterations:
+        opt.step(closure)
+        model.update_W()
+        done += config.w_update_every
+        with torch.no_grad():
+            value = float(model.objective())
+        if not math.isfinite(value):
+            raise InputError("GPDM training diverged (the objective is not finite)")
+        model.objective_history.append(value)
+        if progress is not None:
+            progress(min(done, config.iterations), value)
+    model.training_seconds = time.perf_counter() - t0
+    return model
+
+
+# ---------------------------------------------------------------------------
+# Model files
+# ---------------------------------------------------------------------------
+
+def save_gpdm(path: str | Path, model: GPDM, extra: dict | None = None) -> None:
+    """Write a trained GPDM (latent points, data, scales, hyperparameters, config) and ``extra`` metadata
+    (plain values or tensors) to a ``torch.save`` file loadable with ``weights_only=True``."""
+    doc = {"format": FORMAT, "config": asdict(model.config), "lengths": list(model.lengths),
+           "X": model.X.detach().clone(), "Y": model.Y.clone(), "W": model.W.clone(),
+           "log_alpha": model.log_alpha.detach().clone(), "log_beta": model.log_beta.detach().clone(),
+           "objective_history": [float(v) for v in model.objective_history], "extra": extra or {}}
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    torch.save(doc, path)
+
+
+def load_gpdm(path: str | Path) -> tuple[GPDM, dict]:
+    """Read a model written by :func:`save_gpdm`: the GPDM and its ``extra`` metadata."""
+    path = Path(path)
+    try:
+        doc = torch.load(path, map_location="cpu", weights_only=True)
+    except FileNotFoundError:
+        raise InputError("model file not found", path) from None
+    except Exception as exc:  # torch raises many types for a corrupt or foreign file
+        raise InputError(f"cannot read model file ({type(exc).__name__}: {str(exc)[:120]})", path) from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise InputError(f"not a GPDM model file (expected format {FORMAT!r})", path)
+    model = GPDM(doc["Y"].numpy(), doc["lengths"], GPDMConfig(**doc["config"]), X=doc["X"].numpy())
+    with torch.no_grad():
+        model.log_alpha.copy_(doc["log_alpha"])
+        model.log_beta.copy_(doc["log_beta"])
+    model.W = doc["W"].clone()
+    model.objective_history = list(doc["objective_history"])
+    return model, dict(doc["extra"])

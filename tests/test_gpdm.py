@@ -1,0 +1,97 @@
+"""GPDM core: objective and its gradients, training, mean prediction, save/load, a singular kernel."""
+import numpy as np
+import pytest
+import torch
+
+from priors.gpdm import GPDM, GPDMConfig, load_gpdm, save_gpdm, train_gpdm
+from tracker.errors import InputError
+
+
+@pytest.fixture(scope="module")
+def walk_features(walk_07_01):
+    """07_01's invariant features, normalised (one 157-frame sequence)."""
+    from tracker.body import DOF_NAMES
+    from tracker.representation import FeatureNormaliser, feature_names, poses_to_invariant
+
+    f = poses_to_invariant(walk_07_01.poses)[:-1]
+    norm = FeatureNormaliser.fit(f, feature_names(DOF_NAMES))
+    return norm.transform(f)
+
+
+@pytest.fixture(scope="module")
+def trained(walk_features):
+    return train_gpdm(walk_features, [len(walk_features)], GPDMConfig(iterations=120, seed=0))
+
+
+def test_autograd_gradients_match_finite_differences(walk_features):
+    Y = walk_features[:40, :6]
+    for cfg in (GPDMConfig(dynamics="linear+rbf", order=2, balance=3.0), GPDMConfig(dynamics="rbf")):
+        m = GPDM(Y, [20, 20], cfg)
+        m.update_W()
+        params = m.parameters()
+        value = m.objective()
+        grads = torch.autograd.grad(value, params)
+        rng = np.random.default_rng(0)
+        for p, g in zip(params, grads):
+            for _ in range(4):
+                idx = tuple(int(rng.integers(s)) for s in p.shape)
+                eps = 1e-6
+                with torch.no_grad():
+                    p[idx] += eps
+                    up = float(m.objective())
+                    p[idx] -= 2 * eps
+                    down = float(m.objective())
+                    p[idx] += eps
+                fd = (up - down) / (2 * eps)
+                assert fd == pytest.approx(float(g[idx]), rel=1e-4, abs=1e-5)
+
+
+def test_objective_decreases_during_training(trained):
+    h = trained.objective_history
+    assert len(h) == 12 and h[-1] < h[0] - 1000 and all(b <= a + 1e-6 for a, b in zip(h, h[1:]))
+
+
+def test_mean_prediction_stays_on_a_stable_cycle(trained):
+    p = trained.prepare()
+    X = trained.X.detach()
+    traj = p.simulate(X[:1], 500)
+    lo, hi = X.min(0).values, X.max(0).values
+    span = hi - lo
+    assert torch.all(traj >= lo - 0.1 * span) and torch.all(traj <= hi + 0.1 * span)
+    late = traj[-200:]
+    # Still moving around a cycle, not collapsed to a fixed point: the path length per step stays near the data's.
+    step = (late[1:] - late[:-1]).norm(dim=1).mean()
+    data_step = (X[1:] - X[:-1]).norm(dim=1).mean()
+    assert 0.3 * data_step < step < 3 * data_step
+    pose, var = p.predict_pose(late[:5])
+    assert pose.shape == (5, trained.Y.shape[1]) and torch.all(var > 0)
+
+
+def test_save_load_round_trip(trained, tmp_path):
+    save_gpdm(tmp_path / "g.pt", trained, {"fps": 60.0})
+    loaded, extra = load_gpdm(tmp_path / "g.pt")
+    assert extra == {"fps": 60.0}
+    a, b = trained.prepare(), loaded.prepare()
+    x = trained.X.detach()[10:15]
+    assert torch.allclose(a.predict_pose(x)[0], b.predict_pose(x)[0])
+    assert torch.allclose(a.simulate(x[:1], 20), b.simulate(x[:1], 20))
+    with torch.no_grad():
+        assert float(loaded.objective()) == pytest.approx(float(trained.objective()))
+
+
+def test_singular_kernel_gives_a_clear_error(walk_features):
+    Y = walk_features[:30]
+    X = np.zeros((30, 3))  # every latent point the same
+    m = GPDM(Y, [30], GPDMConfig(), X=X)
+    with torch.no_grad():
+        m.log_beta[2] = 80.0  # no observation noise
+        m.log_alpha[-1] = 80.0
+    with pytest.raises(InputError, match="kernel matrix is not positive definite"):
+        m.objective()
+
+
+def test_bad_config_and_data():
+    with pytest.raises(InputError, match="dynamics kernel"):
+        GPDMConfig(dynamics="cubic").check()
+    with pytest.raises(InputError, match="more than 2 frames"):
+        GPDM(np.zeros((4, 3)), [2, 2], GPDMConfig(order=2))
