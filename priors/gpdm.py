@@ -6,8 +6,8 @@ space) and observations ``Y`` (``N x D``, normalised invariant features):
 * observation GP (eq. 3.5-3.6): ``k_Y(x, x') = b1 exp(-b2/2 |x - x'|^2) + delta / b3``,
   with a per-dimension scale ``W`` (closed-form update, eq. 4.3);
 * dynamics GP (eq. 3.9), first order (input ``x_{t-1}``) or second order
-  (input ``[x_{t-1}, x_{t-2}]``, eq. 3.13), with an RBF kernel or linear+RBF
-  (eq. 3.10): ``a1 exp(-sum_k a_{1+k}/2 |x_k - x'_k|^2) [+ sum_k a_lin,k x_k^T x'_k] + delta / a_noise``.
+  (input ``[x_{t-1}, x_{t-2}]``, eq. 3.13), with a linear, RBF or linear+RBF
+  kernel (eq. 3.10): ``[a1 exp(-sum_k a_{1+k}/2 |x_k - x'_k|^2)] [+ sum_k a_lin,k x_k^T x'_k] + delta / a_noise``.
   Outputs are ``x_t`` for every frame with enough history in its own sequence;
   the first frames of each sequence get an isotropic unit Gaussian prior.
 
@@ -36,7 +36,7 @@ import torch
 from tracker.errors import InputError
 
 FORMAT = "pose-tracker gpdm v1"
-DYNAMICS = ("rbf", "linear+rbf")
+DYNAMICS = ("linear", "rbf", "linear+rbf")
 
 
 @dataclass
@@ -61,6 +61,16 @@ class GPDMConfig:
         if self.iterations < 1 or self.w_update_every < 1:
             raise InputError("iterations and the W update interval must be at least 1")
         return self
+
+
+def n_dynamics_params(cfg: GPDMConfig) -> int:
+    """Number of dynamics hyperparameters: RBF scale + one width per lag, one linear scale per lag, noise."""
+    n = 1
+    if "rbf" in cfg.dynamics:
+        n += 1 + cfg.order
+    if "linear" in cfg.dynamics:
+        n += cfg.order
+    return n
 
 
 def _sqdist(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
@@ -114,9 +124,7 @@ class GPDM:
         if X is None:
             X = pca_init(Y, d)
         self.X = torch.tensor(X, dtype=torch.float64).requires_grad_(True)
-        n_rbf = cfg.order  # one inverse width per lag
-        n_lin = cfg.order if cfg.dynamics == "linear+rbf" else 0
-        self.log_alpha = torch.zeros(1 + n_rbf + n_lin + 1, dtype=torch.float64, requires_grad=True)
+        self.log_alpha = torch.zeros(n_dynamics_params(cfg), dtype=torch.float64, requires_grad=True)
         self.log_beta = torch.zeros(3, dtype=torch.float64, requires_grad=True)
         with torch.no_grad():  # start with moderate noise: precision 100 for Y, 10 for the dynamics
             self.log_beta[2] = math.log(100.0)
@@ -131,17 +139,39 @@ class GPDM:
         return b[0] * torch.exp(-0.5 * b[1] * _sqdist(A, B))
 
     def _k_x(self, A: torch.Tensor, B: torch.Tensor) -> torch.Tensor:
-        """Dynamics kernel between inputs ``n x (order d)`` (lags concatenated)."""
+        """Dynamics kernel between inputs ``n x (order d)`` (lags concatenated), without the noise term.
+
+        ``log_alpha`` holds, in order: for an RBF part its scale and one inverse width per lag; for a linear
+        part one scale per lag; last the noise precision.
+        """
         a = self.log_alpha.exp()
         o, d = self.config.order, self.config.latent_dim
-        expo = torch.zeros(A.shape[0], B.shape[0], dtype=A.dtype)
-        for k in range(o):
-            expo = expo + a[1 + k] * _sqdist(A[:, k * d:(k + 1) * d], B[:, k * d:(k + 1) * d])
-        K = a[0] * torch.exp(-0.5 * expo)
-        if self.config.dynamics == "linear+rbf":
+        K = torch.zeros(A.shape[0], B.shape[0], dtype=A.dtype)
+        i = 0
+        if "rbf" in self.config.dynamics:
+            expo = torch.zeros_like(K)
             for k in range(o):
-                K = K + a[1 + o + k] * (A[:, k * d:(k + 1) * d] @ B[:, k * d:(k + 1) * d].T)
+                expo = expo + a[1 + k] * _sqdist(A[:, k * d:(k + 1) * d], B[:, k * d:(k + 1) * d])
+            K = K + a[0] * torch.exp(-0.5 * expo)
+            i = 1 + o
+        if "linear" in self.config.dynamics:
+            for k in range(o):
+                K = K + a[i + k] * (A[:, k * d:(k + 1) * d] @ B[:, k * d:(k + 1) * d].T)
         return K
+
+    def _k_x_diag(self, A: torch.Tensor) -> torch.Tensor:
+        """``k_X(x, x)`` ``(n,)`` for inputs ``n x (order d)`` (without noise)."""
+        a = self.log_alpha.exp()
+        o, d = self.config.order, self.config.latent_dim
+        out = torch.zeros(A.shape[0], dtype=A.dtype)
+        i = 0
+        if "rbf" in self.config.dynamics:
+            out = out + a[0]
+            i = 1 + o
+        if "linear" in self.config.dynamics:
+            for k in range(o):
+                out = out + a[i + k] * (A[:, k * d:(k + 1) * d] ** 2).sum(-1)
+        return out
 
     def dynamics_inputs(self, X: torch.Tensor | None = None) -> torch.Tensor:
         X = self.X if X is None else X
@@ -233,13 +263,8 @@ class GPDMPredictor:
         k = f["g"]._k_x(inputs, f["Xin"])  # B x M
         mean = k @ f["alpha_X"]
         v = torch.linalg.solve_triangular(f["LX"], k.T, upper=False)
-        kxx = f["g"]._k_x(inputs[:1], inputs[:1])[0, 0] if self.config.dynamics == "rbf" else None
-        a = self.log_alpha.exp()
-        if kxx is None:  # linear term depends on the input
-            o, d = self.config.order, self.config.latent_dim
-            kxx = a[0] + sum(a[1 + o + j] * (inputs[:, j * d:(j + 1) * d] ** 2).sum(-1) for j in range(o))
-        var = kxx + 1.0 / a[-1] - (v ** 2).sum(0)
-        return mean, var.clamp_min(1e-12) * torch.ones(len(inputs), dtype=torch.float64)
+        var = f["g"]._k_x_diag(inputs) + 1.0 / self.log_alpha.exp()[-1] - (v ** 2).sum(0)
+        return mean, var.clamp_min(1e-12)
 
     def predict_pose(self, latent: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Mean ``B x D`` (normalised features) and per-dimension variance ``B x D`` of poses at latent points."""
@@ -250,6 +275,48 @@ class GPDMPredictor:
         b = self.log_beta.exp()
         var = (b[0] + 1.0 / b[2] - (v ** 2).sum(0)).clamp_min(1e-12)
         return mean, var[:, None] / self.W[None, :] ** 2
+
+    def project(self, poses: torch.Tensor, iterations: int = 50) -> torch.Tensor:
+        """Latent points ``B x d`` for poses ``B x D`` (normalised features): each starts at the training latent
+        point whose pose is nearest and minimises the observation GP's negative log-likelihood
+        ``|W (y - mu_Y(x))|^2 / (2 s^2(x)) + D/2 ln s^2(x)`` by L-BFGS."""
+        d2 = ((poses[:, None, :] - self.Y[None]) * self.W) .pow(2).sum(-1)
+        x = self.X[d2.argmin(1)].clone().requires_grad_(True)
+        opt = torch.optim.LBFGS([x], lr=1.0, max_iter=iterations, line_search_fn="strong_wolfe")
+        D = poses.shape[1]
+
+        def closure():
+            opt.zero_grad()
+            mean, var = self.predict_pose(x)
+            s2 = var[:, 0] * self.W[0] ** 2  # the shared kernel variance
+            nll = (((poses - mean) * self.W) ** 2).sum(-1) / (2 * s2) + 0.5 * D * torch.log(s2)
+            nll.sum().backward()
+            return nll.sum()
+
+        opt.step(closure)
+        return x.detach()
+
+    def optimize_trajectory(self, history: torch.Tensor, initial: torch.Tensor, iterations: int = 100
+                            ) -> torch.Tensor:
+        """Refine a latent trajectory ``T x d`` following ``history`` (``order x d``, newest last) by maximising
+        its dynamics likelihood with the learned points and hyperparameters fixed (Sec. 4.3), using the
+        sequential conditionals ``N(x_t; mu_X(inputs_t), s_X^2(inputs_t) I)``; starts from ``initial``
+        (e.g. the mean prediction)."""
+        o, d = self.config.order, self.config.latent_dim
+        traj = initial.clone().requires_grad_(True)
+        opt = torch.optim.LBFGS([traj], lr=1.0, max_iter=iterations, line_search_fn="strong_wolfe")
+
+        def closure():
+            opt.zero_grad()
+            full = torch.cat([history, traj])
+            inputs = torch.stack([torch.cat([full[t - 1 - k] for k in range(o)]) for t in range(o, len(full))])
+            mean, var = self.predict_latent(inputs)
+            nll = ((full[o:] - mean) ** 2).sum(-1) / (2 * var) + 0.5 * d * torch.log(var)
+            nll.sum().backward()
+            return nll.sum()
+
+        opt.step(closure)
+        return traj.detach()
 
     def simulate(self, start: torch.Tensor, steps: int) -> torch.Tensor:
         """Mean-prediction trajectory ``steps x d`` from ``start`` (``order x d``, newest last)."""

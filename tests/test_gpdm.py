@@ -25,7 +25,8 @@ def trained(walk_features):
 
 def test_autograd_gradients_match_finite_differences(walk_features):
     Y = walk_features[:40, :6]
-    for cfg in (GPDMConfig(dynamics="linear+rbf", order=2, balance=3.0), GPDMConfig(dynamics="rbf")):
+    for cfg in (GPDMConfig(dynamics="linear+rbf", order=2, balance=3.0), GPDMConfig(dynamics="rbf"),
+                GPDMConfig(dynamics="linear")):
         m = GPDM(Y, [20, 20], cfg)
         m.update_W()
         params = m.parameters()
