@@ -25,6 +25,7 @@ from data_tools.sequence import read_sequence  # noqa: E402
 from data_tools.synth import SynthSettings, synthesize  # noqa: E402
 from likelihoods.edge_silhouette import LikelihoodParams  # noqa: E402
 from priors.crbm import CRBMConfig, CRBMPrior, train_crbm  # noqa: E402
+from priors.gpdm import GPDMConfig, GPDMPrior, train_gpdm_prior  # noqa: E402
 from priors.random_walk import ConstantVelocityPrior, ZeroVelocityPrior, step_rms  # noqa: E402
 from tracker.body import DOF_NAMES  # noqa: E402
 from tracker.experiment import track  # noqa: E402
@@ -40,9 +41,10 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=5)
     ap.add_argument("--particles", type=int, default=1000)
     ap.add_argument("--frames", type=int, default=None)
-    ap.add_argument("--priors", nargs="+", default=["zero-velocity", "constant-velocity", "crbm-1", "crbm-3"],
+    ap.add_argument("--priors", nargs="+",
+                    default=["zero-velocity", "constant-velocity", "crbm-1", "crbm-3", "gpdm"],
                     help="zero-velocity, constant-velocity, crbm-1 (first order), crbm-3 (third order grown "
-                         "from first order)")
+                         "from first order), gpdm (3D, linear+RBF, first order)")
     ap.add_argument("--bidirectional", action="store_true", help="also run 1 view with the bidirectional term")
     ap.add_argument("--out", default="heldout_tracking.json")
     args = ap.parse_args()
@@ -65,6 +67,13 @@ def main() -> None:
             priors["crbm-1"] = CRBMPrior([crbm[1]])
         if "crbm-3" in args.priors:
             priors["crbm-3"] = CRBMPrior([crbm[1], crbm[3]])
+    if "gpdm" in args.priors:
+        train = [retarget(asf_amc_clip(asf, MOCAP / f"07_{i}.amc"), fps=60).poses for i in ("01", "02", "09", "10")]
+        gpdm = train_gpdm_prior(train, GPDMConfig(latent_dim=3, dynamics="linear+rbf", iterations=300), 60.0,
+                                DOF_NAMES)
+        print(f"GPDM: trained in {gpdm.gpdm.training_seconds:.1f} s on {sum(len(t) for t in train)} frames",
+              flush=True)
+        priors["gpdm"] = GPDMPrior(gpdm)
     configs = [("4 views", [0, 1, 2, 3], False), ("1 view", [0], False)]
     if args.bidirectional:
         configs.append(("1 view, bidirectional", [0], True))

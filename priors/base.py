@@ -9,11 +9,31 @@ histories ``P x N x D`` (oldest first), poses ``P x D``; per-particle state is
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
+from tracker.errors import InputError
+
 PriorState = Any
+
+
+def check_model_fits(kind: str, trained: tuple[str, Sequence[str], float], body_model: str,
+                     dof_names: Sequence[str], fps: float | None, source=None) -> None:
+    """Refuse to use a learned prior on a sequence it was not trained for, saying what differs.
+
+    ``trained`` is the model's (body model name, pose layout, frame rate).
+    """
+    t_body, t_dofs, t_fps = trained
+    problems = []
+    if body_model != t_body:
+        problems.append(f"body model {body_model!r} (trained on {t_body!r})")
+    elif list(dof_names) != list(t_dofs):
+        problems.append("a different pose layout")
+    if fps is not None and abs(fps - t_fps) > 1e-6:
+        problems.append(f"{fps:g} fps (trained at {t_fps:g} fps; velocities are per frame)")
+    if problems:
+        raise InputError(f"{kind} model does not fit this sequence: " + "; ".join(problems), source)
 
 
 def reindex_state(state: PriorState, idx: np.ndarray) -> PriorState:

@@ -38,7 +38,7 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
-from priors.base import MotionPrior, PriorState
+from priors.base import MotionPrior, PriorState, check_model_fits
 from tracker.errors import InputError
 from tracker.representation import FeatureNormaliser, feature_names, next_poses, poses_to_invariant
 
@@ -237,15 +237,7 @@ class CRBMModel:
     def check_compatible(self, body_model: str, dof_names: Sequence[str], fps: float | None,
                          source: str | Path | None = None) -> None:
         """Refuse a sequence this model was not trained for, saying what differs."""
-        problems = []
-        if body_model != self.body_model:
-            problems.append(f"body model {body_model!r} (trained on {self.body_model!r})")
-        elif list(dof_names) != self.dof_names:
-            problems.append("a different pose layout")
-        if fps is not None and abs(fps - self.fps) > 1e-6:
-            problems.append(f"{fps:g} fps (trained at {self.fps:g} fps; velocities are per frame)")
-        if problems:
-            raise InputError("CRBM model does not fit this sequence: " + "; ".join(problems), source)
+        check_model_fits("CRBM", (self.body_model, self.dof_names, self.fps), body_model, dof_names, fps, source)
 
 
 def load_crbm(path: str | Path, device: str = "cpu") -> CRBMModel:

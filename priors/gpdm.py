@@ -33,9 +33,13 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
+from priors.base import MotionPrior, PriorState, check_model_fits
 from tracker.errors import InputError
+from tracker.representation import FeatureNormaliser, feature_names, next_poses, poses_to_invariant
 
 FORMAT = "pose-tracker gpdm v1"
+#: Invariant feature indices of the root step to the next frame (forward, lateral velocity, yaw rate).
+STEP = [0, 1, 5]
 DYNAMICS = ("linear", "rbf", "linear+rbf")
 
 
@@ -404,3 +408,120 @@ def load_gpdm(path: str | Path) -> tuple[GPDM, dict]:
     model.W = doc["W"].clone()
     model.objective_history = list(doc["objective_history"])
     return model, dict(doc["extra"])
+
+
+# ---------------------------------------------------------------------------
+# As a motion prior: training on pose clips, model files with their data settings, the tracking prior
+# ---------------------------------------------------------------------------
+
+@dataclass
+class GPDMPriorModel:
+    """A GPDM trained on pose clips, with the normaliser and data settings it was trained with."""
+
+    gpdm: GPDM
+    normaliser: FeatureNormaliser
+    fps: float
+    body_model: str
+    dof_names: list[str]
+    sources: list[str]
+    pose_step_rms: np.ndarray
+
+    def save(self, path: str | Path) -> None:
+        n = self.normaliser
+        save_gpdm(path, self.gpdm, {
+            "fps": float(self.fps), "body_model": self.body_model, "dof_names": list(self.dof_names),
+            "sources": list(self.sources), "pose_step_rms": torch.tensor(self.pose_step_rms),
+            "normaliser": {"mean": torch.tensor(n.mean), "std": torch.tensor(n.std), "keep": torch.tensor(n.keep),
+                           "names": list(n.names)},
+            "training_seconds": float(self.gpdm.training_seconds)})
+
+    def check_compatible(self, body_model: str, dof_names: Sequence[str], fps: float | None,
+                         source: str | Path | None = None) -> None:
+        check_model_fits("GPDM", (self.body_model, self.dof_names, self.fps), body_model, dof_names, fps, source)
+
+
+def train_gpdm_prior(clips: Sequence[np.ndarray], config: GPDMConfig, fps: float, dof_names: Sequence[str],
+                     body_model: str = "15-cone", sources: Sequence[str] = (),
+                     progress: Callable[[int, float], None] | None = None) -> GPDMPriorModel:
+    """A GPDM on the invariant features of pose clips (each ``T x D`` at ``fps``), one sequence per clip."""
+    feats = [poses_to_invariant(np.asarray(c, float))[:-1] for c in clips]
+    norm = FeatureNormaliser.fit(feats, feature_names(dof_names))
+    Y = np.concatenate([norm.transform(f) for f in feats])
+    gpdm = train_gpdm(Y, [len(f) for f in feats], config, progress)
+    rms = np.sqrt(np.mean(np.concatenate([np.diff(np.asarray(c, float), axis=0) for c in clips]) ** 2, axis=0))
+    return GPDMPriorModel(gpdm, norm, fps, body_model, list(dof_names), list(sources), rms)
+
+
+def load_gpdm_prior(path: str | Path) -> GPDMPriorModel:
+    gpdm, extra = load_gpdm(path)
+    try:
+        n = extra["normaliser"]
+        norm = FeatureNormaliser(n["mean"].numpy(), n["std"].numpy(), n["keep"].numpy().astype(bool),
+                                 list(n["names"]))
+        model = GPDMPriorModel(gpdm, norm, float(extra["fps"]), extra["body_model"], list(extra["dof_names"]),
+                               list(extra["sources"]), extra["pose_step_rms"].numpy())
+    except (KeyError, AttributeError) as exc:
+        raise InputError(f"GPDM file lacks the data settings of a motion prior ({exc})", path) from None
+    gpdm.training_seconds = float(extra.get("training_seconds", 0.0))
+    return model
+
+
+class GPDMPrior(MotionPrior):
+    """Samples every particle's next pose through the GPDM, in one batch.
+
+    Each particle carries its latent history (``order`` points) and the pending root step of its newest
+    frame (see :class:`priors.crbm.CRBMPrior` for why). A step draws the next latent point from the dynamics
+    GP, mean plus ``noise_scale`` times the predictive standard deviation; the observation GP's mean gives
+    the new frame's invariant features; the root moves by the pending step, plus ``root_noise_mm`` of
+    ground-plane diffusion. Initial latent points are the projections of the known poses.
+    """
+
+    name = "gpdm"
+    order = 1
+
+    def __init__(self, model: GPDMPriorModel, noise_scale: float = 1.0, root_noise_mm: float = 5.0, seed: int = 0):
+        if not noise_scale >= 0 or not root_noise_mm >= 0:
+            raise InputError("GPDM noise scale and root noise must be non-negative")
+        self.model = model
+        self.predictor = model.gpdm.prepare()
+        self.latent_order = model.gpdm.config.order
+        self.noise_scale = float(noise_scale)
+        self.root_noise_mm = float(root_noise_mm)
+        self.generator = torch.Generator().manual_seed(seed)
+
+    def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
+        known = np.atleast_2d(np.asarray(known, float))
+        self.generator.manual_seed(int(rng.integers(2 ** 62)))
+        pair = known[-2:] if len(known) >= 2 else np.repeat(known[-1:], 2, axis=0)
+        feats = poses_to_invariant(pair)
+        step = feats[-1, STEP] if len(known) >= 2 else np.zeros(len(STEP))
+        o = self.latent_order
+        recent = known[-o:] if len(known) >= o else np.repeat(known[:1], o, axis=0)
+        recent_feats = poses_to_invariant(np.concatenate([recent[:1], recent]))[1:]
+        latent = self.predictor.project(torch.tensor(self.model.normaliser.transform(recent_feats)))
+        history = torch.cat([latent[-1 - k] for k in range(o)]).numpy()  # newest first
+        return {"latent": np.repeat(history[None], n_particles, axis=0),
+                "step": np.repeat(step[None], n_particles, axis=0)}
+
+    def sample(self, history: np.ndarray, available: int, state: PriorState,
+               rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
+        inputs = torch.tensor(state["latent"])
+        with torch.no_grad():
+            mean, var = self.predictor.predict_latent(inputs)
+            noise = torch.randn(mean.shape, generator=self.generator, dtype=torch.float64)
+            x = mean + self.noise_scale * var.sqrt()[:, None] * noise
+            pose_features, _ = self.predictor.predict_pose(x)
+        f_next = self.model.normaliser.inverse(pose_features.numpy())
+        previous = np.zeros_like(f_next)
+        previous[:, STEP] = state["step"]
+        poses = next_poses(history[:, -1], previous, f_next)
+        if self.root_noise_mm > 0:
+            poses[:, :2] += self.root_noise_mm * torch.randn((len(poses), 2), generator=self.generator,
+                                                             dtype=torch.float64).numpy()
+        d = self.model.gpdm.config.latent_dim
+        latent = np.concatenate([x.numpy(), state["latent"][:, :-d]], axis=1) if self.latent_order > 1 \
+            else x.numpy()
+        return poses, {"latent": latent, "step": f_next[:, STEP]}
+
+    def diffusion_std(self) -> np.ndarray:
+        return self.model.pose_step_rms

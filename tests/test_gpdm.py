@@ -96,3 +96,61 @@ def test_bad_config_and_data():
         GPDMConfig(dynamics="cubic").check()
     with pytest.raises(InputError, match="more than 2 frames"):
         GPDM(np.zeros((4, 3)), [2, 2], GPDMConfig(order=2))
+
+
+@pytest.fixture(scope="module")
+def gpdm_prior_model(walk_07_01):
+    from priors.gpdm import train_gpdm_prior
+    from tracker.body import DOF_NAMES
+
+    return train_gpdm_prior([walk_07_01.poses], GPDMConfig(iterations=100), 60.0, DOF_NAMES, sources=["07_01"])
+
+
+def test_gpdm_prior_samples_a_batch_of_walking_poses(gpdm_prior_model, walk_07_01):
+    from priors.gpdm import GPDMPrior
+
+    prior = GPDMPrior(gpdm_prior_model, root_noise_mm=0.0)
+    known = walk_07_01.poses[:2]
+    state = prior.start(known, 200, np.random.default_rng(0))
+    assert state["latent"].shape == (200, 3) and state["step"].shape == (200, 3)
+    hist = np.repeat(known[None, -1:], 200, axis=0)
+    poses = []
+    for _ in range(30):
+        x, state = prior.sample(hist, 1, state, None)
+        hist = x[:, None]
+        poses.append(x)
+    poses = np.stack(poses, axis=1)  # 200 x 30 x 40
+    assert np.all(np.isfinite(poses))
+    travelled = np.linalg.norm(poses[:, -1, :2] - known[-1, :2], axis=1)
+    truth = np.linalg.norm(walk_07_01.poses[31, :2] - walk_07_01.poses[1, :2])
+    assert np.median(travelled) == pytest.approx(truth, rel=0.25)  # walks on at about the true speed
+    assert np.std(poses[:, -1, 6:], axis=0).max() > 1e-3  # the particles spread
+
+
+def test_gpdm_prior_file_round_trip_and_mismatch(gpdm_prior_model, tmp_path):
+    from priors.gpdm import load_gpdm_prior
+
+    gpdm_prior_model.save(tmp_path / "g.pt")
+    loaded = load_gpdm_prior(tmp_path / "g.pt")
+    assert loaded.fps == 60.0 and loaded.sources == ["07_01"] and np.allclose(loaded.normaliser.mean,
+                                                                               gpdm_prior_model.normaliser.mean)
+    with pytest.raises(InputError, match="30 fps"):
+        loaded.check_compatible("15-cone", loaded.dof_names, 30.0)
+
+
+def test_train_and_track_gpdm_cli(mocap_dir, walk_32_frames, tmp_path):
+    import subprocess
+    import sys
+
+    model = tmp_path / "g.pt"
+    amc = str(mocap_dir / "07" / "07_01.amc")
+    r = subprocess.run([sys.executable, "-m", "tracker", "train", "--prior", "gpdm", "--mocap", amc,
+                        "--iterations", "20", "--out", str(model)], capture_output=True, text=True)
+    assert r.returncode == 0 and "objective" in r.stdout, r.stderr[-500:]
+    r = subprocess.run([sys.executable, "-m", "tracker", "track", str(walk_32_frames.root), "--prior", "gpdm",
+                        "--model", str(model), "--particles", "100", "--frames", "5", "--out", str(tmp_path / "t")],
+                       capture_output=True, text=True)
+    assert r.returncode == 0 and "gpdm" in r.stdout, r.stderr[-500:]
+    r = subprocess.run([sys.executable, "-m", "tracker", "train", "--prior", "gpdm", "--mocap", amc, "--order", "3",
+                        "--out", str(model)], capture_output=True, text=True)
+    assert r.returncode == 2 and "GPDM order must be 1 or 2" in r.stderr.strip().splitlines()[-1]

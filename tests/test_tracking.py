@@ -104,7 +104,8 @@ def test_track_bad_inputs_exit_2(walk_32_frames, tmp_path):
         (["--frames", "99"], "past the end of the sequence"),
         (["--init", str(tmp_path / "bad_init.npz")], "initial poses must be n x 40"),
         (["--init", str(tmp_path / "missing.npz")], "cannot read initial poses"),
-        (["--prior", "gpdm"], "invalid choice"),
+        (["--prior", "hmm"], "invalid choice"),
+        (["--prior", "gpdm"], "needs --model"),
     ]
     for extra, expected in cases:
         args = ["track", root, "--out", str(tmp_path / "o"), "--particles", "50", "--frames", "4"]

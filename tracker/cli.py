@@ -100,12 +100,13 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Retarget the clips to the 15-cone model at --fps, convert them to the invariant "
                                    "representation and train a CRBM with contrastive divergence; the model file keeps "
                                    "its normalisation statistics and the data settings it was trained with.")
-    r.add_argument("--prior", required=True, choices=["crbm"], help="which prior to train")
+    r.add_argument("--prior", required=True, choices=["crbm", "gpdm"], help="which prior to train")
     r.add_argument("--mocap", required=True, nargs="+", metavar="FILE", help="training clips (.amc or .bvh)")
     r.add_argument("--skeleton", nargs="+", metavar="ASF",
                    help="ASF skeleton(s): one for all .amc clips or one per clip (default: <subject>.asf beside each)")
     r.add_argument("--fps", type=_positive_float, default=60.0, help="frame rate of the training data (default 60)")
-    r.add_argument("--order", type=_positive_int, default=3, help="CRBM order N (default 3)")
+    r.add_argument("--order", type=_positive_int, default=None,
+                   help="CRBM order N (default 3) or GPDM dynamics order 1 or 2 (default 1)")
     r.add_argument("--hidden", type=_positive_int, default=150, help="hidden units (default 150)")
     r.add_argument("--epochs", type=_positive_int, default=500, help="passes through the data (default 500)")
     r.add_argument("--cd-k", type=_positive_int, default=10, help="Gibbs steps of contrastive divergence (default 10)")
@@ -116,7 +117,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="target mean activation of the hidden units (default: no sparsity term)")
     r.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     r.add_argument("--checkpoint-every", type=_positive_int, default=None, metavar="EPOCHS",
-                   help="also save the model every this many epochs")
+                   help="CRBM: also save the model every this many epochs")
+    r.add_argument("--latent-dim", type=_positive_int, default=3, help="GPDM: latent dimensions (default 3)")
+    r.add_argument("--dynamics", default="linear+rbf", choices=["linear", "rbf", "linear+rbf"],
+                   help="GPDM: dynamics kernel (default linear+rbf)")
+    r.add_argument("--balance", type=_positive_float, default=1.0, metavar="M",
+                   help="GPDM: exponent M of the prior on the observation hyperparameters (default 1)")
+    r.add_argument("--iterations", type=_positive_int, default=300, help="GPDM: L-BFGS iterations (default 300)")
     r.add_argument("--out", required=True, help="output model file (.pt)")
 
     t = sub.add_parser("track", help="track a person through a sequence with a particle filter",
@@ -124,14 +131,16 @@ def build_parser() -> argparse.ArgumentParser:
                                    "and an edge + silhouette likelihood; writes OUTDIR/result.json and "
                                    "OUTDIR/estimates.npz.")
     t.add_argument("sequence", metavar="DIR", help="sequence folder")
-    t.add_argument("--prior", required=True, choices=["zero-velocity", "constant-velocity", "crbm"],
+    t.add_argument("--prior", required=True, choices=["zero-velocity", "constant-velocity", "crbm", "gpdm"],
                    help="motion prior")
     t.add_argument("--model", nargs="+", metavar="MODEL",
                    help="trained prior model(s); for crbm several orders (e.g. 1 and 3) grow the history")
     t.add_argument("--gibbs-steps", type=_positive_int, default=30,
                    help="CRBM: alternating Gibbs steps per sample (default 30)")
     t.add_argument("--root-noise", type=_non_negative_float, default=5.0, metavar="MM",
-                   help="CRBM: ground-plane diffusion of each sample in mm (default 5)")
+                   help="CRBM, GPDM: ground-plane diffusion of each sample in mm (default 5)")
+    t.add_argument("--latent-noise", type=_non_negative_float, default=1.0,
+                   help="GPDM: multiple of the predictive standard deviation added to each latent step (default 1)")
     t.add_argument("--particles", type=_positive_int, default=1000, help="number of particles (default 1000)")
     t.add_argument("--views", default=None, help="comma-separated camera indices (default: all)")
     t.add_argument("--frames", type=_positive_int, default=None,
@@ -484,30 +493,48 @@ def _training_clips(files: list[str], skeletons: list[str] | None, fps: float):
 def cmd_train(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
+    out = Path(args.out)
+    results = _training_clips(args.mocap, args.skeleton, args.fps)
+    model0 = results[0].model
+    frames = sum(len(r.poses) for r in results)
+    clips = [r.poses for r in results]
+    sources = [str(f) for f in args.mocap]
+    if args.prior == "gpdm":
+        from priors.gpdm import GPDMConfig, train_gpdm_prior
+
+        config = GPDMConfig(latent_dim=args.latent_dim, dynamics=args.dynamics, order=args.order or 1,
+                            balance=args.balance, iterations=args.iterations, seed=args.seed).check()
+        print(f"training a {config.latent_dim}D GPDM ({config.dynamics} dynamics, order {config.order}, "
+              f"M = {config.balance:g}) on {len(results)} clip(s), {frames} frames at {args.fps:g} fps")
+        with tqdm(total=config.iterations, desc="L-BFGS", unit="it") as bar:
+            def progress(done: int, value: float) -> None:
+                bar.update(done - bar.n)
+                bar.set_postfix(objective=f"{value:.1f}")
+
+            model = train_gpdm_prior(clips, config, args.fps, model0.dof_names, model0.name, sources, progress)
+        model.save(out)
+        h = model.gpdm.objective_history
+        print(f"objective {h[0]:.1f} -> {h[-1]:.1f}, {model.gpdm.training_seconds:.1f} s -> {out}")
+        return 0
     from priors.crbm import CRBMConfig, train_crbm
 
-    out = Path(args.out)
     noise = args.history_noise
     if noise != "auto":
         try:
             noise = float(noise)
         except ValueError:
             raise InputError(f"--history-noise must be 'auto' or a number, got {noise!r}") from None
-    config = CRBMConfig(order=args.order, hidden=args.hidden, epochs=args.epochs, cd_k=args.cd_k,
+    config = CRBMConfig(order=args.order or 3, hidden=args.hidden, epochs=args.epochs, cd_k=args.cd_k,
                         batch_size=args.batch_size, history_noise=noise, sparsity_target=args.sparsity,
                         seed=args.seed).check()
-    results = _training_clips(args.mocap, args.skeleton, args.fps)
-    model0 = results[0].model
-    frames = sum(len(r.poses) for r in results)
-    print(f"training a CRBM of order {args.order} with {args.hidden} hidden units on {len(results)} clip(s), "
+    print(f"training a CRBM of order {config.order} with {args.hidden} hidden units on {len(results)} clip(s), "
           f"{frames} frames at {args.fps:g} fps")
     with tqdm(total=args.epochs, desc="CD-%d" % args.cd_k, unit="epoch") as bar:
         def progress(epoch: int, err: float) -> None:
             bar.update(1)
             bar.set_postfix(reconstruction=f"{err:.4f}")
 
-        model = train_crbm([r.poses for r in results], config, args.fps, model0.dof_names, model0.name,
-                           [str(f) for f in args.mocap], progress,
+        model = train_crbm(clips, config, args.fps, model0.dof_names, model0.name, sources, progress,
                            (out, args.checkpoint_every) if args.checkpoint_every else None)
     model.save(out)
     errs = model.reconstruction_errors
@@ -522,10 +549,19 @@ def build_prior(args: argparse.Namespace, seq):
         if args.model:
             raise InputError(f"--model is for learned priors; {args.prior} takes its scale from --train-mocap")
         return build_random_walk_prior(args.prior, seq, args.train_mocap, args.prior_scale)
+    if not args.model:
+        raise InputError(f"--prior {args.prior} needs --model MODEL (train one with python -m tracker train "
+                         f"--prior {args.prior})")
+    if args.prior == "gpdm":
+        from priors.gpdm import GPDMPrior, load_gpdm_prior
+
+        if len(args.model) != 1:
+            raise InputError("--prior gpdm takes one --model")
+        model = load_gpdm_prior(args.model[0])
+        model.check_compatible(seq.model.name, seq.model.dof_names, seq.fps, args.model[0])
+        return GPDMPrior(model, noise_scale=args.latent_noise, root_noise_mm=args.root_noise, seed=args.seed)
     from priors.crbm import CRBMPrior, load_crbm
 
-    if not args.model:
-        raise InputError("--prior crbm needs --model MODEL (train one with python -m tracker train --prior crbm)")
     models = [load_crbm(m) for m in args.model]
     for path, m in zip(args.model, models):
         m.check_compatible(seq.model.name, seq.model.dof_names, seq.fps, path)
