@@ -9,13 +9,43 @@ histories ``P x N x D`` (oldest first), poses ``P x D``; per-particle state is
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
 from tracker.errors import InputError
+from tracker.representation import FeatureNormaliser
 
 PriorState = Any
+
+
+def read_model_file(path, fmt: str, kind: str) -> dict:
+    """The dictionary of a learned prior's ``torch.save`` file, loaded with ``weights_only=True``; a missing,
+    unreadable or foreign file is an :class:`InputError` naming the file."""
+    import torch
+
+    path = Path(path)
+    try:
+        doc = torch.load(path, map_location="cpu", weights_only=True)
+    except FileNotFoundError:
+        raise InputError("model file not found", path) from None
+    except Exception as exc:  # torch raises many types for a corrupt or foreign file
+        raise InputError(f"cannot read model file ({type(exc).__name__}: {str(exc)[:120]})", path) from None
+    if not isinstance(doc, dict) or doc.get("format") != fmt:
+        raise InputError(f"not a {kind} model file (expected format {fmt!r})", path)
+    return doc
+
+
+def normaliser_to_tensors(n: FeatureNormaliser) -> dict:
+    import torch
+
+    return {"mean": torch.tensor(n.mean), "std": torch.tensor(n.std), "keep": torch.tensor(n.keep),
+            "names": list(n.names)}
+
+
+def normaliser_from_tensors(d: dict) -> FeatureNormaliser:
+    return FeatureNormaliser(d["mean"].numpy(), d["std"].numpy(), d["keep"].numpy().astype(bool), list(d["names"]))
 
 
 def check_model_fits(kind: str, trained: tuple[str, Sequence[str], float], body_model: str,

@@ -38,7 +38,9 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
-from priors.base import MotionPrior, PriorState, check_model_fits
+from priors.base import (
+    MotionPrior, PriorState, check_model_fits, normaliser_from_tensors, normaliser_to_tensors, read_model_file,
+)
 from tracker.errors import InputError
 from tracker.representation import FeatureNormaliser, feature_names, next_poses, poses_to_invariant
 
@@ -221,13 +223,11 @@ class CRBMModel:
         return self.crbm.order
 
     def save(self, path: str | Path) -> None:
-        n = self.normaliser
         doc = {
             "format": FORMAT, "params": self.crbm.state_dict(), "config": asdict(self.config), "fps": float(self.fps),
             "body_model": self.body_model, "dof_names": list(self.dof_names), "sources": list(self.sources),
             "pose_step_rms": torch.tensor(self.pose_step_rms, dtype=torch.float64),
-            "normaliser": {"mean": torch.tensor(n.mean), "std": torch.tensor(n.std), "keep": torch.tensor(n.keep),
-                           "names": list(n.names)},
+            "normaliser": normaliser_to_tensors(self.normaliser),
             "reconstruction_errors": [float(e) for e in self.reconstruction_errors],
             "training_seconds": float(self.training_seconds),
         }
@@ -242,22 +242,13 @@ class CRBMModel:
 
 def load_crbm(path: str | Path, device: str = "cpu") -> CRBMModel:
     path = Path(path)
-    try:
-        doc = torch.load(path, map_location="cpu", weights_only=True)
-    except FileNotFoundError:
-        raise InputError("model file not found", path) from None
-    except Exception as exc:  # torch raises many types for a corrupt or foreign file
-        raise InputError(f"cannot read model file ({type(exc).__name__}: {str(exc)[:120]})", path) from None
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise InputError(f"not a CRBM model file (expected format {FORMAT!r})", path)
+    doc = read_model_file(path, FORMAT, "CRBM")
     cfg = CRBMConfig(**doc["config"])
     params = doc["params"]
     n_vis, n_hid = params["W"].shape
     crbm = CRBM(n_vis, n_hid, cfg.order, device=device)
     crbm.load_state_dict(params)
-    n = doc["normaliser"]
-    normaliser = FeatureNormaliser(n["mean"].numpy(), n["std"].numpy(), n["keep"].numpy().astype(bool),
-                                   list(n["names"]))
+    normaliser = normaliser_from_tensors(doc["normaliser"])
     if normaliser.n_kept != n_vis:
         raise InputError(f"model has {n_vis} visible units but its normaliser keeps {normaliser.n_kept}", path)
     return CRBMModel(crbm, normaliser, cfg, float(doc["fps"]), doc["body_model"], list(doc["dof_names"]),

@@ -33,7 +33,9 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
-from priors.base import MotionPrior, PriorState, check_model_fits
+from priors.base import (
+    MotionPrior, PriorState, check_model_fits, normaliser_from_tensors, normaliser_to_tensors, read_model_file,
+)
 from tracker.errors import InputError
 from tracker.representation import FeatureNormaliser, feature_names, next_poses, poses_to_invariant
 
@@ -324,7 +326,7 @@ class GPDMPredictor:
 
     def simulate(self, start: torch.Tensor, steps: int) -> torch.Tensor:
         """Mean-prediction trajectory ``steps x d`` from ``start`` (``order x d``, newest last)."""
-        o, d = self.config.order, self.config.latent_dim
+        o = self.config.order
         hist = [start[i] for i in range(o)]
         out = []
         for _ in range(steps):
@@ -392,15 +394,7 @@ def save_gpdm(path: str | Path, model: GPDM, extra: dict | None = None) -> None:
 
 def load_gpdm(path: str | Path) -> tuple[GPDM, dict]:
     """Read a model written by :func:`save_gpdm`: the GPDM and its ``extra`` metadata."""
-    path = Path(path)
-    try:
-        doc = torch.load(path, map_location="cpu", weights_only=True)
-    except FileNotFoundError:
-        raise InputError("model file not found", path) from None
-    except Exception as exc:  # torch raises many types for a corrupt or foreign file
-        raise InputError(f"cannot read model file ({type(exc).__name__}: {str(exc)[:120]})", path) from None
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise InputError(f"not a GPDM model file (expected format {FORMAT!r})", path)
+    doc = read_model_file(path, FORMAT, "GPDM")
     model = GPDM(doc["Y"].numpy(), doc["lengths"], GPDMConfig(**doc["config"]), X=doc["X"].numpy())
     with torch.no_grad():
         model.log_alpha.copy_(doc["log_alpha"])
@@ -427,12 +421,10 @@ class GPDMPriorModel:
     pose_step_rms: np.ndarray
 
     def save(self, path: str | Path) -> None:
-        n = self.normaliser
         save_gpdm(path, self.gpdm, {
             "fps": float(self.fps), "body_model": self.body_model, "dof_names": list(self.dof_names),
             "sources": list(self.sources), "pose_step_rms": torch.tensor(self.pose_step_rms),
-            "normaliser": {"mean": torch.tensor(n.mean), "std": torch.tensor(n.std), "keep": torch.tensor(n.keep),
-                           "names": list(n.names)},
+            "normaliser": normaliser_to_tensors(self.normaliser),
             "training_seconds": float(self.gpdm.training_seconds)})
 
     def check_compatible(self, body_model: str, dof_names: Sequence[str], fps: float | None,
@@ -455,9 +447,7 @@ def train_gpdm_prior(clips: Sequence[np.ndarray], config: GPDMConfig, fps: float
 def load_gpdm_prior(path: str | Path) -> GPDMPriorModel:
     gpdm, extra = load_gpdm(path)
     try:
-        n = extra["normaliser"]
-        norm = FeatureNormaliser(n["mean"].numpy(), n["std"].numpy(), n["keep"].numpy().astype(bool),
-                                 list(n["names"]))
+        norm = normaliser_from_tensors(extra["normaliser"])
         model = GPDMPriorModel(gpdm, norm, float(extra["fps"]), extra["body_model"], list(extra["dof_names"]),
                                list(extra["sources"]), extra["pose_step_rms"].numpy())
     except (KeyError, AttributeError) as exc:
