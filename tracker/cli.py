@@ -201,27 +201,6 @@ def cmd_convert(args: argparse.Namespace) -> int:
     return 0
 
 
-def error_plot(path: Path, curves: dict[str, tuple[np.ndarray, np.ndarray]], title: str) -> None:
-    """Marker error per frame (mm), one line per run: ``{label: (frames, errors)}``; PNG via matplotlib."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 3.5), dpi=120)
-    for name, (frames, errs) in curves.items():
-        ax.plot(frames, errs, label=f"{name} (mean {np.mean(errs):.0f} mm)")
-    ax.set_xlabel("frame")
-    ax.set_ylabel("marker error (mm)")
-    ax.set_title(title)
-    ax.set_ylim(bottom=0)
-    ax.grid(alpha=0.3)
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-
-
 def cmd_demo(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
@@ -232,8 +211,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from data_tools.synth import SynthSettings, synthesize
     from priors.crbm import CRBMConfig, CRBMPrior, train_crbm
     from priors.random_walk import ZeroVelocityPrior, step_rms
-    from tracker.experiment import track
+    from tracker.experiment import track, write_results
     from tracker.filter import FilterSettings
+    from tracker.visualize import error_plot, overlay_frames, write_video
 
     out = Path(args.out)
     asf, walks = sample_walks()
@@ -294,63 +274,13 @@ def cmd_synth(args: argparse.Namespace) -> int:
     return 0
 
 
-def _poses_to_draw(seq, poses_file: str | None) -> np.ndarray:
-    """Poses T x D to draw: from ``--poses``, else the ground truth, else the initial pose(s)."""
-    if poses_file:
-        path = Path(poses_file)
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                if "poses" not in z.files:
-                    raise InputError("no 'poses' array in the file", path)
-                poses = np.asarray(z["poses"], float)
-        except (OSError, ValueError) as exc:
-            raise InputError(f"cannot read poses ({exc})", path) from None
-        if poses.ndim != 2 or poses.shape[1] != seq.model.n_dofs:
-            raise InputError(f"poses must be T x {seq.model.n_dofs} for the {seq.model.name} model, got "
-                             f"{poses.shape}", path)
-        if not np.all(np.isfinite(poses)):
-            raise InputError("poses contain NaN or infinite values", path)
-        return poses
-    if seq.groundtruth is not None:
-        return seq.groundtruth.poses
-    if seq.initial_poses is not None:
-        return seq.initial_poses
-    raise InputError("the sequence has no ground truth or initial pose; give --poses", seq.root)
-
-
-def _overlay_grid(seq, poses: np.ndarray, frame: int) -> np.ndarray:
-    from tracker.visualize import draw_model, grid, label, segment_polygons
-
-    polys = segment_polygons(seq.model, poses[frame], seq.rig)
-    views = [label(draw_model(seq.image(frame, v), seq.model, polys[v]), f"{seq.rig[v].name}  frame {frame}")
-             for v in range(seq.n_views)]
-    return grid(views)
-
-
-def write_video(path: Path, frames, fps: float) -> None:
-    """Write RGB frames (an iterable of equal-sized H x W x 3 uint8) to an .mp4 (MPEG-4 part 2)."""
-    import cv2
-
-    writer = None
-    try:
-        for img in frames:
-            if writer is None:
-                path.parent.mkdir(parents=True, exist_ok=True)
-                writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), float(fps),
-                                         (img.shape[1], img.shape[0]))
-                if not writer.isOpened():
-                    raise InputError("cannot open the video for writing", path)
-            writer.write(cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
-    finally:
-        if writer is not None:
-            writer.release()
-
-
 def cmd_show(args: argparse.Namespace) -> int:
     import cv2
     from tqdm import tqdm
 
     from data_tools.sequence import read_sequence
+    from tracker.experiment import read_poses_file
+    from tracker.visualize import overlay_grid, write_video
 
     if not args.out and not args.video:
         raise InputError("nothing to write: give --out FILE.png and/or --video FILE.mp4")
@@ -359,19 +289,29 @@ def cmd_show(args: argparse.Namespace) -> int:
     if args.video and Path(args.video).suffix.lower() != ".mp4":
         raise InputError("--video must be an .mp4 file", args.video)
     seq = read_sequence(args.sequence)
-    poses = _poses_to_draw(seq, args.poses)
+    if args.poses:
+        poses = read_poses_file(args.poses, "poses", seq.model)
+    elif seq.groundtruth is not None:
+        poses = seq.groundtruth.poses
+    elif seq.initial_poses is not None:
+        poses = seq.initial_poses
+    else:
+        raise InputError("the sequence has no ground truth or initial pose; give --poses", seq.root)
+    views = list(range(seq.n_views))
     seq.check_frame(args.frame)
     if args.frame >= len(poses):
         raise InputError(f"no pose for frame {args.frame}: {len(poses)} pose(s) available", args.poses or seq.root)
     if args.out:
         out = Path(args.out)
         out.parent.mkdir(parents=True, exist_ok=True)
-        if not cv2.imwrite(str(out), cv2.cvtColor(_overlay_grid(seq, poses, args.frame), cv2.COLOR_RGB2BGR)):
+        if not cv2.imwrite(str(out), cv2.cvtColor(overlay_grid(seq, poses[args.frame], args.frame, views, f"frame {args.frame}"),
+                                               cv2.COLOR_RGB2BGR)):
             raise InputError("cannot write image", out)
         print(f"frame {args.frame}, {seq.n_views} views -> {out}")
     if args.video:
         n = min(seq.n_frames, len(poses))
-        frames = (_overlay_grid(seq, poses, k) for k in tqdm(range(n), desc="video", unit="frame"))
+        frames = (overlay_grid(seq, poses[k], k, views, f"frame {k}") for k in tqdm(range(n), desc="video",
+                                                                                    unit="frame"))
         write_video(Path(args.video), frames, seq.fps or 25.0)
         print(f"{n} frames -> {args.video}")
     return 0
@@ -424,55 +364,6 @@ def build_random_walk_prior(name: str, seq, train_files: list[str] | None, scale
                              f"{seq.model.n_dofs}")
     std = std * scale
     return ZeroVelocityPrior(std) if name == "zero-velocity" else ConstantVelocityPrior(std)
-
-
-def _read_init(path: str) -> np.ndarray:
-    p = Path(path)
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            if "poses" not in z.files:
-                raise InputError("no 'poses' array in the file", p)
-            return np.asarray(z["poses"], float)
-    except (OSError, ValueError) as exc:
-        raise InputError(f"cannot read initial poses ({exc})", p) from None
-
-
-def write_results(out: Path, run, seq, prior_name: str, particles: int, seed: int, extra: dict) -> dict:
-    """``result.json`` and ``estimates.npz`` as DESIGN.md specifies (plus a few documented extras)."""
-    import json
-
-    out.mkdir(parents=True, exist_ok=True)
-    tracked = list(range(run.first_tracked, len(run.poses)))
-    result = {
-        "prior": prior_name, "particles": particles, "views": run.views, "seed": seed, "frames": len(tracked),
-        "mean_error_mm": run.mean_error,
-        "std_error_mm": None if run.errors is None else float(np.std(run.errors)),
-        "per_frame_error_mm": None if run.errors is None else [round(float(e), 3) for e in run.errors],
-        "seconds_per_frame": run.seconds_per_frame,
-        "tracked_frames": tracked, "first_tracked_frame": run.first_tracked,
-        "sequence": str(seq.root), "model": seq.model.name,
-        "mean_effective_sample_size": float(np.mean(run.filter.ess)),
-        "recovered_frames": [run.first_tracked + k for k in run.filter.recovered],
-        **extra,
-    }
-    (out / "result.json").write_text(json.dumps(result, indent=1))
-    np.savez(out / "estimates.npz", poses=run.poses, markers=run.markers,
-             best_poses=np.concatenate([run.poses[:run.first_tracked], run.filter.best_poses]))
-    return result
-
-
-def overlay_frames(seq, poses: np.ndarray, views: list[int], errors=None, first: int = 0):
-    """RGB grid images of the estimates drawn over the chosen views, frame by frame."""
-    from tracker.visualize import draw_model, grid, label, segment_polygons
-
-    rig = seq.rig.subset(views)
-    for k in range(len(poses)):
-        polys = segment_polygons(seq.model, poses[k], rig)
-        text = f"frame {k}"
-        if errors is not None and k >= first:
-            text += f"  error {errors[k - first]:.0f} mm"
-        yield grid([label(draw_model(seq.image(k, v), seq.model, polys[i], thickness=2), f"{rig[i].name}  {text}")
-                    for i, v in enumerate(views)])
 
 
 def _training_clips(files: list[str], skeletons: list[str] | None, fps: float):
@@ -572,8 +463,9 @@ def cmd_track(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from data_tools.sequence import read_sequence
-    from tracker.experiment import track
+    from tracker.experiment import read_poses_file, track, write_results
     from tracker.filter import FilterSettings
+    from tracker.visualize import overlay_frames, write_video
 
     if args.video and Path(args.video).suffix.lower() != ".mp4":
         raise InputError("--video must be an .mp4 file", args.video)
@@ -582,7 +474,7 @@ def cmd_track(args: argparse.Namespace) -> int:
     if args.frames is not None and args.frames > seq.n_frames:
         raise InputError(f"--frames {args.frames} is past the end of the sequence ({seq.n_frames} frames)", seq.root)
     prior = build_prior(args, seq)
-    init = _read_init(args.init) if args.init else None
+    init = read_poses_file(args.init, "initial poses") if args.init else None
     settings = FilterSettings(n_particles=args.particles, resampling=args.resampling,
                               annealing_layers=args.annealing_layers)
     lparams = LikelihoodParams(sharpness=args.sharpness, bidirectional=args.bidirectional)

@@ -5,8 +5,10 @@ likelihoods; the filter sees their interfaces.
 """
 from __future__ import annotations
 
+import json
 import time
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable, Sequence as Seq
 
 import numpy as np
@@ -123,3 +125,47 @@ def track(seq: Sequence, prior: MotionPrior, settings: FilterSettings, seed: int
         errors = marker_error(est_markers[n0:], gt.markers[n0:T])
     return TrackingRun(poses=poses, markers=est_markers, first_tracked=n0, errors=errors, filter=result,
                        observation_seconds=obs_time[0], views=views)
+
+
+def read_poses_file(path: str | Path, what: str = "poses", model=None) -> np.ndarray:
+    """The ``poses`` array ``T x D`` of an .npz (``estimates.npz``, ``--init``); with ``model`` its layout is
+    checked too."""
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            if "poses" not in z.files:
+                raise InputError("no 'poses' array in the file", path)
+            poses = np.asarray(z["poses"], float)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"cannot read {what} ({exc})", path) from None
+    if model is not None:
+        if poses.ndim != 2 or poses.shape[1] != model.n_dofs:
+            raise InputError(f"{what} must be T x {model.n_dofs} for the {model.name} model, got {poses.shape}",
+                             path)
+        if not np.all(np.isfinite(poses)):
+            raise InputError(f"{what} contain NaN or infinite values", path)
+    return poses
+
+
+def write_results(out: str | Path, run: TrackingRun, seq: Sequence, prior_name: str, particles: int, seed: int,
+                  extra: dict | None = None) -> dict:
+    """``OUTDIR/result.json`` and ``OUTDIR/estimates.npz`` as DESIGN.md specifies (plus documented extras)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    tracked = list(range(run.first_tracked, len(run.poses)))
+    result = {
+        "prior": prior_name, "particles": particles, "views": run.views, "seed": seed, "frames": len(tracked),
+        "mean_error_mm": run.mean_error,
+        "std_error_mm": None if run.errors is None else float(np.std(run.errors)),
+        "per_frame_error_mm": None if run.errors is None else [round(float(e), 3) for e in run.errors],
+        "seconds_per_frame": run.seconds_per_frame,
+        "tracked_frames": tracked, "first_tracked_frame": run.first_tracked,
+        "sequence": str(seq.root), "model": seq.model.name,
+        "mean_effective_sample_size": float(np.mean(run.filter.ess)),
+        "recovered_frames": [run.first_tracked + k for k in run.filter.recovered],
+        **(extra or {}),
+    }
+    (out / "result.json").write_text(json.dumps(result, indent=1))
+    np.savez(out / "estimates.npz", poses=run.poses, markers=run.markers,
+             best_poses=np.concatenate([run.poses[:run.first_tracked], run.filter.best_poses]))
+    return result

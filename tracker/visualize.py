@@ -100,3 +100,66 @@ def grid(images: list[np.ndarray], columns: int | None = None) -> np.ndarray:
         r, c = divmod(i, columns)
         canvas[r * h:(r + 1) * h, c * w:(c + 1) * w] = cv2.resize(as_rgb(img), (w, h))
     return canvas
+
+
+def overlay_grid(seq, pose: np.ndarray, frame: int, views: list[int], text: str = "",
+                 thickness: int = 1) -> np.ndarray:
+    """One RGB grid image: the model at ``pose`` drawn over frame ``frame`` of the chosen views of ``seq``
+    (a :class:`data_tools.sequence.Sequence`), each view labelled with its camera name and ``text``."""
+    rig = seq.rig.subset(views)
+    polys = segment_polygons(seq.model, pose, rig)
+    return grid([label(draw_model(seq.image(frame, v), seq.model, polys[i], thickness), f"{rig[i].name}  {text}")
+                 for i, v in enumerate(views)])
+
+
+def overlay_frames(seq, poses: np.ndarray, views: list[int], errors: np.ndarray | None = None, first: int = 0):
+    """Grid images frame by frame of ``poses`` ``T x D`` over the chosen views; ``errors`` (mm) of frames
+    ``first ..`` are printed on them."""
+    for k in range(len(poses)):
+        text = f"frame {k}"
+        if errors is not None and k >= first:
+            text += f"  error {errors[k - first]:.0f} mm"
+        yield overlay_grid(seq, poses[k], k, views, text, thickness=2)
+
+
+def write_video(path, frames, fps: float) -> None:
+    """Write RGB frames (an iterable of equal-sized ``H x W x 3`` uint8) to an .mp4 (MPEG-4 part 2)."""
+    from pathlib import Path
+
+    from tracker.errors import InputError
+
+    path = Path(path)
+    writer = None
+    try:
+        for img in frames:
+            if writer is None:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), float(fps),
+                                         (img.shape[1], img.shape[0]))
+                if not writer.isOpened():
+                    raise InputError("cannot open the video for writing", path)
+            writer.write(cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
+    finally:
+        if writer is not None:
+            writer.release()
+
+
+def error_plot(path, curves: dict[str, tuple[np.ndarray, np.ndarray]], title: str) -> None:
+    """Marker error per frame (mm), one line per run: ``{label: (frames, errors)}``; PNG via matplotlib."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 3.5), dpi=120)
+    for name, (frames, errs) in curves.items():
+        ax.plot(frames, errs, label=f"{name} (mean {np.mean(errs):.0f} mm)")
+    ax.set_xlabel("frame")
+    ax.set_ylabel("marker error (mm)")
+    ax.set_title(title)
+    ax.set_ylim(bottom=0)
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
