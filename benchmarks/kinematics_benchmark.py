@@ -9,13 +9,14 @@ alternative. It is checked against the numpy result before timing.
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 import torch
 
 from tracker.body import fifteen_cone_model
 from tracker.kinematics import _tables, forward_kinematics
+
+from timing import mean_ms
 
 
 def torch_fk(model, poses: torch.Tensor):
@@ -57,14 +58,6 @@ def torch_fk(model, poses: torch.Tensor):
     return R, o, pts
 
 
-def timed(fn, repeats: int) -> float:
-    fn()
-    t0 = time.perf_counter()
-    for _ in range(repeats):
-        fn()
-    return (time.perf_counter() - t0) / repeats * 1e3
-
-
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--particles", type=int, default=1000)
@@ -77,12 +70,12 @@ def main() -> None:
     ref = forward_kinematics(model, q).points
     assert np.allclose(torch_fk(model, qt)[2].numpy(), ref, atol=1e-9)
     print(f"P = {args.particles}, {torch.get_num_threads()} torch threads, float64")
-    print(f"numpy FK (markers + all named points): {timed(lambda: forward_kinematics(model, q), args.repeats):7.2f} ms")
+    print(f"numpy FK (markers + all named points): {mean_ms(lambda: forward_kinematics(model, q), args.repeats):7.2f} ms")
     print(f"numpy FK + segment frames P x 15 x 4 x 4: "
-          f"{timed(lambda: forward_kinematics(model, q).segment_frames(), args.repeats):7.2f} ms")
-    print(f"torch FK (same steps):                 {timed(lambda: torch_fk(model, qt), args.repeats):7.2f} ms")
+          f"{mean_ms(lambda: forward_kinematics(model, q).segment_frames(), args.repeats):7.2f} ms")
+    print(f"torch FK (same steps):                 {mean_ms(lambda: torch_fk(model, qt), args.repeats):7.2f} ms")
     qt32 = qt.float()
-    print(f"torch FK float32:                      {timed(lambda: torch_fk(model, qt32), args.repeats):7.2f} ms")
+    print(f"torch FK float32:                      {mean_ms(lambda: torch_fk(model, qt32), args.repeats):7.2f} ms")
 
 
 if __name__ == "__main__":

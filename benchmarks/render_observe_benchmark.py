@@ -17,6 +17,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from timing import mean_ms  # noqa: E402
+
 from data_tools.asf_amc import asf_amc_clip  # noqa: E402
 from data_tools.render import compose, make_room, person_mesh, render_background, render_person  # noqa: E402
 from data_tools.retarget import retarget  # noqa: E402
@@ -25,14 +27,6 @@ from likelihoods.observations import observe  # noqa: E402
 from tracker.cameras import default_rig  # noqa: E402
 
 SHARED = REPO.parent / "shared"
-
-
-def timed(fn, repeats: int) -> float:
-    fn()
-    t0 = time.perf_counter()
-    for _ in range(repeats):
-        fn()
-    return (time.perf_counter() - t0) / repeats * 1000.0
 
 
 def main() -> None:
@@ -49,23 +43,23 @@ def main() -> None:
     pose = result.poses[60].copy()
     pose[:2] -= result.poses[:, :2].mean(axis=0)
     views = render_person(person, result.model, pose, rig, depths)
-    t_person = timed(lambda: render_person(person, result.model, pose, rig, depths), 20)
-    t_compose = timed(lambda: [compose(p[0], v, 1.0, 2.0, rng) for p, v in zip(plates, views)], 10)
+    t_person = mean_ms(lambda: render_person(person, result.model, pose, rig, depths), 20)
+    t_compose = mean_ms(lambda: [compose(p[0], v, 1.0, 2.0, rng) for p, v in zip(plates, views)], 10)
     images = [compose(p[0], v, 1.0, 2.0, rng) for p, v in zip(plates, views)]
     with tempfile.TemporaryDirectory() as tmp:
-        t_write = timed(lambda: [write_image(Path(tmp) / f"{i}.png", im) for i, im in enumerate(images)], 5)
+        t_write = mean_ms(lambda: [write_image(Path(tmp) / f"{i}.png", im) for i, im in enumerate(images)], 5)
     print(f"render person, 4 views: {t_person:.1f} ms; compose + noise: {t_compose:.1f} ms; "
           f"PNG write: {t_write:.1f} ms; total {t_person + t_compose + t_write:.0f} ms per frame")
     backgrounds = [compose(p[0], views[0].__class__(np.zeros_like(p[0]), np.zeros(p[0].shape[:2], bool)), 1.0,
                            2.0, rng) for p in plates]
-    t_obs = timed(lambda: observe(images, backgrounds), 10)
+    t_obs = mean_ms(lambda: observe(images, backgrounds), 10)
     print(f"observations (silhouette + edges), synthetic, 4 views: {t_obs:.1f} ms per frame")
     bt = SHARED / "bodytrack" / "sequenceB_1"
     if bt.exists():
         seq = read_sequence(bt)
         imgs = [seq.image(0, v) for v in range(4)]
         masks = [seq.mask(0, v) for v in range(4)]
-        t_bt = timed(lambda: observe(imgs, masks=masks), 10)
+        t_bt = mean_ms(lambda: observe(imgs, masks=masks), 10)
         print(f"observations (edges; masks given), bodytrack, 4 views: {t_bt:.1f} ms per frame")
 
 

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+
+from timing import best_ms  # noqa: E402
 
 from data_tools.asf_amc import asf_amc_clip  # noqa: E402
 from data_tools.retarget import retarget  # noqa: E402
@@ -29,16 +30,6 @@ from tracker.filter import FilterSettings, ParticleFilter  # noqa: E402
 
 SHARED = REPO.parent / "shared"
 PARSEC_MS = 100.0
-
-
-def best_of(fn, repeats: int = 5) -> float:
-    fn()
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times) * 1000.0
 
 
 def synthetic(tmp: Path) -> None:
@@ -58,13 +49,13 @@ def synthetic(tmp: Path) -> None:
     obs = frame_observations(seq, 20, range(V))
     lik = EdgeSilhouetteLikelihood(seq.model, seq.rig)
     poses = seq.groundtruth.poses[20] + np.random.default_rng(0).normal(0, 1, (P, 40)) * std
-    ms = best_of(lambda: lik(poses, obs))
+    ms = best_ms(lambda: lik(poses, obs))
     print(f"  likelihood alone: {ms:.1f} ms per {P} particles -> {P * V / ms * 1000:,.0f} particle-views/s")
     prior = ZeroVelocityPrior(std)
     hist = np.repeat(poses[:, None], 1, axis=1)
     rng = np.random.default_rng(0)
-    print(f"  prior sample: {best_of(lambda: prior.sample(hist, 1, None, rng)):.2f} ms; "
-          f"observations (4 views): {best_of(lambda: frame_observations(seq, 20, range(V))):.1f} ms")
+    print(f"  prior sample: {best_ms(lambda: prior.sample(hist, 1, None, rng)):.2f} ms; "
+          f"observations (4 views): {best_ms(lambda: frame_observations(seq, 20, range(V))):.1f} ms")
 
 
 def crbm_sampling() -> None:
@@ -80,7 +71,7 @@ def crbm_sampling() -> None:
         prior = CRBMPrior([model])
         hist = np.repeat(train[0][None, 20:20 + order], 1000, axis=0)
         state = prior.start(train[0][:20 + order], 1000, np.random.default_rng(0))
-        ms = best_of(lambda: prior.sample(hist, order, state, None))
+        ms = best_ms(lambda: prior.sample(hist, order, state, None))
         print(f"CRBM order {order} (150 hidden, trained 500 epochs on {sum(len(t) for t in train)} frames in "
               f"{model.training_seconds:.1f} s): {ms:.1f} ms to sample 1000 particles")
 
@@ -100,7 +91,7 @@ def bodytrack() -> None:
         pf = ParticleFilter(prior, FilterSettings(n_particles=P, annealing_layers=layers), np.random.default_rng(0))
         return pf.run(seq.initial_poses, [lambda x: lik(x, obs)])
 
-    ms = best_of(frame, repeats=3)
+    ms = best_ms(frame, repeats=3)
     evals = P * layers
     print(f"bodytrack 10-cone, {P} particles x {layers} layers x 4 views: {ms:.0f} ms per frame "
           f"({evals / ms * 1000:,.0f} particle evaluations/s; PARSEC ~{PARSEC_MS:.0f} ms -> "
