@@ -22,10 +22,10 @@ sys.path.insert(0, str(REPO))
 from data_tools.asf_amc import asf_amc_clip  # noqa: E402
 from data_tools.retarget import retarget  # noqa: E402
 from priors.crbm import CRBMConfig, CRBMPrior, train_crbm  # noqa: E402
-from tracker.body import DOF_NAMES  # noqa: E402
-from tracker.kinematics import markers  # noqa: E402
-from tracker.metrics import marker_error  # noqa: E402
-from tracker.representation import poses_to_invariant  # noqa: E402
+from tracker.core.body import DOF_NAMES  # noqa: E402
+from tracker.core.kinematics import markers  # noqa: E402
+from tracker.core.metrics import marker_error  # noqa: E402
+from tracker.core.representation import poses_to_invariant  # noqa: E402
 
 MOCAP = REPO.parent / "shared" / "mocap" / "cmu" / "07"
 HORIZON = 20

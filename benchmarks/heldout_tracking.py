@@ -27,10 +27,10 @@ from likelihoods.edge_silhouette import LikelihoodParams  # noqa: E402
 from priors.crbm import CRBMConfig, CRBMPrior, train_crbm  # noqa: E402
 from priors.gpdm import GPDMConfig, GPDMPrior, train_gpdm_prior  # noqa: E402
 from priors.random_walk import ConstantVelocityPrior, ZeroVelocityPrior, step_rms  # noqa: E402
-from tracker.body import DOF_NAMES  # noqa: E402
-from tracker.experiment import track  # noqa: E402
-from tracker.filter import FilterSettings  # noqa: E402
-from tracker.metrics import summarize_runs  # noqa: E402
+from tracker.core.body import DOF_NAMES  # noqa: E402
+from tracker.app.tracking import track  # noqa: E402
+from tracker.engine.filter import FilterSettings  # noqa: E402
+from tracker.core.metrics import summarize_runs  # noqa: E402
 
 SHARED = REPO.parent / "shared"
 MOCAP = SHARED / "mocap" / "cmu" / "07"

@@ -2,7 +2,7 @@
 
 Run by hand:  python benchmarks/kinematics_benchmark.py [--particles 1000] [--repeats 200]
 
-The torch version below transcribes tracker.kinematics.forward_kinematics step by step (same level-by-level
+The torch version below transcribes tracker.core.kinematics.forward_kinematics step by step (same level-by-level
 batched products) so the two can be compared on this machine; it is kept here only as the measured
 alternative. It is checked against the numpy result before timing.
 """
@@ -13,8 +13,8 @@ import argparse
 import numpy as np
 import torch
 
-from tracker.body import fifteen_cone_model
-from tracker.kinematics import _tables, forward_kinematics
+from tracker.core.body import fifteen_cone_model
+from tracker.core.kinematics import _tables, forward_kinematics
 
 from timing import mean_ms
 

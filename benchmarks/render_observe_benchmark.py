@@ -24,7 +24,7 @@ from data_tools.render import compose, make_room, person_mesh, render_background
 from data_tools.retarget import retarget  # noqa: E402
 from data_tools.sequence import read_sequence, write_image  # noqa: E402
 from likelihoods.observations import observe  # noqa: E402
-from tracker.cameras import default_rig  # noqa: E402
+from tracker.core.cameras import default_rig  # noqa: E402
 
 SHARED = REPO.parent / "shared"
 

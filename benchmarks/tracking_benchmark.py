@@ -25,8 +25,8 @@ from data_tools.sequence import read_sequence  # noqa: E402
 from data_tools.synth import SynthSettings, synthesize  # noqa: E402
 from likelihoods.edge_silhouette import EdgeSilhouetteLikelihood  # noqa: E402
 from priors.random_walk import ZeroVelocityPrior, step_rms  # noqa: E402
-from tracker.experiment import frame_observations, track  # noqa: E402
-from tracker.filter import FilterSettings, ParticleFilter  # noqa: E402
+from tracker.app.tracking import frame_observations, track  # noqa: E402
+from tracker.engine.filter import FilterSettings, ParticleFilter  # noqa: E402
 
 SHARED = REPO.parent / "shared"
 PARSEC_MS = 100.0
@@ -61,7 +61,7 @@ def synthetic(tmp: Path) -> None:
 def crbm_sampling() -> None:
     """CRBM prior: time to sample the next pose of 1000 particles (30 Gibbs steps), orders 1, 3, 6."""
     from priors.crbm import CRBMConfig, CRBMPrior, train_crbm
-    from tracker.body import DOF_NAMES
+    from tracker.core.body import DOF_NAMES
 
     mocap = SHARED / "mocap" / "cmu" / "07"
     asf = mocap / "07.asf"

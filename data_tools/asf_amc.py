@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from data_tools.mocap import MM_PER_INCH, Y_UP_TO_Z_UP, MocapClip, check_fps, parse_floats, read_lines
-from tracker.errors import InputError
-from tracker.rotations import euler_to_matrix
+from tracker.core.errors import InputError
+from tracker.core.rotations import euler_to_matrix
 
 #: The CMU database records at 120 Hz; AMC files do not say so themselves.
 CMU_FPS = 120.0

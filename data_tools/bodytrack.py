@@ -11,10 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
-from tracker.body import BodyModel
-from tracker.errors import InputError
-from tracker.parsec_body import BODYTRACK_DOF_NAMES, ten_cone_model
-from tracker.textfiles import read_numbers
+from tracker.core.body import BodyModel
+from tracker.core.errors import InputError
+from tracker.core.parsec_body import BODYTRACK_DOF_NAMES, ten_cone_model
+from data_tools.textfiles import read_numbers
 
 N_POSE = len(BODYTRACK_DOF_NAMES)
 

@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from data_tools.mocap import MM_PER_INCH, Y_UP_TO_Z_UP, MocapClip, check_finite, parse_floats, read_lines
-from tracker.errors import InputError
-from tracker.rotations import euler_to_matrix
+from tracker.core.errors import InputError
+from tracker.core.rotations import euler_to_matrix
 
 #: Length units a BVH file may use (mm per unit).
 CANDIDATE_UNITS_MM = {"mm": 1.0, "cm": 10.0, "inch": MM_PER_INCH, "cmu-asf (1/0.45 inch)": MM_PER_INCH / 0.45,

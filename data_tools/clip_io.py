@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from data_tools.retarget import RetargetResult
-from tracker.body import DOF_NAMES, MARKER_NAMES, BodyModel, BodyShape, fifteen_cone_model
-from tracker.errors import InputError
+from tracker.core.body import DOF_NAMES, MARKER_NAMES, BodyModel, BodyShape, fifteen_cone_model
+from tracker.core.errors import InputError
 
 
 @dataclass

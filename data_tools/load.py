@@ -6,7 +6,7 @@ from pathlib import Path
 from data_tools.asf_amc import CMU_FPS, asf_amc_clip
 from data_tools.bvh import bvh_clip
 from data_tools.mocap import MocapClip
-from tracker.errors import InputError
+from tracker.core.errors import InputError
 
 
 def find_skeleton(amc: Path) -> Path:

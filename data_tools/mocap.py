@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from tracker.body import EXTRA_POINT_NAMES, MARKER_NAMES
-from tracker.errors import InputError
+from tracker.core.body import EXTRA_POINT_NAMES, MARKER_NAMES
+from tracker.core.errors import InputError
 
 #: Rotation taking y-up mocap coordinates to our z-up world: (x, y, z) -> (x, -z, y).
 Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])

@@ -25,9 +25,9 @@ import numpy as np
 import trimesh
 
 from data_tools.raster import rasterize
-from tracker.body import BodyModel
-from tracker.cameras import Camera, CameraRig
-from tracker.kinematics import forward_kinematics
+from tracker.core.body import BodyModel
+from tracker.core.cameras import Camera, CameraRig
+from tracker.core.kinematics import forward_kinematics
 
 #: Direction *towards* the light (world, unit): high, in front-left of the room.
 LIGHT_DIRECTION = np.array([0.35, 0.25, 0.9]) / np.linalg.norm([0.35, 0.25, 0.9])

@@ -20,13 +20,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from data_tools.mocap import MocapClip, marker_positions, resample
-from tracker.body import (
+from tracker.core.body import (
     DEFAULT_STATURE, EXTRA_POINT_NAMES, MARKER_NAMES, SEGMENT_NAMES, BodyModel, BodyShape, default_shape,
     fifteen_cone_model,
 )
-from tracker.errors import InputError
-from tracker.kinematics import forward_kinematics, point_jacobians
-from tracker.rotations import continuous_exp_maps, elementary_rotation, matrix_to_exp_map
+from tracker.core.errors import InputError
+from tracker.core.kinematics import forward_kinematics, point_jacobians
+from tracker.core.rotations import continuous_exp_maps, elementary_rotation, matrix_to_exp_map
 
 FIT_POINTS = MARKER_NAMES + EXTRA_POINT_NAMES
 _P = {name: i for i, name in enumerate(FIT_POINTS)}
@@ -190,7 +190,7 @@ def fit_poses(model: BodyModel, targets: np.ndarray, init: np.ndarray, iteration
     ``targets`` ``T x 19 x 3`` (mm, :data:`FIT_POINTS`), ``init`` ``T x 40``.
     Returns the poses ``T x 40`` (inside the limits) and each frame's final
     cost (sum of squared residuals, mm^2). Jacobians are analytic
-    (:func:`tracker.kinematics.point_jacobians`).
+    (:func:`tracker.core.kinematics.point_jacobians`).
     """
     point_idx = np.array([model.point_index(n) for n in FIT_POINTS])
     T, D = init.shape

@@ -2,7 +2,7 @@
 
 Own layout (DESIGN.md "Sequences on disk")::
 
-    DIR/cameras.json                      the rig (tracker.cameras)
+    DIR/cameras.json                      the rig (tracker.core.cameras)
     DIR/images/<camera>/000000.png ...    one image per frame and camera
     DIR/background/<camera>.png           background plate, where there is one
     DIR/groundtruth.npz                   poses T x D, markers T x 15 x 3 (mm), fps -- when known
@@ -28,9 +28,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from tracker.body import BodyModel, BodyShape, fifteen_cone_model
-from tracker.cameras import CameraRig, read_bodytrack_calibration, read_cameras_json, write_cameras_json
-from tracker.errors import InputError
+from tracker.core.body import BodyModel, BodyShape, fifteen_cone_model
+from data_tools.calibration import read_bodytrack_calibration, read_cameras_json, write_cameras_json
+from tracker.core.cameras import CameraRig
+from tracker.core.errors import InputError
 
 OWN, BODYTRACK = "own", "bodytrack"
 

@@ -18,9 +18,9 @@ import numpy as np
 from data_tools.render import compose, make_room, person_mesh, render_background, render_person
 from data_tools.retarget import RetargetResult
 from data_tools.sequence import frame_path, write_groundtruth, write_image, write_sequence_header
-from tracker.body import standing_height
-from tracker.cameras import CameraRig, default_rig
-from tracker.errors import InputError
+from tracker.core.kinematics import standing_height
+from tracker.core.cameras import CameraRig, default_rig
+from tracker.core.errors import InputError
 
 
 @dataclass(frozen=True)

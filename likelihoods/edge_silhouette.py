@@ -2,7 +2,7 @@
 
 For every particle and view each cone is projected: points are sampled evenly
 along its two occluding-contour lines (the rulings whose tangent plane
-contains the camera centre, :func:`tracker.cones.contour_angles`) and on a
+contains the camera centre, :func:`tracker.core.cones.contour_angles`) and on a
 grid between them in the image. Contour points look up the edge map, grid
 points the silhouette (nearest pixel; a point outside the image or behind the
 camera reads 0; the cost maps carry a border of cost 1). Per view::
@@ -25,10 +25,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from likelihoods.observations import Observations
-from tracker.body import BodyModel
-from tracker.cameras import CameraRig
-from tracker.cones import contour_angles, contour_endpoints
-from tracker.kinematics import forward_kinematics
+from tracker.core.body import BodyModel
+from tracker.core.cameras import CameraRig
+from tracker.core.cones import contour_angles, contour_endpoints
+from tracker.core.kinematics import forward_kinematics
 
 
 @dataclass(frozen=True)

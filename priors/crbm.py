@@ -10,7 +10,7 @@ hidden units, order N)::
 
 ``v_<t`` is the history, the N previous frames concatenated oldest first
 (``N*K`` numbers for K features). Data are the invariant features of
-:mod:`tracker.representation`, normalised by a :class:`FeatureNormaliser`
+:mod:`tracker.core.representation`, normalised by a :class:`FeatureNormaliser`
 (constant dimensions dropped).
 
 Training: CD-k on mini-batches of randomly permuted (N+1)-frame windows, built
@@ -38,11 +38,11 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
-from priors.base import (
+from tracker.engine.prior import (
     MotionPrior, PriorState, check_model_fits, normaliser_from_tensors, normaliser_to_tensors, read_model_file,
 )
-from tracker.errors import InputError
-from tracker.representation import FeatureNormaliser, feature_names, next_poses, poses_to_invariant
+from tracker.core.errors import InputError
+from tracker.core.representation import FeatureNormaliser, feature_names, next_poses, poses_to_invariant
 
 FORMAT = "pose-tracker crbm v1"
 #: Default ground-plane diffusion (mm per frame) of CRBM samples. The CRBM predicts body-centred motion;

@@ -33,11 +33,11 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
-from priors.base import (
+from tracker.engine.prior import (
     MotionPrior, PriorState, check_model_fits, normaliser_from_tensors, normaliser_to_tensors, read_model_file,
 )
-from tracker.errors import InputError
-from tracker.representation import FeatureNormaliser, feature_names, next_poses, poses_to_invariant
+from tracker.core.errors import InputError
+from tracker.core.representation import FeatureNormaliser, feature_names, next_poses, poses_to_invariant
 
 FORMAT = "pose-tracker gpdm v1"
 #: Invariant feature indices of the root step to the next frame (forward, lateral velocity, yaw rate).

@@ -21,8 +21,8 @@ from typing import Sequence
 
 import numpy as np
 
-from priors.base import MotionPrior, PriorState
-from tracker.errors import InputError
+from tracker.engine.prior import MotionPrior, PriorState
+from tracker.core.errors import InputError
 
 #: Smallest per-dof noise (pose units per frame): dimensions the training clips never move still diffuse a little.
 MIN_STD = 1e-4

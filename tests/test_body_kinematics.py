@@ -1,11 +1,11 @@
 import numpy as np
 import pytest
 
-from tracker.body import (
-    DOF_NAMES, MARKER_NAMES, SEGMENT_NAMES, BodyShape, default_shape, fifteen_cone_model, standing_height,
+from tracker.core.body import (
+    DOF_NAMES, MARKER_NAMES, SEGMENT_NAMES, BodyShape, default_shape, fifteen_cone_model,
 )
-from tracker.errors import InputError
-from tracker.kinematics import forward_kinematics, markers, point_jacobians
+from tracker.core.errors import InputError
+from tracker.core.kinematics import forward_kinematics, markers, point_jacobians, standing_height
 
 
 @pytest.fixture(scope="module")

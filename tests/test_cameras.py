@@ -4,12 +4,10 @@ import cv2
 import numpy as np
 import pytest
 
-from tracker.cameras import (
-    CameraRig, default_rig, look_at, make_camera, monocular_rig, read_bodytrack_calibration, read_cameras_json,
-    write_cameras_json,
-)
-from tracker.errors import InputError
-from tracker.rotations import exp_map_to_matrix
+from data_tools.calibration import read_bodytrack_calibration, read_cameras_json, write_cameras_json
+from tracker.core.cameras import CameraRig, default_rig, look_at, make_camera, monocular_rig
+from tracker.core.errors import InputError
+from tracker.core.rotations import exp_map_to_matrix
 
 
 def random_camera(rng, name="c"):

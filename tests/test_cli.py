@@ -4,7 +4,7 @@ import sys
 
 import numpy as np
 
-from tracker.cli import main
+from tracker.app.cli import main
 
 
 def test_help_lists_commands():

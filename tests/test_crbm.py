@@ -7,9 +7,9 @@ import pytest
 import torch
 
 from priors.crbm import CRBMConfig, CRBMPrior, load_crbm, make_windows, train_crbm
-from tracker.body import DOF_NAMES
-from tracker.errors import InputError
-from tracker.representation import poses_to_invariant
+from tracker.core.body import DOF_NAMES
+from tracker.core.errors import InputError
+from tracker.core.representation import poses_to_invariant
 
 
 @pytest.fixture(scope="module")

@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from priors.base import MotionPrior
-from tracker.filter import FilterSettings, ParticleFilter, choose_beta
-from tracker.resampling import SCHEMES, effective_sample_size
+from tracker.engine.prior import MotionPrior
+from tracker.engine.filter import FilterSettings, ParticleFilter, choose_beta
+from tracker.engine.resampling import SCHEMES, effective_sample_size
 
 
 class LinearGaussianPrior(MotionPrior):

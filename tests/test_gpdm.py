@@ -4,14 +4,14 @@ import pytest
 import torch
 
 from priors.gpdm import GPDM, GPDMConfig, load_gpdm, save_gpdm, train_gpdm
-from tracker.errors import InputError
+from tracker.core.errors import InputError
 
 
 @pytest.fixture(scope="module")
 def walk_features(walk_07_01):
     """07_01's invariant features, normalised (one 157-frame sequence)."""
-    from tracker.body import DOF_NAMES
-    from tracker.representation import FeatureNormaliser, feature_names, poses_to_invariant
+    from tracker.core.body import DOF_NAMES
+    from tracker.core.representation import FeatureNormaliser, feature_names, poses_to_invariant
 
     f = poses_to_invariant(walk_07_01.poses)[:-1]
     norm = FeatureNormaliser.fit(f, feature_names(DOF_NAMES))
@@ -101,7 +101,7 @@ def test_bad_config_and_data():
 @pytest.fixture(scope="module")
 def gpdm_prior_model(walk_07_01):
     from priors.gpdm import train_gpdm_prior
-    from tracker.body import DOF_NAMES
+    from tracker.core.body import DOF_NAMES
 
     return train_gpdm_prior([walk_07_01.poses], GPDMConfig(iterations=100), 60.0, DOF_NAMES, sources=["07_01"])
 

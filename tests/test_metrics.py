@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from tracker.errors import InputError
-from tracker.metrics import marker_error, sequence_error, summarize_runs
+from tracker.core.errors import InputError
+from tracker.core.metrics import marker_error, sequence_error, summarize_runs
 
 
 def test_marker_error_by_hand():

@@ -6,7 +6,7 @@ from data_tools.bvh import bvh_clip
 from data_tools.load import load_mocap
 from data_tools.mocap import marker_positions, resample
 from tests.conftest import SHARED_CLIPS
-from tracker.errors import InputError
+from tracker.core.errors import InputError
 
 
 @pytest.mark.parametrize("rel", sorted(SHARED_CLIPS))

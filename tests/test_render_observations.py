@@ -6,7 +6,7 @@ from data_tools.raster import rasterize
 from data_tools.sequence import read_sequence
 from data_tools.synth import SynthSettings, synthesize
 from likelihoods.observations import ObservationParams, edge_map, observe, silhouette
-from tracker.visualize import model_masks
+from tracker.app.visualize import model_masks
 
 
 def iou(a: np.ndarray, b: np.ndarray) -> float:
@@ -109,8 +109,8 @@ def test_edge_map_range_and_falloff(synthetic_walk):
 
 
 def test_bodytrack_initial_pose_inside_masks(bodytrack_dir):
-    from tracker.cones import cone_points, volume_grid
-    from tracker.kinematics import forward_kinematics
+    from tracker.core.cones import cone_points, volume_grid
+    from tracker.core.kinematics import forward_kinematics
 
     seq = read_sequence(bodytrack_dir)
     assert seq.layout == "bodytrack" and seq.n_views == 4 and seq.n_frames == 1 and seq.model.n_dofs == 31

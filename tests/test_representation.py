@@ -1,12 +1,12 @@
 import numpy as np
 import pytest
 
-from tracker.errors import InputError
-from tracker.kinematics import markers
-from tracker.representation import (
+from tracker.core.errors import InputError
+from tracker.core.kinematics import markers
+from tracker.core.representation import (
     FeatureNormaliser, feature_names, invariant_to_poses, poses_to_invariant, start_of,
 )
-from tracker.rotations import exp_map_to_matrix, matrix_to_exp_map
+from tracker.core.rotations import exp_map_to_matrix, matrix_to_exp_map
 
 
 def test_round_trip_on_real_clip(walk_07_01, tmp_path):

@@ -2,9 +2,9 @@ import numpy as np
 import pytest
 
 from data_tools.clip_io import load_converted_clip, save_converted_clip
-from tracker.body import standing_height
-from tracker.errors import InputError
-from tracker.kinematics import markers
+from tracker.core.kinematics import standing_height
+from tracker.core.errors import InputError
+from tracker.core.kinematics import markers
 
 
 def test_retarget_residual_07_01(walk_07_01):

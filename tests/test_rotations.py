@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from tracker.rotations import (
+from tracker.core.rotations import (
     continuous_exp_maps, euler_to_matrix, exp_map_to_matrix, matrix_to_exp_map, matrix_to_yaw_pitch_roll,
     yaw_pitch_roll_to_matrix,
 )

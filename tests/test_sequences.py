@@ -9,10 +9,10 @@ import pytest
 
 from data_tools.bodytrack import read_body_shape, read_pose_parameters, read_poses
 from data_tools.sequence import read_image, read_sequence, write_image
-from tracker.cli import main
-from tracker.errors import InputError
-from tracker.kinematics import forward_kinematics, point_jacobians
-from tracker.parsec_body import ten_cone_model
+from tracker.app.cli import main
+from tracker.core.errors import InputError
+from tracker.core.kinematics import forward_kinematics, point_jacobians
+from tracker.core.parsec_body import ten_cone_model
 
 
 def test_own_format_round_trip(synthetic_walk, walk_07_11):

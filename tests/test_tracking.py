@@ -8,10 +8,10 @@ import pytest
 
 from likelihoods.edge_silhouette import EdgeSilhouetteLikelihood, LikelihoodParams
 from priors.random_walk import ConstantVelocityPrior, ZeroVelocityPrior
-from tracker.cli import main
-from tracker.experiment import frame_observations, track
-from tracker.filter import FilterSettings
-from tracker.kinematics import markers
+from tracker.app.cli import main
+from tracker.app.tracking import frame_observations, track
+from tracker.engine.filter import FilterSettings
+from tracker.core.kinematics import markers
 
 
 def test_log_likelihood_peaks_at_the_true_pose(walk_32_frames):

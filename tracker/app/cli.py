@@ -12,7 +12,7 @@ from typing import Sequence
 import numpy as np
 
 from likelihoods.edge_silhouette import LikelihoodParams
-from tracker.errors import InputError
+from tracker.core.errors import InputError
 
 LIKELIHOOD_DEFAULTS = LikelihoodParams()
 
@@ -211,9 +211,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from data_tools.synth import SynthSettings, synthesize
     from priors.crbm import CRBMConfig, CRBMPrior, train_crbm
     from priors.random_walk import ZeroVelocityPrior, step_rms
-    from tracker.experiment import track, write_results
-    from tracker.filter import FilterSettings
-    from tracker.visualize import error_plot, overlay_frames, write_video
+    from tracker.app.tracking import track, write_results
+    from tracker.engine.filter import FilterSettings
+    from tracker.app.visualize import error_plot, overlay_frames, write_video
 
     out = Path(args.out)
     asf, walks = sample_walks()
@@ -279,8 +279,8 @@ def cmd_show(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from data_tools.sequence import read_sequence
-    from tracker.experiment import read_poses_file
-    from tracker.visualize import overlay_grid, write_video
+    from tracker.app.tracking import read_poses_file
+    from tracker.app.visualize import overlay_grid, write_video
 
     if not args.out and not args.video:
         raise InputError("nothing to write: give --out FILE.png and/or --video FILE.mp4")
@@ -463,9 +463,9 @@ def cmd_track(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from data_tools.sequence import read_sequence
-    from tracker.experiment import read_poses_file, track, write_results
-    from tracker.filter import FilterSettings
-    from tracker.visualize import overlay_frames, write_video
+    from tracker.app.tracking import read_poses_file, track, write_results
+    from tracker.engine.filter import FilterSettings
+    from tracker.app.visualize import overlay_frames, write_video
 
     if args.video and Path(args.video).suffix.lower() != ".mp4":
         raise InputError("--video must be an .mp4 file", args.video)

@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tracker.body import BALL, EULER, FREE, BodyModel
-from tracker.rotations import exp_map_to_matrix
+from tracker.core.body import BALL, EULER, FREE, BodyModel
+from tracker.core.rotations import exp_map_to_matrix
 
 
 @dataclass
@@ -251,3 +251,9 @@ def point_jacobians(model: BodyModel, poses: np.ndarray, fk: Kinematics | None =
     J *= jt["mask"][..., None]
     J[..., rd[0:3], :] = np.eye(3)
     return np.swapaxes(J, -1, -2)
+
+
+def standing_height(model: BodyModel) -> float:
+    """Stature (mm): height of the head marker in the rest pose, which stands on z = 0."""
+    fk = forward_kinematics(model, model.rest_pose())
+    return float(fk.points[model.point_index("head"), 2])

@@ -29,9 +29,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from tracker.body import EULER, FREE, BodyModel, Link, NamedPoint, Segment, MARKER_NAMES
-from tracker.errors import InputError
-from tracker.rotations import elementary_rotation
+from tracker.core.body import EULER, FREE, BodyModel, Link, NamedPoint, Segment, MARKER_NAMES
+from tracker.core.errors import InputError
+from tracker.core.rotations import elementary_rotation
 
 #: Names of the 31 pose numbers, in ``InitialPose.txt`` order.
 BODYTRACK_DOF_NAMES = (

@@ -26,7 +26,7 @@ from t to t+1; the last frame repeats the step before it (constant velocity).
 The inverse integrates heading and ground position from a known start
 (``start_xy`` mm and ``start_yaw`` rad of frame 0). Forward then inverse
 reproduces the poses to float precision; root exp maps come back continuous in
-time (see :func:`tracker.rotations.continuous_exp_maps`).
+time (see :func:`tracker.core.rotations.continuous_exp_maps`).
 
 :class:`FeatureNormaliser` drops constant dimensions and scales the rest to
 zero mean, unit variance (Sec. 3.2.5); it is saved with every learned prior.
@@ -39,8 +39,8 @@ from typing import Sequence
 
 import numpy as np
 
-from tracker.errors import InputError
-from tracker.rotations import (
+from tracker.core.errors import InputError
+from tracker.core.rotations import (
     continuous_exp_maps, exp_map_to_matrix, matrix_to_exp_map, matrix_to_yaw_pitch_roll, yaw_pitch_roll_to_matrix,
 )
 

@@ -12,7 +12,7 @@ from typing import Sequence
 
 import numpy as np
 
-from tracker.errors import InputError
+from tracker.core.errors import InputError
 
 PELVIS = 0
 

@@ -1,6 +1,6 @@
 """Points on and inside a body model's truncated cones, batched over poses.
 
-A segment (see :class:`tracker.body.Segment`) is a truncated cone with an
+A segment (see :class:`tracker.core.body.Segment`) is a truncated cone with an
 elliptical cross-section. In its segment frame (``Kinematics.segment_frames``:
 x = width, y = depth, z = axis, origin at the proximal end) the point at axial
 fraction ``s`` in [0, 1], angle ``phi`` and radial fraction ``rho`` in [0, 1] is
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from tracker.body import BodyModel
+from tracker.core.body import BodyModel
 
 
 def segment_table(model: BodyModel) -> dict[str, np.ndarray]:
@@ -33,7 +33,7 @@ def cone_points(model: BodyModel, frames: np.ndarray, s: np.ndarray, phi: np.nda
     """World points ``(..., S, K, 3)`` (mm) at cone coordinates ``s``, ``phi``, ``rho`` (each ``(K,)`` or scalar).
 
     ``frames`` ``(..., S, 4, 4)``: segment frames from
-    :meth:`tracker.kinematics.Kinematics.segment_frames`.
+    :meth:`tracker.core.kinematics.Kinematics.segment_frames`.
     """
     t = segment_table(model)
     s, phi, rho = np.broadcast_arrays(np.asarray(s, float), np.asarray(phi, float), np.asarray(rho, float))

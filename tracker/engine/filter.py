@@ -31,8 +31,8 @@ from typing import Callable, Iterable
 
 import numpy as np
 
-from priors.base import MotionPrior
-from tracker.resampling import SCHEMES, effective_sample_size, normalise_log_weights
+from tracker.engine.prior import MotionPrior
+from tracker.engine.resampling import SCHEMES, effective_sample_size, normalise_log_weights
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tracker.errors import InputError
+from tracker.core.errors import InputError
 
 
 def read_numbers(path: str | Path, what: str) -> np.ndarray:

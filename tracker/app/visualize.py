@@ -10,10 +10,10 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from tracker.body import BodyModel
-from tracker.cameras import CameraRig
-from tracker.cones import cone_points, surface_grid
-from tracker.kinematics import forward_kinematics
+from tracker.core.body import BodyModel
+from tracker.core.cameras import CameraRig
+from tracker.core.cones import cone_points, surface_grid
+from tracker.core.kinematics import forward_kinematics
 
 _ENDS = surface_grid(2, 32)
 
@@ -126,7 +126,7 @@ def write_video(path, frames, fps: float) -> None:
     """Write RGB frames (an iterable of equal-sized ``H x W x 3`` uint8) to an .mp4 (MPEG-4 part 2)."""
     from pathlib import Path
 
-    from tracker.errors import InputError
+    from tracker.core.errors import InputError
 
     path = Path(path)
     writer = None

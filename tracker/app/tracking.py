@@ -16,11 +16,11 @@ import numpy as np
 from data_tools.sequence import Sequence
 from likelihoods.edge_silhouette import EdgeSilhouetteLikelihood, LikelihoodParams
 from likelihoods.observations import DEFAULT_PARAMS, ObservationParams, Observations, observe
-from priors.base import MotionPrior
-from tracker.errors import InputError
-from tracker.filter import FilterResult, FilterSettings, ParticleFilter
-from tracker.kinematics import markers as model_markers
-from tracker.metrics import marker_error
+from tracker.engine.prior import MotionPrior
+from tracker.core.errors import InputError
+from tracker.engine.filter import FilterResult, FilterSettings, ParticleFilter
+from tracker.core.kinematics import markers as model_markers
+from tracker.core.metrics import marker_error
 
 
 @dataclass

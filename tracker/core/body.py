@@ -19,7 +19,7 @@ import json
 from dataclasses import dataclass, field
 import numpy as np
 
-from tracker.errors import InputError
+from tracker.core.errors import InputError
 
 # ---------------------------------------------------------------------------
 # Generic structure
@@ -476,12 +476,3 @@ def fifteen_cone_model(shape: BodyShape | None = None) -> BodyModel:
         name="15-cone", links=links, segments=segments, points=points, dof_names=list(DOF_NAMES),
         lower=lower, upper=upper, marker_names=list(MARKER_NAMES), shape=shape, rest_root_height=rest_height,
     )
-
-
-def standing_height(model: BodyModel) -> float:
-    """Stature (mm): height of the head marker in the rest pose, which stands on z = 0."""
-    from tracker.kinematics import forward_kinematics  # kinematics imports this module
-
-    fk = forward_kinematics(model, model.rest_pose())
-    return float(fk.points[model.point_index("head"), 2])
-

@@ -14,8 +14,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from tracker.errors import InputError
-from tracker.representation import FeatureNormaliser
+from tracker.core.errors import InputError
+from tracker.core.representation import FeatureNormaliser
 
 PriorState = Any
 
