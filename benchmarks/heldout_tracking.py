@@ -22,14 +22,14 @@ sys.path.insert(0, str(REPO))
 from data_tools.asf_amc import asf_amc_clip  # noqa: E402
 from data_tools.retarget import retarget  # noqa: E402
 from data_tools.sequence import read_sequence  # noqa: E402
-from data_tools.synth import SynthSettings, synthesize  # noqa: E402
-from likelihoods.edge_silhouette import LikelihoodParams  # noqa: E402
+from data_tools.synth import SynthConfig, synthesize  # noqa: E402
+from likelihoods.edge_silhouette import EdgeSilhouetteConfig  # noqa: E402
 from priors.crbm import CRBMConfig, CRBMPrior, train_crbm  # noqa: E402
 from priors.gpdm import GPDMConfig, GPDMPrior, train_gpdm_prior  # noqa: E402
 from priors.random_walk import ConstantVelocityPrior, ZeroVelocityPrior, step_rms  # noqa: E402
 from tracker.core.body import DOF_NAMES  # noqa: E402
 from tracker.app.tracking import track  # noqa: E402
-from tracker.engine.filter import FilterSettings  # noqa: E402
+from tracker.engine.filter import FilterConfig  # noqa: E402
 from tracker.core.metrics import summarize_runs  # noqa: E402
 
 SHARED = REPO.parent / "shared"
@@ -80,15 +80,15 @@ def main() -> None:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         walk = retarget(asf_amc_clip(asf, MOCAP / "07_11.amc"), fps=60)
-        synthesize(walk, Path(tmp) / "07_11", SynthSettings(frames=args.frames))
+        synthesize(walk, Path(tmp) / "07_11", SynthConfig(frames=args.frames))
         seq = read_sequence(Path(tmp) / "07_11")
         for prior_name, prior in priors.items():
             for label, views, bidir in configs:
                 means, secs = [], []
                 for seed in range(args.seeds):
                     t0 = time.perf_counter()
-                    run = track(seq, prior, FilterSettings(n_particles=args.particles), seed=seed, views=views,
-                                likelihood_params=LikelihoodParams(bidirectional=bidir))
+                    run = track(seq, prior, FilterConfig(n_particles=args.particles), seed=seed, views=views,
+                                likelihood_params=EdgeSilhouetteConfig(bidirectional=bidir))
                     means.append(run.mean_error)
                     secs.append(run.seconds_per_frame)
                     print(f"  {prior_name}, {label}, seed {seed}: {run.mean_error:.1f} mm "

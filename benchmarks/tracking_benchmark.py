@@ -22,11 +22,11 @@ from timing import best_ms  # noqa: E402
 from data_tools.asf_amc import asf_amc_clip  # noqa: E402
 from data_tools.retarget import retarget  # noqa: E402
 from data_tools.sequence import read_sequence  # noqa: E402
-from data_tools.synth import SynthSettings, synthesize  # noqa: E402
+from data_tools.synth import SynthConfig, synthesize  # noqa: E402
 from likelihoods.edge_silhouette import EdgeSilhouetteLikelihood  # noqa: E402
 from priors.random_walk import ZeroVelocityPrior, step_rms  # noqa: E402
 from tracker.app.tracking import frame_observations, track  # noqa: E402
-from tracker.engine.filter import FilterSettings, ParticleFilter  # noqa: E402
+from tracker.engine.filter import FilterConfig, ParticleFilter  # noqa: E402
 
 SHARED = REPO.parent / "shared"
 PARSEC_MS = 100.0
@@ -36,11 +36,11 @@ def synthetic(tmp: Path) -> None:
     mocap = SHARED / "mocap" / "cmu" / "07"
     asf = mocap / "07.asf"
     walk = retarget(asf_amc_clip(asf, mocap / "07_11.amc"), fps=60)
-    synthesize(walk, tmp / "walk", SynthSettings(frames=42))
+    synthesize(walk, tmp / "walk", SynthConfig(frames=42))
     seq = read_sequence(tmp / "walk")
     std = step_rms([retarget(asf_amc_clip(asf, mocap / f"07_{i}.amc"), fps=60).poses for i in ("01", "02")])
     P, V = 1000, 4
-    run = track(seq, ZeroVelocityPrior(std), FilterSettings(n_particles=P), seed=0)
+    run = track(seq, ZeroVelocityPrior(std), FilterConfig(n_particles=P), seed=0)
     n = len(run.filter.seconds)
     per_frame = run.seconds_per_frame
     print(f"15-cone, {P} particles x {V} views, {n} frames: {per_frame * 1000:.0f} ms per frame "
@@ -88,7 +88,7 @@ def bodytrack() -> None:
     prior = ZeroVelocityPrior(seq.diffusion_std)
 
     def frame():
-        pf = ParticleFilter(prior, FilterSettings(n_particles=P, annealing_layers=layers), np.random.default_rng(0))
+        pf = ParticleFilter(prior, FilterConfig(n_particles=P, annealing_layers=layers), np.random.default_rng(0))
         return pf.run(seq.initial_poses, [lambda x: lik(x, obs)])
 
     ms = best_ms(frame, repeats=3)

@@ -40,3 +40,27 @@ def load_mocap(path: str | Path, skeleton: str | Path | None = None, mm_per_unit
             raise InputError("a BVH file carries its own skeleton; --skeleton applies to AMC files only", path)
         return bvh_clip(path, mm_per_unit)
     raise InputError(f"unknown mocap format {suffix!r}: expected .amc (with an .asf skeleton) or .bvh", path)
+
+
+def load_training_clips(files, skeletons=None, fps: float = 60.0) -> list:
+    """Retargeted clips (:class:`~data_tools.retarget.RetargetResult`) of mocap files at ``fps`` Hz.
+
+    ``skeletons`` is ``None`` (each AMC finds ``<subject>.asf`` beside it), one ASF for every AMC, or one per
+    file (BVH files carry their own and ignore theirs). Clips of different subjects are each retargeted with
+    their own skeleton and keep their own lengths.
+    """
+    from data_tools.retarget import retarget
+
+    files = [Path(f) for f in files]
+    if not files:
+        raise InputError("no training clips given")
+    skeletons = list(skeletons or [])
+    if skeletons and len(skeletons) not in (1, len(files)):
+        raise InputError(f"give one skeleton for all clips or one per clip ({len(files)}), got {len(skeletons)}")
+    results = []
+    for i, f in enumerate(files):
+        skel = None if not skeletons else skeletons[0 if len(skeletons) == 1 else i]
+        if skel is not None and f.suffix.lower() != ".amc":
+            skel = None
+        results.append(retarget(load_mocap(f, skel), fps=fps))
+    return results

@@ -32,6 +32,7 @@ from tracker.core.body import BodyModel, BodyShape, fifteen_cone_model
 from data_tools.calibration import read_bodytrack_calibration, read_cameras_json, write_cameras_json
 from tracker.core.cameras import CameraRig
 from tracker.core.errors import InputError
+from tracker.engine.likelihood import Frame
 
 OWN, BODYTRACK = "own", "bodytrack"
 
@@ -103,6 +104,19 @@ class Sequence:
             return None
         self.check_frame(frame)
         return read_mask(self.mask_paths[view][frame], self.rig[view].width, self.rig[view].height)
+
+    def frame(self, frame: int, views) -> Frame:
+        """Frame ``frame`` in the cameras ``views`` as the likelihood sees it: images, with the provided masks
+        where the layout has them, else the background plates (one of the two is needed)."""
+        views = list(views)
+        images = tuple(self.image(frame, v) for v in views)
+        if self.mask_paths is not None:
+            return Frame(frame, images, masks=tuple(self.mask(frame, v) for v in views))
+        plates = [self.background(v) for v in views]
+        missing = [self.rig[v].name for v, b in zip(views, plates) if b is None]
+        if missing:
+            raise InputError(f"no background plate and no masks for camera(s) {', '.join(missing)}", self.root)
+        return Frame(frame, images, backgrounds=tuple(plates))
 
 
 # ---------------------------------------------------------------------------

@@ -24,7 +24,7 @@ from tracker.core.errors import InputError
 
 
 @dataclass(frozen=True)
-class SynthSettings:
+class SynthConfig:
     """Generator settings (all recorded in ``meta.json``).
 
     ``noise``: std of the Gaussian sensor noise, grey levels of 255.
@@ -72,7 +72,7 @@ class SynthOutput:
     masks: list[list[np.ndarray]] | None = None
 
 
-def synthesize(result: RetargetResult, out: str | Path, settings: SynthSettings, source: str = "",
+def synthesize(result: RetargetResult, out: str | Path, settings: SynthConfig, source: str = "",
                rig: CameraRig | None = None, keep_masks: bool = False,
                progress: Callable | None = None) -> SynthOutput:
     """Render ``result`` (a retargeted clip) into a sequence folder ``out``.

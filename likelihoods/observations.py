@@ -39,7 +39,7 @@ import numpy as np
 
 
 @dataclass(frozen=True)
-class ObservationParams:
+class ObservationConfig:
     """Parameters of the observation pipeline (pixels and 8-bit grey levels)."""
 
     blur_sigma: float = 0.0
@@ -55,7 +55,7 @@ class ObservationParams:
     foreground_margin: int | None = 15
 
 
-DEFAULT_PARAMS = ObservationParams()
+DEFAULT_OBSERVATION = ObservationConfig()
 
 
 def _disc(radius: int) -> np.ndarray:
@@ -71,29 +71,29 @@ def _grey(img: np.ndarray) -> np.ndarray:
     return img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
 
 
-def clean_mask(mask: np.ndarray, params: ObservationParams = DEFAULT_PARAMS) -> np.ndarray:
+def clean_mask(mask: np.ndarray, config: ObservationConfig = DEFAULT_OBSERVATION) -> np.ndarray:
     """Morphological clean-up of a bool ``H x W`` mask: open, close, drop small components."""
     m = mask.astype(np.uint8)
-    if params.open_radius > 0:
-        m = cv2.morphologyEx(m, cv2.MORPH_OPEN, _disc(params.open_radius))
-    if params.close_radius > 0:
-        m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, _disc(params.close_radius))
-    if params.min_area > 1:
+    if config.open_radius > 0:
+        m = cv2.morphologyEx(m, cv2.MORPH_OPEN, _disc(config.open_radius))
+    if config.close_radius > 0:
+        m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, _disc(config.close_radius))
+    if config.min_area > 1:
         n, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
         keep = np.zeros(n, bool)
-        keep[1:] = stats[1:, cv2.CC_STAT_AREA] >= params.min_area
+        keep[1:] = stats[1:, cv2.CC_STAT_AREA] >= config.min_area
         m = keep[labels].astype(np.uint8)
     return m.astype(bool)
 
 
-def silhouette(image: np.ndarray, background: np.ndarray, params: ObservationParams = DEFAULT_PARAMS) -> np.ndarray:
+def silhouette(image: np.ndarray, background: np.ndarray, config: ObservationConfig = DEFAULT_OBSERVATION) -> np.ndarray:
     """Foreground mask (bool ``H x W``) of ``image`` against its background plate (same shape, uint8)."""
     if image.shape != background.shape:
         raise ValueError(f"image {image.shape} and background {background.shape} differ in shape")
-    img = _blur(image, params.blur_sigma)
-    bg = _blur(background, params.blur_sigma)
+    img = _blur(image, config.blur_sigma)
+    bg = _blur(background, config.blur_sigma)
     # Robust statistics (medians) are taken on every 4th row and column: 1/16 of the pixels is plenty.
-    if params.compensate_gain:
+    if config.compensate_gain:
         gi, gb = _grey_float(img[::4, ::4]), _grey_float(bg[::4, ::4])
         valid = gb > 20.0
         if valid.sum() > 100:
@@ -106,8 +106,8 @@ def silhouette(image: np.ndarray, background: np.ndarray, params: ObservationPar
         dist = diff
         chi_median = 0.6745  # median of |N(0, 1)|
     sigma = float(np.median(dist[::4, ::4])) / chi_median
-    threshold = max(params.diff_threshold, params.noise_factor * sigma)
-    return clean_mask(dist > threshold, params)
+    threshold = max(config.diff_threshold, config.noise_factor * sigma)
+    return clean_mask(dist > threshold, config)
 
 
 def _grey_float(img: np.ndarray) -> np.ndarray:
@@ -123,16 +123,16 @@ def gradient_magnitude(image: np.ndarray, blur_sigma: float = 1.0) -> np.ndarray
 
 
 def edge_map(image: np.ndarray, foreground: np.ndarray | None = None,
-             params: ObservationParams = DEFAULT_PARAMS) -> np.ndarray:
+             config: ObservationConfig = DEFAULT_OBSERVATION) -> np.ndarray:
     """Smoothed edge map ``H x W`` float32 in [0, 1] (1 on an edge), see the module docstring."""
-    edges = gradient_magnitude(image, params.edge_blur_sigma) > params.edge_threshold
-    if foreground is not None and params.foreground_margin is not None:
-        near = cv2.dilate(foreground.astype(np.uint8), _disc(params.foreground_margin)).astype(bool)
+    edges = gradient_magnitude(image, config.edge_blur_sigma) > config.edge_threshold
+    if foreground is not None and config.foreground_margin is not None:
+        near = cv2.dilate(foreground.astype(np.uint8), _disc(config.foreground_margin)).astype(bool)
         edges &= near
     if not edges.any():
         return np.zeros(edges.shape, np.float32)
     dist = cv2.distanceTransform((~edges).astype(np.uint8), cv2.DIST_L2, 5)
-    return np.exp(-(dist * dist) / (2.0 * params.edge_sigma ** 2)).astype(np.float32)
+    return np.exp(-(dist * dist) / (2.0 * config.edge_sigma ** 2)).astype(np.float32)
 
 
 @dataclass
@@ -149,7 +149,7 @@ class Observations:
 
 
 def observe(images: list[np.ndarray], backgrounds: list[np.ndarray | None] | None = None,
-            masks: list[np.ndarray | None] | None = None, params: ObservationParams = DEFAULT_PARAMS) -> Observations:
+            masks: list[np.ndarray | None] | None = None, config: ObservationConfig = DEFAULT_OBSERVATION) -> Observations:
     """Observations of one frame: per view a silhouette (the given mask if any, else background subtraction)
     and an edge map. Every view needs a mask or a background plate."""
     sils, edges = [], []
@@ -159,7 +159,7 @@ def observe(images: list[np.ndarray], backgrounds: list[np.ndarray | None] | Non
             bg = None if backgrounds is None else backgrounds[v]
             if bg is None:
                 raise ValueError(f"view {v}: neither a foreground mask nor a background plate")
-            mask = silhouette(img, bg, params)
+            mask = silhouette(img, bg, config)
         sils.append(mask.astype(np.float32))
-        edges.append(edge_map(img, mask, params))
+        edges.append(edge_map(img, mask, config))
     return Observations(np.stack(sils), np.stack(edges))

@@ -21,11 +21,14 @@ states driving reconstructions and the positive statistics, hidden
 probabilities in the negative statistics), Gaussian noise on the history
 (Sec. 6.4.1; by default per dimension the 99th percentile of the frame-to-frame
 change) and an optional sparsity target (Sec. 4.5.4, cross-entropy to a damped
-average activation). One seeded ``torch.Generator`` drives every random draw.
+average activation). One ``torch.Generator``, seeded from the numpy generator passed in, drives every random
+draw.
 
 Generation (Sec. 4.2.3): alternating Gibbs sampling from ``v = v_{t-1}``, with
 binary hidden samples, expected visible values and hidden probabilities on the
 final step. "Best guess" prediction descends the free energy (eq. 4.19).
+
+Registered as the ``crbm`` prior (``train`` and ``track --prior crbm``).
 """
 from __future__ import annotations
 
@@ -38,23 +41,18 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
-from tracker.engine.prior import (
-    MotionPrior, PriorState, check_model_fits, normaliser_from_tensors, normaliser_to_tensors, read_model_file,
+from priors.common import (
+    ROOT_NOISE_MM, add_ground_diffusion, check_model_fits, normaliser_from_tensors, normaliser_to_tensors,
+    read_model_file, torch_generator,
 )
 from tracker.core.errors import InputError
-from tracker.core.representation import FeatureNormaliser, feature_names, next_poses, poses_to_invariant
+from tracker.core.representation import (
+    STEP_FEATURES, FeatureNormaliser, clip_features, next_poses, pending_step, poses_to_invariant, step_rms,
+)
+from tracker.engine.prior import MotionPrior, PriorState
+from tracker.engine.registry import Option, PriorContext, TrainingData, register_prior
 
 FORMAT = "pose-tracker crbm v1"
-#: Default ground-plane diffusion (mm per frame) of CRBM samples. The CRBM predicts body-centred motion;
-#: the ground position integrates its velocities, and a walker slightly faster or slower than the training
-#: walks drifts away from particles that all move alike. Chosen on a validation render (07_01 tracked with
-#: CRBMs trained on 07_02, 07_09, 07_10; 1000 particles, 4 views, 2 seeds): 0 mm gave 41-71 mm error,
-#: 3 and 6 mm 16-18 mm, 12 mm 17-20 mm; Gaussian noise on all normalised features instead made it worse.
-ROOT_NOISE_MM = 5.0
-#: Invariant feature indices that move the root from frame t to t+1 (forward, lateral velocity, yaw rate).
-STEP_FEATURES = [0, 1, 5]
-
-
 @dataclass
 class CRBMConfig:
     """Training settings (learning rates per mini-batch of averaged statistics)."""
@@ -71,7 +69,6 @@ class CRBMConfig:
     history_noise: float | str = "auto"
     sparsity_target: float | None = None
     sparsity_cost: float = 0.1
-    seed: int = 0
 
     def check(self) -> "CRBMConfig":
         for name in ("order", "hidden", "epochs", "cd_k", "batch_size"):
@@ -178,10 +175,7 @@ class WindowData:
 
 def make_windows(clips: Sequence[np.ndarray], order: int, dof_names: Sequence[str],
                  normaliser: FeatureNormaliser | None = None) -> WindowData:
-    feats = [poses_to_invariant(np.asarray(c, float))[:-1] for c in clips]
-    if normaliser is None:
-        normaliser = FeatureNormaliser.fit(feats, feature_names(dof_names))
-    normed = [normaliser.transform(f) for f in feats]
+    normed, normaliser = clip_features(clips, dof_names, normaliser)
     starts, offset = [], 0
     for f in normed:
         n = len(f) - order
@@ -222,6 +216,12 @@ class CRBMModel:
     def order(self) -> int:
         return self.crbm.order
 
+    def summary(self) -> str:
+        """One line on how training went."""
+        errs = self.reconstruction_errors
+        fit = f"reconstruction error {errs[0]:.4f} (epoch 1) -> {errs[-1]:.4f} (epoch {len(errs)}), " if errs else ""
+        return f"CRBM order {self.order}, {self.crbm.n_hidden} hidden units: {fit}{self.training_seconds:.1f} s"
+
     def save(self, path: str | Path) -> None:
         doc = {
             "format": FORMAT, "params": self.crbm.state_dict(), "config": asdict(self.config), "fps": float(self.fps),
@@ -243,7 +243,9 @@ class CRBMModel:
 def load_crbm(path: str | Path, device: str = "cpu") -> CRBMModel:
     path = Path(path)
     doc = read_model_file(path, FORMAT, "CRBM")
-    cfg = CRBMConfig(**doc["config"])
+    config = dict(doc["config"])
+    config.pop("seed", None)  # files written before the generator came from the caller
+    cfg = CRBMConfig(**config)
     params = doc["params"]
     n_vis, n_hid = params["W"].shape
     crbm = CRBM(n_vis, n_hid, cfg.order, device=device)
@@ -263,15 +265,16 @@ def load_crbm(path: str | Path, device: str = "cpu") -> CRBMModel:
 def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_names: Sequence[str],
                body_model: str = "15-cone", sources: Sequence[str] = (),
                progress: Callable[[int, float], None] | None = None,
-               checkpoint: tuple[Path, int] | None = None, device: str = "cpu") -> CRBMModel:
-    """Train a CRBM on pose clips (each ``T x D`` at ``fps``) with CD-k.
+               checkpoint: tuple[Path, int] | None = None, device: str = "cpu", *,
+               rng: np.random.Generator) -> CRBMModel:
+    """Train a CRBM on pose clips (each ``T x D`` at ``fps``) with CD-k; every random draw comes from ``rng``.
 
     ``progress(epoch, reconstruction_error)`` is called after every epoch;
     ``checkpoint = (path, every)`` saves the model every ``every`` epochs.
     """
     cfg = config.check()
     t0 = time.perf_counter()
-    g = torch.Generator(device=device).manual_seed(cfg.seed)
+    g = torch_generator(rng, device)
     data = make_windows(clips, cfg.order, dof_names)
     frames = data.frames.to(device)
     K, N, H = frames.shape[1], cfg.order, cfg.hidden
@@ -284,8 +287,8 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
     rates = {"W": cfg.learning_rate, "A": cfg.autoregressive_learning_rate, "B": cfg.learning_rate,
              "a": cfg.learning_rate, "b": cfg.learning_rate}
     activity = torch.full((H,), cfg.sparsity_target or 0.0, device=device)
-    pose_rms = np.sqrt(np.mean(np.concatenate([np.diff(np.asarray(c, float), axis=0) for c in clips]) ** 2, axis=0))
-    model = CRBMModel(crbm, data.normaliser, cfg, fps, body_model, list(dof_names), list(sources), pose_rms)
+    model = CRBMModel(crbm, data.normaliser, cfg, fps, body_model, list(dof_names), list(sources),
+                      step_rms(clips))
     starts = data.starts.to(device)
     for epoch in range(cfg.epochs):
         order = starts[torch.randperm(len(starts), generator=g, device=device)]
@@ -345,15 +348,15 @@ class CRBMPrior(MotionPrior):
     Given several models (e.g. orders 1, 3, 6) the highest order whose history is available is used, so
     higher orders start by "growing" the history with lower ones (Taylor 2009, Sec. 6.4). ``mode`` is
     ``'gibbs'`` (samples, for tracking) or ``'free-energy'`` (the best guess, for prediction).
-    ``root_noise_mm`` adds ground-plane diffusion to each sample (see :data:`ROOT_NOISE_MM`). The filter keeps
-    ``order`` = the highest order poses per particle; the prior's own per-particle state is the pending
-    step (forward, lateral velocity, yaw rate) of the newest history frame, which the previous sample
-    chose: with forward differences a frame's features hold the step *to the next* frame.
+    ``root_noise_mm`` adds ground-plane diffusion to each sample (see :data:`priors.common.ROOT_NOISE_MM`).
+    The filter keeps ``order`` = the highest order poses per particle; the prior's own per-particle state is
+    the pending step (:data:`~tracker.core.representation.STEP_FEATURES`) of the newest history frame, which
+    the previous sample chose. Each sample's torch generator is seeded from the filter's generator.
     """
 
     name = "crbm"
 
-    def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = 30, noise: float = 0.0, seed: int = 0,
+    def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = 30, noise: float = 0.0,
                  device: str = "cpu", mode: str = "gibbs", root_noise_mm: float = ROOT_NOISE_MM):
         if not models:
             raise InputError("the CRBM prior needs at least one model")
@@ -374,48 +377,94 @@ class CRBMPrior(MotionPrior):
         self.gibbs_steps = gibbs_steps
         self.noise = float(noise)
         self.device = torch.device(device)
-        self.generator = torch.Generator(device=self.device).manual_seed(seed)
         for m in self.models:
             m.crbm.W, m.crbm.A, m.crbm.B, m.crbm.a, m.crbm.b = (
                 getattr(m.crbm, k).to(self.device) for k in CRBM.PARAMS)
+
+    def settings(self) -> dict:
+        return {"orders": [m.order for m in self.models], "gibbs_steps": self.gibbs_steps,
+                "root_noise_mm": self.root_noise_mm, "mode": self.mode}
 
     def model_for(self, available: int) -> CRBMModel:
         usable = [m for m in self.models if m.order <= available]
         return usable[-1] if usable else self.models[0]
 
     def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
-        """The pending step of the last known frame: the step between the last two known poses (or none)."""
-        known = np.atleast_2d(known)
-        if len(known) >= 2:
-            step = poses_to_invariant(known[-2:])[-1, STEP_FEATURES]
-        else:
-            step = np.zeros(len(STEP_FEATURES))
-        # The generator follows the filter's seed, so runs are reproducible per seed.
-        self.generator.manual_seed(int(rng.integers(2 ** 62)))
-        return np.repeat(step[None], n_particles, axis=0)
+        """The pending step of the last known frame (see :func:`~tracker.core.representation.pending_step`)."""
+        return np.repeat(pending_step(known)[None], n_particles, axis=0)
 
     def sample(self, history: np.ndarray, available: int, state: PriorState,
                rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
         model = self.model_for(available)
         n = model.order
+        step = list(STEP_FEATURES)
         feats = poses_to_invariant(history[:, -n - 1:] if history.shape[1] > n else
                                    np.concatenate([history[:, :1], history], axis=1))[:, -n:]
-        feats[:, -1, STEP_FEATURES] = state
+        feats[:, -1, step] = state
         z = model.normaliser.transform(feats)  # P x n x K
         hist = torch.tensor(z.reshape(len(z), -1), dtype=torch.float32, device=self.device)
+        generator = torch_generator(rng, self.device)
         if self.mode == "free-energy":  # the deterministic best guess (eq. 4.19)
             v = model.crbm.best_guess(hist)
         with torch.no_grad():
             if self.mode == "gibbs":
-                v = model.crbm.gibbs(hist, self.gibbs_steps, self.generator)
+                v = model.crbm.gibbs(hist, self.gibbs_steps, generator)
             if self.noise > 0:
-                v = v + self.noise * torch.randn(v.shape, generator=self.generator, device=self.device)
+                v = v + self.noise * torch.randn(v.shape, generator=generator, device=self.device)
         f_next = model.normaliser.inverse(v.cpu().double().numpy())
-        poses = next_poses(history[:, -1], feats[:, -1], f_next)
-        if self.root_noise_mm > 0:  # ground-plane diffusion: lets the likelihood correct integrated drift
-            noise = torch.randn((len(poses), 2), generator=self.generator, dtype=torch.float64)
-            poses[:, :2] += self.root_noise_mm * noise.numpy()
-        return poses, f_next[:, STEP_FEATURES]
+        poses = add_ground_diffusion(next_poses(history[:, -1], feats[:, -1], f_next), self.root_noise_mm, rng)
+        return poses, f_next[:, step]
 
     def diffusion_std(self) -> np.ndarray:
         return self.models[-1].pose_step_rms
+
+
+# ---------------------------------------------------------------------------
+# Registration: building from model files, training from clips
+# ---------------------------------------------------------------------------
+
+def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator,
+                     progress: Callable[[int, int, dict], None] | None = None,
+                     checkpoint: Path | None = None) -> CRBMModel:
+    """``train --prior crbm``: a CRBM of ``options['order']`` on the clips of ``data``."""
+    noise = options["history_noise"]
+    if noise != "auto":
+        try:
+            noise = float(noise)
+        except ValueError:
+            raise InputError(f"history noise must be 'auto' or a number, got {noise!r}") from None
+    config = CRBMConfig(order=options["order"], hidden=options["hidden"], epochs=options["epochs"],
+                        cd_k=options["cd_k"], batch_size=options["batch_size"], history_noise=noise,
+                        sparsity_target=options["sparsity"]).check()
+    every = options["checkpoint_every"]
+    report = None if progress is None else (
+        lambda epoch, err: progress(epoch, config.epochs, {"reconstruction": err}))
+    return train_crbm(list(data.clips), config, data.fps, data.body_model.dof_names, data.body_model.name,
+                      list(data.sources), report, (checkpoint, every) if checkpoint and every else None, rng=rng)
+
+
+CRBM_TRAIN_OPTIONS = (
+    Option("order", int, CRBMConfig.order, "CRBM order N (default 3)", minimum=1),
+    Option("hidden", int, CRBMConfig.hidden, "hidden units (default 150)", minimum=1),
+    Option("epochs", int, 500, "passes through the data (default 500)", minimum=1),
+    Option("cd_k", int, CRBMConfig.cd_k, "Gibbs steps of contrastive divergence (default 10)", minimum=1),
+    Option("batch_size", int, CRBMConfig.batch_size, "windows per mini-batch (default 100)", minimum=1),
+    Option("history_noise", str, "auto",
+           "std of the noise added to the history in training (normalised units), or 'auto' (default)"),
+    Option("sparsity", float, None, "target mean activation of the hidden units (default: no sparsity term)"),
+    Option("checkpoint_every", int, None, "also save the model every this many epochs", minimum=1),
+)
+
+
+@register_prior(
+    "crbm", summary="Conditional RBM (Taylor 2009); several model files of increasing order grow the history",
+    model_files="several", train=train_crbm_prior, train_options=CRBM_TRAIN_OPTIONS,
+    options=(Option("gibbs_steps", int, 30, "alternating Gibbs steps per sample (default 30)", minimum=1),
+             Option("root_noise", float, ROOT_NOISE_MM, "ground-plane diffusion of each sample in mm (default 5)",
+                    minimum=0.0)))
+def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> CRBMPrior:
+    models = [load_crbm(m, device=context.device) for m in model_files]
+    for path, m in zip(model_files, models):
+        m.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, path)
+    return CRBMPrior(models, gibbs_steps=options["gibbs_steps"], root_noise_mm=options["root_noise"],
+                     device=context.device)

@@ -21,6 +21,8 @@ inverse); a kernel matrix that is not positive definite raises an
 Prediction (eqs. 4.4-4.5): ``mu_X(x) = X_out^T K_X^-1 k_X(x)``,
 ``sigma_X^2(x) = k_X(x, x) - k_X(x)^T K_X^-1 k_X(x)``, and the same for the
 pose through the observation GP.
+
+Registered as the ``gpdm`` prior (``train`` and ``track --prior gpdm``).
 """
 from __future__ import annotations
 
@@ -33,15 +35,18 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
-from tracker.engine.prior import (
-    MotionPrior, PriorState, check_model_fits, normaliser_from_tensors, normaliser_to_tensors, read_model_file,
+from priors.common import (
+    ROOT_NOISE_MM, add_ground_diffusion, check_model_fits, normaliser_from_tensors, normaliser_to_tensors,
+    read_model_file, torch_generator,
 )
 from tracker.core.errors import InputError
-from tracker.core.representation import FeatureNormaliser, feature_names, next_poses, poses_to_invariant
+from tracker.core.representation import (
+    STEP_FEATURES, FeatureNormaliser, clip_features, next_poses, pending_step, poses_to_invariant, step_rms,
+)
+from tracker.engine.prior import MotionPrior, PriorState
+from tracker.engine.registry import Option, PriorContext, TrainingData, register_prior
 
 FORMAT = "pose-tracker gpdm v1"
-#: Invariant feature indices of the root step to the next frame (forward, lateral velocity, yaw rate).
-STEP = [0, 1, 5]
 DYNAMICS = ("linear", "rbf", "linear+rbf")
 
 
@@ -53,7 +58,6 @@ class GPDMConfig:
     balance: float = 1.0
     iterations: int = 300
     w_update_every: int = 10
-    seed: int = 0
 
     def check(self) -> "GPDMConfig":
         if self.latent_dim < 1:
@@ -349,8 +353,7 @@ def train_gpdm(Y: np.ndarray, lengths: Sequence[int], config: GPDMConfig,
                progress: Callable[[int, float], None] | None = None) -> GPDM:
     """Learn a GPDM on observations ``Y`` (``N x D``, sequences concatenated) by L-BFGS."""
     t0 = time.perf_counter()
-    torch.manual_seed(config.seed)
-    model = GPDM(Y, lengths, config)
+    model = GPDM(Y, lengths, config)  # PCA initialisation and L-BFGS: nothing random
     model.update_W()
     opt = torch.optim.LBFGS(model.parameters(), lr=1.0, max_iter=config.w_update_every,
                             line_search_fn="strong_wolfe", history_size=20)
@@ -395,7 +398,9 @@ def save_gpdm(path: str | Path, model: GPDM, extra: dict | None = None) -> None:
 def load_gpdm(path: str | Path) -> tuple[GPDM, dict]:
     """Read a model written by :func:`save_gpdm`: the GPDM and its ``extra`` metadata."""
     doc = read_model_file(path, FORMAT, "GPDM")
-    model = GPDM(doc["Y"].numpy(), doc["lengths"], GPDMConfig(**doc["config"]), X=doc["X"].numpy())
+    config = dict(doc["config"])
+    config.pop("seed", None)  # files written when the config carried an (unused) seed
+    model = GPDM(doc["Y"].numpy(), doc["lengths"], GPDMConfig(**config), X=doc["X"].numpy())
     with torch.no_grad():
         model.log_alpha.copy_(doc["log_alpha"])
         model.log_beta.copy_(doc["log_beta"])
@@ -427,6 +432,13 @@ class GPDMPriorModel:
             "normaliser": normaliser_to_tensors(self.normaliser),
             "training_seconds": float(self.gpdm.training_seconds)})
 
+    def summary(self) -> str:
+        """One line on how training went."""
+        h, c = self.gpdm.objective_history, self.gpdm.config
+        fit = f"objective {h[0]:.1f} -> {h[-1]:.1f}, " if h else ""
+        return (f"{c.latent_dim}D GPDM ({c.dynamics} dynamics, order {c.order}): {fit}"
+                f"{self.gpdm.training_seconds:.1f} s")
+
     def check_compatible(self, body_model: str, dof_names: Sequence[str], fps: float | None,
                          source: str | Path | None = None) -> None:
         check_model_fits("GPDM", (self.body_model, self.dof_names, self.fps), body_model, dof_names, fps, source)
@@ -436,12 +448,9 @@ def train_gpdm_prior(clips: Sequence[np.ndarray], config: GPDMConfig, fps: float
                      body_model: str = "15-cone", sources: Sequence[str] = (),
                      progress: Callable[[int, float], None] | None = None) -> GPDMPriorModel:
     """A GPDM on the invariant features of pose clips (each ``T x D`` at ``fps``), one sequence per clip."""
-    feats = [poses_to_invariant(np.asarray(c, float))[:-1] for c in clips]
-    norm = FeatureNormaliser.fit(feats, feature_names(dof_names))
-    Y = np.concatenate([norm.transform(f) for f in feats])
-    gpdm = train_gpdm(Y, [len(f) for f in feats], config, progress)
-    rms = np.sqrt(np.mean(np.concatenate([np.diff(np.asarray(c, float), axis=0) for c in clips]) ** 2, axis=0))
-    return GPDMPriorModel(gpdm, norm, fps, body_model, list(dof_names), list(sources), rms)
+    normed, norm = clip_features(clips, dof_names)
+    gpdm = train_gpdm(np.concatenate(normed), [len(f) for f in normed], config, progress)
+    return GPDMPriorModel(gpdm, norm, fps, body_model, list(dof_names), list(sources), step_rms(clips))
 
 
 def load_gpdm_prior(path: str | Path) -> GPDMPriorModel:
@@ -469,7 +478,7 @@ class GPDMPrior(MotionPrior):
     name = "gpdm"
     order = 1
 
-    def __init__(self, model: GPDMPriorModel, noise_scale: float = 1.0, root_noise_mm: float = 5.0, seed: int = 0):
+    def __init__(self, model: GPDMPriorModel, noise_scale: float = 1.0, root_noise_mm: float = ROOT_NOISE_MM):
         if not noise_scale >= 0 or not root_noise_mm >= 0:
             raise InputError("GPDM noise scale and root noise must be non-negative")
         self.model = model
@@ -477,41 +486,77 @@ class GPDMPrior(MotionPrior):
         self.latent_order = model.gpdm.config.order
         self.noise_scale = float(noise_scale)
         self.root_noise_mm = float(root_noise_mm)
-        self.generator = torch.Generator().manual_seed(seed)
+
+    def settings(self) -> dict:
+        return {"latent_noise": self.noise_scale, "root_noise_mm": self.root_noise_mm}
 
     def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
         known = np.atleast_2d(np.asarray(known, float))
-        self.generator.manual_seed(int(rng.integers(2 ** 62)))
-        pair = known[-2:] if len(known) >= 2 else np.repeat(known[-1:], 2, axis=0)
-        feats = poses_to_invariant(pair)
-        step = feats[-1, STEP] if len(known) >= 2 else np.zeros(len(STEP))
         o = self.latent_order
         recent = known[-o:] if len(known) >= o else np.repeat(known[:1], o, axis=0)
         recent_feats = poses_to_invariant(np.concatenate([recent[:1], recent]))[1:]
         latent = self.predictor.project(torch.tensor(self.model.normaliser.transform(recent_feats)))
         history = torch.cat([latent[-1 - k] for k in range(o)]).numpy()  # newest first
         return {"latent": np.repeat(history[None], n_particles, axis=0),
-                "step": np.repeat(step[None], n_particles, axis=0)}
+                "step": np.repeat(pending_step(known)[None], n_particles, axis=0)}
 
     def sample(self, history: np.ndarray, available: int, state: PriorState,
                rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
+        step = list(STEP_FEATURES)
         inputs = torch.tensor(state["latent"])
         with torch.no_grad():
             mean, var = self.predictor.predict_latent(inputs)
-            noise = torch.randn(mean.shape, generator=self.generator, dtype=torch.float64)
+            noise = torch.randn(mean.shape, generator=torch_generator(rng, "cpu"), dtype=torch.float64)
             x = mean + self.noise_scale * var.sqrt()[:, None] * noise
             pose_features, _ = self.predictor.predict_pose(x)
         f_next = self.model.normaliser.inverse(pose_features.numpy())
         previous = np.zeros_like(f_next)
-        previous[:, STEP] = state["step"]
-        poses = next_poses(history[:, -1], previous, f_next)
-        if self.root_noise_mm > 0:
-            poses[:, :2] += self.root_noise_mm * torch.randn((len(poses), 2), generator=self.generator,
-                                                             dtype=torch.float64).numpy()
+        previous[:, step] = state["step"]
+        poses = add_ground_diffusion(next_poses(history[:, -1], previous, f_next), self.root_noise_mm, rng)
         d = self.model.gpdm.config.latent_dim
         latent = np.concatenate([x.numpy(), state["latent"][:, :-d]], axis=1) if self.latent_order > 1 \
             else x.numpy()
-        return poses, {"latent": latent, "step": f_next[:, STEP]}
+        return poses, {"latent": latent, "step": f_next[:, step]}
 
     def diffusion_std(self) -> np.ndarray:
         return self.model.pose_step_rms
+
+
+# ---------------------------------------------------------------------------
+# Registration: building from a model file, training from clips
+# ---------------------------------------------------------------------------
+
+def train_gpdm_from_data(data: TrainingData, options: dict, rng: np.random.Generator,
+                         progress: Callable[[int, int, dict], None] | None = None,
+                         checkpoint: Path | None = None) -> GPDMPriorModel:
+    """``train --prior gpdm``: a GPDM on the clips of ``data`` (deterministic: ``rng`` is not drawn from)."""
+    config = GPDMConfig(latent_dim=options["latent_dim"], dynamics=options["dynamics"], order=options["order"],
+                        balance=options["balance"], iterations=options["iterations"]).check()
+    report = None if progress is None else (
+        lambda done, value: progress(done, config.iterations, {"objective": value}))
+    return train_gpdm_prior(list(data.clips), config, data.fps, data.body_model.dof_names, data.body_model.name,
+                            list(data.sources), report)
+
+
+GPDM_TRAIN_OPTIONS = (
+    Option("latent_dim", int, GPDMConfig.latent_dim, "latent dimensions (default 3)", minimum=1),
+    Option("dynamics", str, GPDMConfig.dynamics, "dynamics kernel (default linear+rbf)", choices=DYNAMICS),
+    Option("order", int, GPDMConfig.order, "dynamics order 1 or 2 (default 1)", choices=(1, 2)),
+    Option("balance", float, GPDMConfig.balance,
+           "exponent M of the prior on the observation hyperparameters (default 1)", minimum=0.0, strict=True),
+    Option("iterations", int, GPDMConfig.iterations, "L-BFGS iterations (default 300)", minimum=1),
+)
+
+
+@register_prior(
+    "gpdm", summary="Gaussian Process Dynamical Model (Wang 2005), latent coordinates carried per particle",
+    model_files="one", train=train_gpdm_from_data, train_options=GPDM_TRAIN_OPTIONS,
+    options=(Option("latent_noise", float, 1.0,
+                    "multiple of the predictive standard deviation added to each latent step (default 1)",
+                    minimum=0.0),
+             Option("root_noise", float, ROOT_NOISE_MM, "ground-plane diffusion of each sample in mm (default 5)",
+                    minimum=0.0)))
+def build_gpdm(context: PriorContext, model_files: Sequence[Path], options: dict) -> GPDMPrior:
+    model = load_gpdm_prior(model_files[0])
+    model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, model_files[0])
+    return GPDMPrior(model, noise_scale=options["latent_noise"], root_noise_mm=options["root_noise"])

@@ -4,7 +4,7 @@ Zero velocity: ``x_t = x_{t-1} + N(0, diag(sigma^2))``. Constant velocity:
 ``x_t = x_{t-1} + damping (x_{t-1} - x_{t-2}) + N(0, diag(sigma^2))``. The
 scale ``sigma`` is per pose number (mm or radians per frame) and comes either
 from the user or from training clips at the tracking frame rate
-(:func:`step_rms`): the root-mean-square of the frame-to-frame changes, so the
+(:func:`tracker.core.representation.step_rms`): the root-mean-square of the frame-to-frame changes, so the
 random walk reaches the typical step, drift included.
 
 The constant-velocity prior's defaults (``damping = 0.5``, the same noise as
@@ -17,30 +17,17 @@ filter overshoots (170-380 mm error against 46-69 mm at these settings and
 """
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
-from tracker.engine.prior import MotionPrior, PriorState
 from tracker.core.errors import InputError
+from tracker.engine.prior import MotionPrior, PriorState
+from tracker.engine.registry import Option, PriorContext, register_prior
 
 #: Smallest per-dof noise (pose units per frame): dimensions the training clips never move still diffuse a little.
 MIN_STD = 1e-4
-
-
-def step_rms(clips: Sequence[np.ndarray]) -> np.ndarray:
-    """RMS frame-to-frame change ``(D,)`` over training pose sequences (each ``T x D``, T >= 2)."""
-    if not clips:
-        raise InputError("no training clips to estimate the random-walk scales from")
-    steps = []
-    for poses in clips:
-        poses = np.asarray(poses, float)
-        if poses.ndim != 2 or len(poses) < 2:
-            raise InputError(f"training clips need at least 2 frames of poses (T x D), got {poses.shape}")
-        steps.append(np.diff(poses, axis=0))
-    if len({c.shape[1] for c in steps}) != 1:
-        raise InputError("training clips have different numbers of pose parameters")
-    return np.sqrt(np.mean(np.concatenate(steps) ** 2, axis=0))
 
 
 def _check_std(std: np.ndarray, what: str) -> np.ndarray:
@@ -93,3 +80,22 @@ class ConstantVelocityPrior(MotionPrior):
 
     def diffusion_std(self) -> np.ndarray:
         return self.std
+
+    def settings(self) -> dict:
+        return {"damping": self.damping}
+
+
+SCALE_OPTION = Option("prior_scale", float, 1.0, "multiply the random-walk noise (default 1)", minimum=0.0,
+                      strict=True)
+
+
+@register_prior("zero-velocity", summary="first-order Gaussian random walk (the baseline)", options=(SCALE_OPTION,))
+def build_zero_velocity(context: PriorContext, model_files: Sequence[Path], options: dict) -> ZeroVelocityPrior:
+    return ZeroVelocityPrior(context.step_std() * options["prior_scale"])
+
+
+@register_prior("constant-velocity", summary="second-order random walk keeping half of each particle's velocity",
+                options=(SCALE_OPTION,))
+def build_constant_velocity(context: PriorContext, model_files: Sequence[Path], options: dict
+                            ) -> ConstantVelocityPrior:
+    return ConstantVelocityPrior(context.step_std() * options["prior_scale"])

@@ -62,9 +62,9 @@ def walk_07_11(mocap_dir):
 @pytest.fixture(scope="session")
 def synthetic_walk(walk_07_11, tmp_path_factory):
     """A 6-frame, 4-view synthetic sequence of 07_11 at the default noise, with the renderer's exact masks."""
-    from data_tools.synth import SynthSettings, synthesize
+    from data_tools.synth import SynthConfig, synthesize
 
-    out = synthesize(walk_07_11, tmp_path_factory.mktemp("seq") / "walk", SynthSettings(start=40, frames=6),
+    out = synthesize(walk_07_11, tmp_path_factory.mktemp("seq") / "walk", SynthConfig(start=40, frames=6),
                      source="07_11.amc", keep_masks=True)
     return out
 
@@ -74,7 +74,7 @@ def random_walk_std(mocap_dir):
     """Zero-velocity scale from the training walks 07_01 and 07_02 at 60 Hz (rms frame-to-frame change)."""
     from data_tools.asf_amc import asf_amc_clip
     from data_tools.retarget import retarget
-    from priors.random_walk import step_rms
+    from tracker.core.representation import step_rms
 
     asf = mocap_dir / "07" / "07.asf"
     return step_rms([retarget(asf_amc_clip(asf, mocap_dir / "07" / f"07_{i}.amc"), fps=60).poses
@@ -85,7 +85,7 @@ def random_walk_std(mocap_dir):
 def walk_32_frames(walk_07_11, tmp_path_factory):
     """The first 32 frames of the held-out walk 07_11 rendered into 4 views (default noise, seed 0)."""
     from data_tools.sequence import read_sequence
-    from data_tools.synth import SynthSettings, synthesize
+    from data_tools.synth import SynthConfig, synthesize
 
-    out = synthesize(walk_07_11, tmp_path_factory.mktemp("seq32") / "walk", SynthSettings(frames=32))
+    out = synthesize(walk_07_11, tmp_path_factory.mktemp("seq32") / "walk", SynthConfig(frames=32))
     return read_sequence(out.root)

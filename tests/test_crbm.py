@@ -25,7 +25,8 @@ def walks(mocap_dir):
 
 @pytest.fixture(scope="module")
 def crbm3(walks):
-    return train_crbm(walks, CRBMConfig(order=3, hidden=100, epochs=150, seed=1), 60.0, DOF_NAMES)
+    return train_crbm(walks, CRBMConfig(order=3, hidden=100, epochs=150), 60.0, DOF_NAMES,
+                      rng=np.random.default_rng(1))
 
 
 def test_windows_are_indexed_not_copied(walks):
@@ -42,9 +43,9 @@ def test_contrastive_divergence_lowers_reconstruction_error(crbm3):
 
 
 def test_training_is_deterministic(walks):
-    cfg = CRBMConfig(order=1, hidden=20, epochs=3, seed=5)
-    a = train_crbm(walks[:1], cfg, 60.0, DOF_NAMES).crbm.state_dict()
-    b = train_crbm(walks[:1], cfg, 60.0, DOF_NAMES).crbm.state_dict()
+    cfg = CRBMConfig(order=1, hidden=20, epochs=3)
+    a = train_crbm(walks[:1], cfg, 60.0, DOF_NAMES, rng=np.random.default_rng(5)).crbm.state_dict()
+    b = train_crbm(walks[:1], cfg, 60.0, DOF_NAMES, rng=np.random.default_rng(5)).crbm.state_dict()
     assert all(torch.equal(a[k], b[k]) for k in a)
 
 
@@ -76,13 +77,14 @@ def test_free_energy_descent_finds_a_minimum(crbm3, walks):
 
 
 def test_generated_walk_stays_in_range_and_keeps_walking(crbm3, walks):
-    prior = CRBMPrior([crbm3], gibbs_steps=30, seed=3, root_noise_mm=0.0)  # pure generation
+    prior = CRBMPrior([crbm3], gibbs_steps=30, root_noise_mm=0.0)  # pure generation
     start = walks[0][:4]
     state = prior.start(start, 1, np.random.default_rng(0))
     hist = start[None, -3:]
     out = []
+    rng = np.random.default_rng(3)
     for _ in range(500):
-        x, state = prior.sample(hist, 3, state, None)
+        x, state = prior.sample(hist, 3, state, rng)
         hist = np.concatenate([hist[:, 1:], x[:, None]], axis=1)
         out.append(x[0])
     gen = poses_to_invariant(np.array(out))
@@ -103,12 +105,13 @@ def test_save_load_gives_identical_samples(crbm3, walks, tmp_path):
     loaded = load_crbm(tmp_path / "m.pt")
     hist = np.repeat(walks[1][None, 10:13], 64, axis=0)
 
-    def draw(model):
+    def draw(model, seed=9):
         prior = CRBMPrior([model], gibbs_steps=10)
-        state = prior.start(walks[1][:13], 64, np.random.default_rng(9))
-        return prior.sample(hist, 3, state, None)[0]
+        state = prior.start(walks[1][:13], 64, np.random.default_rng(seed))
+        return prior.sample(hist, 3, state, np.random.default_rng(seed))[0]
 
     assert np.array_equal(draw(crbm3), draw(loaded))
+    assert not np.array_equal(draw(crbm3, 9), draw(crbm3, 10))  # the draws come from the generator passed in
     assert loaded.fps == 60.0 and loaded.order == 3 and loaded.dof_names == list(DOF_NAMES)
 
 
@@ -135,7 +138,7 @@ def test_train_and_track_cli(mocap_dir, walk_32_frames, tmp_path):
     for args, expected in [(["train", "--prior", "crbm", "--mocap", amc, "--order", "0", "--out", str(model)],
                             "must be at least 1"),
                            (["track", str(walk_32_frames.root), "--prior", "crbm", "--out", str(tmp_path / "u")],
-                            "needs --model"),
+                            "needs a model file"),
                            (["track", str(walk_32_frames.root), "--prior", "crbm", "--model", str(tmp_path / "no.pt"),
                              "--out", str(tmp_path / "u")], "model file not found")]:
         r = subprocess.run([sys.executable, "-m", "tracker", *args], capture_output=True, text=True)

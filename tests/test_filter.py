@@ -2,9 +2,31 @@
 import numpy as np
 import pytest
 
+from tracker.engine.filter import FilterConfig, ParticleFilter, choose_beta
+from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood
 from tracker.engine.prior import MotionPrior
-from tracker.engine.filter import FilterSettings, ParticleFilter, choose_beta
-from tracker.engine.resampling import SCHEMES, effective_sample_size
+from tracker.engine.resampling import SCHEMES
+from tracker.engine.weights import LogWeights, effective_sample_size
+
+
+class FunctionLikelihood(Likelihood):
+    """Frame k is scored by ``functions[k]`` (poses P x D -> log-likelihoods (P,))."""
+
+    def __init__(self, functions):
+        self.functions = functions
+
+    def prepare(self, frame: Frame) -> FrameLikelihood:
+        f = self.functions[frame.index]
+
+        class Bound(FrameLikelihood):
+            def __call__(self, poses):
+                return f(poses)
+        return Bound()
+
+
+def run_filter(prior, functions, config, rng, known, **kw):
+    pf = ParticleFilter(prior, FunctionLikelihood(functions), config, rng)
+    return pf.run(known, [Frame(k, ()) for k in range(len(functions))], **kw)
 
 
 class LinearGaussianPrior(MotionPrior):
@@ -46,13 +68,13 @@ def test_sir_matches_kalman_filter():
         kf_means.append(m)
         kf_vars.append(np.diag(Pc))
     lls = [lambda p, y=y: -0.5 * np.sum((p - y) ** 2 / r, axis=1) for y in ys]
-    pf = ParticleFilter(LinearGaussianPrior(A, q), FilterSettings(n_particles=4000), np.random.default_rng(1))
-    res = pf.run(x0[None], lls)
-    mc_std = np.sqrt(np.array(kf_vars) / res.ess[:, None])  # Monte Carlo error of a weighted mean
-    z = (res.mean_poses - np.array(kf_means)) / mc_std
+    res = run_filter(LinearGaussianPrior(A, q), lls, FilterConfig(n_particles=4000), np.random.default_rng(1),
+                     x0[None])
+    mc_std = np.sqrt(np.array(kf_vars) / res["ess"][:, None])  # Monte Carlo error of a weighted mean
+    z = (res["mean_poses"] - np.array(kf_means)) / mc_std
     assert np.all(np.abs(z) < 5.0)
     assert abs(z.mean()) < 1.0 and np.sqrt(np.mean(z ** 2)) < 2.0
-    assert res.resampled.any() and not res.resampled.all()  # ESS-triggered, weights carried in between
+    assert res["resampled"].any() and not res["resampled"].all()  # ESS-triggered, weights carried in between
 
 
 @pytest.mark.parametrize("scheme", sorted(SCHEMES))
@@ -87,25 +109,58 @@ class StepPrior(LinearGaussianPrior):
 
 def test_all_weights_minus_inf_recovers_without_nan():
     lls = [lambda p: -p[:, 0] ** 2, lambda p: np.full(len(p), -np.inf), lambda p: -p[:, 0] ** 2]
-    pf = ParticleFilter(StepPrior(), FilterSettings(n_particles=200), np.random.default_rng(0))
-    res = pf.run(np.zeros((1, 1)), lls)
-    assert res.recovered == [1] and np.all(np.isfinite(res.mean_poses))
+    res = run_filter(StepPrior(), lls, FilterConfig(n_particles=200), np.random.default_rng(0), np.zeros((1, 1)))
+    assert list(np.flatnonzero(res["recovered"])) == [1] and np.all(np.isfinite(res["mean_poses"]))
 
 
 def test_annealed_filter_concentrates_particles():
     lls = [lambda p: -0.5 * np.sum((p - 2.0) ** 2, axis=1) / 0.01] * 3
-    plain = ParticleFilter(LinearGaussianPrior(np.eye(2), np.array([1.0, 1.0])), FilterSettings(n_particles=300),
-                           np.random.default_rng(0)).run(np.zeros((1, 2)), lls)
-    annealed = ParticleFilter(LinearGaussianPrior(np.eye(2), np.array([1.0, 1.0])),
-                              FilterSettings(n_particles=300, annealing_layers=5), np.random.default_rng(0)
-                              ).run(np.zeros((1, 2)), lls)
-    assert np.all(annealed.resampled)
-    err = lambda r: np.abs(r.mean_poses[-1] - 2.0).max()  # noqa: E731
+    plain = run_filter(LinearGaussianPrior(np.eye(2), np.array([1.0, 1.0])), lls, FilterConfig(n_particles=300),
+                       np.random.default_rng(0), np.zeros((1, 2)))
+    annealed = run_filter(LinearGaussianPrior(np.eye(2), np.array([1.0, 1.0])), lls,
+                          FilterConfig(n_particles=300, annealing_layers=5), np.random.default_rng(0),
+                          np.zeros((1, 2)))
+    assert np.all(annealed["resampled"])
+    err = lambda r: np.abs(r["mean_poses"][-1] - 2.0).max()  # noqa: E731
     assert err(annealed) < 0.1 and err(annealed) <= err(plain) + 0.05
 
 
 def test_same_seed_same_result_and_seed_matters():
     def run(seed):
-        return ParticleFilter(StepPrior(), FilterSettings(n_particles=100), np.random.default_rng(seed)).run(
-            np.zeros((1, 1)), [lambda p: -(p[:, 0] - 0.1) ** 2 / 0.001] * 5).mean_poses
+        return run_filter(StepPrior(), [lambda p: -(p[:, 0] - 0.1) ** 2 / 0.001] * 5, FilterConfig(n_particles=100),
+                          np.random.default_rng(seed), np.zeros((1, 1)))["mean_poses"]
     assert np.array_equal(run(4), run(4)) and not np.array_equal(run(4), run(5))
+
+
+def test_log_weights_object():
+    w = LogWeights(np.array([0.0, np.log(3.0), -np.inf]))
+    assert np.allclose(w.normalised, [0.25, 0.75, 0.0]) and w.ess == pytest.approx(1 / (0.25 ** 2 + 0.75 ** 2))
+    assert w.any_finite and not LogWeights(np.full(3, -np.inf)).any_finite
+    assert np.allclose(w.add(np.log([3.0, 1.0, 1.0])).normalised, [0.5, 0.5, 0.0])
+    assert np.allclose(w.renormalised().log_w[:2], np.log([0.25, 0.75]))
+
+
+def test_caller_chooses_what_is_recorded_and_sees_particles():
+    seen = []
+    lls = [lambda p: -(p[:, 0] - 0.1) ** 2 / 0.01] * 4
+    res = run_filter(StepPrior(), lls, FilterConfig(n_particles=50), np.random.default_rng(0), np.zeros((1, 1)),
+                     record=("ess", "particles", "weights"),
+                     on_frame=lambda step: seen.append((step.index, step.particles.shape, step.weights.ess)))
+    assert set(res) == {"ess", "particles", "weights"}
+    assert res["particles"].shape == (4, 50, 1) and np.allclose(res["weights"].sum(axis=1), 1.0)
+    assert [s[0] for s in seen] == [0, 1, 2, 3] and seen[0][1] == (50, 1)
+    assert np.allclose([s[2] for s in seen], res["ess"])
+    custom = run_filter(StepPrior(), lls, FilterConfig(n_particles=50), np.random.default_rng(0), np.zeros((1, 1)),
+                        record={"spread": lambda step: float(step.particles.std())})
+    assert custom["spread"].shape == (4,)
+
+
+def test_step_by_step_equals_run():
+    lls = [lambda p: -(p[:, 0] - 0.1) ** 2 / 0.01] * 4
+    whole = run_filter(StepPrior(), lls, FilterConfig(n_particles=60), np.random.default_rng(9), np.zeros((1, 1)))
+    pf = ParticleFilter(StepPrior(), FunctionLikelihood(lls), FilterConfig(n_particles=60), np.random.default_rng(9))
+    state, means = pf.start(np.zeros((1, 1))), []
+    for k in range(4):
+        state, step = pf.step(state, Frame(k, ()))
+        means.append(step.mean)
+    assert np.array_equal(np.array(means), whole["mean_poses"]) and state.tracked == 4

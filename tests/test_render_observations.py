@@ -4,8 +4,8 @@ import pytest
 
 from data_tools.raster import rasterize
 from data_tools.sequence import read_sequence
-from data_tools.synth import SynthSettings, synthesize
-from likelihoods.observations import ObservationParams, edge_map, observe, silhouette
+from data_tools.synth import SynthConfig, synthesize
+from likelihoods.observations import ObservationConfig, edge_map, observe, silhouette
 from tracker.app.visualize import model_masks
 
 
@@ -50,25 +50,25 @@ def test_background_subtraction_default_noise(synthetic_walk):
 
 
 def test_background_subtraction_clean_frames(walk_07_11, tmp_path):
-    out = synthesize(walk_07_11, tmp_path / "clean", SynthSettings(start=80, frames=3, noise=0.0, seed=1),
+    out = synthesize(walk_07_11, tmp_path / "clean", SynthConfig(start=80, frames=3, noise=0.0, seed=1),
                      keep_masks=True)
     assert min(silhouette_ious(out)) > 0.9
 
 
 def test_lighting_change_is_compensated(walk_07_11, tmp_path):
-    out = synthesize(walk_07_11, tmp_path / "light", SynthSettings(start=80, frames=2, lighting_change=0.3, seed=2),
+    out = synthesize(walk_07_11, tmp_path / "light", SynthConfig(start=80, frames=2, lighting_change=0.3, seed=2),
                      keep_masks=True)
     ious = silhouette_ious(out)
     assert min(ious) > 0.8
     seq = read_sequence(out.root)
-    raw = silhouette(seq.image(1, 0), seq.background(0), ObservationParams(compensate_gain=False))
+    raw = silhouette(seq.image(1, 0), seq.background(0), ObservationConfig(compensate_gain=False))
     assert iou(raw, out.masks[1][0]) < 0.5  # without compensation the whole scene differs from the plate
 
 
 def test_occluder_hides_the_person_in_camera_0(walk_07_11, tmp_path):
     # In 07_11 the walk passes behind the pillar around frames 20-60 (fully hidden near frame 36).
-    free = synthesize(walk_07_11, tmp_path / "a", SynthSettings(start=20, frames=3, seed=4), keep_masks=True)
-    occl = synthesize(walk_07_11, tmp_path / "b", SynthSettings(start=20, frames=3, seed=4, occluder=True),
+    free = synthesize(walk_07_11, tmp_path / "a", SynthConfig(start=20, frames=3, seed=4), keep_masks=True)
+    occl = synthesize(walk_07_11, tmp_path / "b", SynthConfig(start=20, frames=3, seed=4, occluder=True),
                       keep_masks=True)
     for k in range(3):
         assert free.masks[k][0].sum() - occl.masks[k][0].sum() > 500
@@ -77,7 +77,7 @@ def test_occluder_hides_the_person_in_camera_0(walk_07_11, tmp_path):
 
 
 def test_missing_camera_is_black(walk_07_11, tmp_path):
-    out = synthesize(walk_07_11, tmp_path / "m", SynthSettings(start=0, frames=2, missing_camera=2))
+    out = synthesize(walk_07_11, tmp_path / "m", SynthConfig(start=0, frames=2, missing_camera=2))
     seq = read_sequence(out.root)
     assert not seq.image(1, 2).any() and seq.image(1, 1).any()
 

@@ -6,21 +6,19 @@ import sys
 import numpy as np
 import pytest
 
-from likelihoods.edge_silhouette import EdgeSilhouetteLikelihood, LikelihoodParams
+from likelihoods.edge_silhouette import EdgeSilhouetteLikelihood, EdgeSilhouetteConfig
 from priors.random_walk import ConstantVelocityPrior, ZeroVelocityPrior
 from tracker.app.cli import main
-from tracker.app.tracking import frame_observations, track
-from tracker.engine.filter import FilterSettings
+from tracker import track
 from tracker.core.kinematics import markers
 
 
 def test_log_likelihood_peaks_at_the_true_pose(walk_32_frames):
     seq = walk_32_frames
     k = 20
-    obs = frame_observations(seq, k, range(4))
-    lik = EdgeSilhouetteLikelihood(seq.model, seq.rig)
+    lik = EdgeSilhouetteLikelihood(seq.model, seq.rig).prepare(seq.frame(k, range(4)))
     truth = seq.groundtruth.poses[k]
-    best = lik(truth[None], obs)[0]
+    best = lik(truth[None])[0]
     m0 = markers(seq.model, truth)
     checked = 0
     for d in range(seq.model.n_dofs):
@@ -33,20 +31,20 @@ def test_log_likelihood_peaks_at_the_true_pose(walk_32_frames):
             if moved < 15.0:  # twists of round cones barely change the picture
                 continue
             checked += 1
-            assert lik(q[None], obs)[0] < best, (seq.model.dof_names[d], delta)
+            assert lik(q[None])[0] < best, (seq.model.dof_names[d], delta)
     assert checked >= 30
 
 
 def test_likelihood_terms_and_limits(walk_32_frames):
     seq = walk_32_frames
-    obs = frame_observations(seq, 5, range(4))
-    lik = EdgeSilhouetteLikelihood(seq.model, seq.rig, LikelihoodParams(bidirectional=True))
+    lik = EdgeSilhouetteLikelihood(seq.model, seq.rig, EdgeSilhouetteConfig(bidirectional=True)).prepare(
+        seq.frame(5, range(4)))
     truth = seq.groundtruth.poses[5]
     shifted = truth.copy()
     shifted[0] += 300.0
     outside = truth.copy()
     outside[seq.model.dof_index("left_knee_flexion")] = -1.0
-    t = lik.terms(np.stack([truth, shifted, outside]), obs)
+    t = lik.terms(np.stack([truth, shifted, outside]))
     assert t.edge.shape == (3, 4) and np.all((t.edge >= 0) & (t.edge <= 1))
     assert np.all(t.silhouette[0] < 0.1) and np.all(t.coverage[0] < 0.2)
     assert np.all(t.coverage[1] > t.coverage[0]) and t.log_likelihood[1] < t.log_likelihood[0]
@@ -56,15 +54,15 @@ def test_likelihood_terms_and_limits(walk_32_frames):
 def test_thirty_frame_walk_tracked_within_bound(walk_32_frames, random_walk_std):
     # Measured before setting the bound (500 particles, 4 views, seeds 0-5): 44.5-54.6 mm mean, 65-81 mm worst
     # frame. A filter that ignores the images drifts to about 417 mm on the same frames.
-    run = track(walk_32_frames, ZeroVelocityPrior(random_walk_std), FilterSettings(n_particles=500), seed=0)
+    run = track(walk_32_frames, ZeroVelocityPrior(random_walk_std), particles=500, seed=0)
     assert run.first_tracked == 2 and len(run.errors) == 30
     assert run.mean_error < 80.0 and run.errors.max() < 130.0
 
 
 def test_same_seed_same_tracking(walk_32_frames, random_walk_std):
     def run(seed):
-        return track(walk_32_frames, ConstantVelocityPrior(random_walk_std), FilterSettings(n_particles=100),
-                     seed=seed, n_frames=6).poses
+        return track(walk_32_frames, ConstantVelocityPrior(random_walk_std), particles=100, seed=seed,
+                     frames=6).poses
     a, b, c = run(3), run(3), run(4)
     assert np.array_equal(a, b) and not np.array_equal(a, c)
 
@@ -105,7 +103,7 @@ def test_track_bad_inputs_exit_2(walk_32_frames, tmp_path):
         (["--init", str(tmp_path / "bad_init.npz")], "initial poses must be n x 40"),
         (["--init", str(tmp_path / "missing.npz")], "cannot read initial poses"),
         (["--prior", "hmm"], "invalid choice"),
-        (["--prior", "gpdm"], "needs --model"),
+        (["--prior", "gpdm"], "needs a model file"),
     ]
     for extra, expected in cases:
         args = ["track", root, "--out", str(tmp_path / "o"), "--particles", "50", "--frames", "4"]

@@ -1,6 +1,61 @@
-"""Geometry core and inference: body model, kinematics, cameras, pose representation, metrics, command line.
+"""3D human pose tracking with learned dynamical priors.
+
+The public API (``import tracker``)::
+
+    tracker.load_sequence, tracker.load_clip, tracker.synthesize    data
+    tracker.build_prior, tracker.build_likelihood, tracker.train    models
+    tracker.track -> TrackingResult (.save writes result.json)     tracking
+    tracker.marker_error, tracker.sequence_error, tracker.summarize_runs
+    tracker.register_prior, tracker.register_likelihood, tracker.Option,
+    tracker.MotionPrior, tracker.Likelihood, tracker.FrameLikelihood, tracker.Frame   extending
+    tracker.available_priors(), tracker.available_likelihoods()
+    tracker.InputError                                              every refusal of bad input
+
+Layers (checked by import-linter, see pyproject.toml): ``tracker.core``
+(geometry) <- ``tracker.engine`` (model contract, filter, registries) <-
+``priors``, ``likelihoods``, ``data_tools`` (plugins and file formats) <-
+``tracker.app`` (this API, visualisation, the command line). Names are
+resolved on first use, so importing ``tracker.core`` from a plugin does not
+pull in the application layer.
 
 Conventions (docs/conventions.md): world z up, millimetres, radians, images
 H x W with (x, y) pixel coordinates, batches on the leading axis.
 """
-__version__ = "0.1.0"
+from __future__ import annotations
+
+import importlib
+
+__version__ = "0.2.0"
+
+_EXPORTS = {
+    "load_sequence": "tracker.app.api", "load_clip": "tracker.app.api", "synthesize": "tracker.app.api",
+    "build_prior": "tracker.app.api", "build_likelihood": "tracker.app.api", "train": "tracker.app.api",
+    "track": "tracker.app.api", "available_priors": "tracker.app.api", "available_likelihoods": "tracker.app.api",
+    "random_walk_scale": "tracker.app.api",
+    "TrackingResult": "tracker.app.tracking",
+    "SynthConfig": "data_tools.synth",
+    "marker_error": "tracker.core.metrics", "sequence_error": "tracker.core.metrics",
+    "summarize_runs": "tracker.core.metrics",
+    "register_prior": "tracker.engine.registry", "register_likelihood": "tracker.engine.registry",
+    "Option": "tracker.engine.registry", "PriorContext": "tracker.engine.registry",
+    "LikelihoodContext": "tracker.engine.registry", "TrainingData": "tracker.engine.registry",
+    "MotionPrior": "tracker.engine.prior", "Likelihood": "tracker.engine.likelihood",
+    "FrameLikelihood": "tracker.engine.likelihood", "Frame": "tracker.engine.likelihood",
+    "FrameStep": "tracker.engine.recording", "FilterConfig": "tracker.engine.filter",
+    "ParticleFilter": "tracker.engine.filter",
+    "InputError": "tracker.core.errors",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str):
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'tracker' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(list(globals()) + __all__)

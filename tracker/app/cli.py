@@ -1,6 +1,9 @@
 """Command line: ``python -m tracker <command>`` (the contract: DESIGN.md "Command line", README).
 
-Every bad input ends with a one-line reason on stderr and exit status 2.
+The command line only parses arguments and calls the public API
+(:mod:`tracker.app.api`); the choices of ``--prior`` and ``--likelihood`` and
+each plugin's own flags come from the registries. Every bad input ends with a
+one-line reason on stderr and exit status 2.
 """
 from __future__ import annotations
 
@@ -11,10 +14,14 @@ from typing import Sequence
 
 import numpy as np
 
-from likelihoods.edge_silhouette import LikelihoodParams
+from data_tools.files import atomic_path
+from tracker.app.api import (
+    available_likelihoods, available_priors, build_likelihood, build_prior, likelihood_entry, load_sequence,
+    prior_entry, track, train,
+)
+from tracker.app.plugins import import_plugin
 from tracker.core.errors import InputError
-
-LIKELIHOOD_DEFAULTS = LikelihoodParams()
+from tracker.engine.registry import Option
 
 
 def _number(kind: type, minimum: float, strict: bool):
@@ -50,6 +57,8 @@ class _Parser(argparse.ArgumentParser):
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="python -m tracker",
                 description="3D human pose tracking with learned dynamical priors.")
+    p.add_argument("--plugin", action="append", default=[], metavar="MODULE_OR_FILE",
+                   help="import a module (or .py file) that registers priors or likelihoods; repeatable")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
 
@@ -74,7 +83,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--fps", type=_positive_float, default=60.0, help="frame rate in Hz (default 60)")
     s.add_argument("--start", type=_non_negative_int, default=0, help="first frame, at the output rate (default 0)")
     s.add_argument("--frames", type=_positive_int, default=None, help="number of frames (default: to the end)")
-    s.add_argument("--seed", type=int, default=0, help="random seed: scene, clothing, widths, noise (default 0)")
+    s.add_argument("--seed", type=_non_negative_int, default=0,
+                   help="random seed: scene, clothing, widths, noise (default 0)")
     s.add_argument("--width", type=_positive_int, default=640, help="image width in pixels (default 640)")
     s.add_argument("--height", type=_positive_int, default=480, help="image height in pixels (default 480)")
     s.add_argument("--noise", type=_non_negative_float, default=2.0,
@@ -96,56 +106,37 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--out", help="output image (.png)")
     w.add_argument("--video", help="also write every frame to this video (.mp4)")
 
-    r = sub.add_parser("train", help="train a learned motion prior (CRBM) on mocap clips",
-                       description="Retarget the clips to the 15-cone model at --fps, convert them to the invariant "
-                                   "representation and train a CRBM with contrastive divergence; the model file keeps "
-                                   "its normalisation statistics and the data settings it was trained with.")
-    r.add_argument("--prior", required=True, choices=["crbm", "gpdm"], help="which prior to train")
+    r = sub.add_parser("train", help="train a learned motion prior on mocap clips",
+                       description="Retarget the clips (any subjects, each with its own skeleton) to the 15-cone "
+                                   "model at --fps, convert them to the invariant representation and train the "
+                                   "prior; the model file keeps its normalisation statistics and the data settings "
+                                   "it was trained with.")
+    trainable = [n for n in available_priors() if prior_entry(n).train is not None]
+    r.add_argument("--prior", required=True, choices=trainable, help="which prior to train")
     r.add_argument("--mocap", required=True, nargs="+", metavar="FILE", help="training clips (.amc or .bvh)")
     r.add_argument("--skeleton", nargs="+", metavar="ASF",
                    help="ASF skeleton(s): one for all .amc clips or one per clip (default: <subject>.asf beside each)")
     r.add_argument("--fps", type=_positive_float, default=60.0, help="frame rate of the training data (default 60)")
-    r.add_argument("--order", type=_positive_int, default=None,
-                   help="CRBM order N (default 3) or GPDM dynamics order 1 or 2 (default 1)")
-    r.add_argument("--hidden", type=_positive_int, default=150, help="hidden units (default 150)")
-    r.add_argument("--epochs", type=_positive_int, default=500, help="passes through the data (default 500)")
-    r.add_argument("--cd-k", type=_positive_int, default=10, help="Gibbs steps of contrastive divergence (default 10)")
-    r.add_argument("--batch-size", type=_positive_int, default=100, help="windows per mini-batch (default 100)")
-    r.add_argument("--history-noise", default="auto",
-                   help="std of the noise added to the history in training (normalised units), or 'auto' (default)")
-    r.add_argument("--sparsity", type=float, default=None, metavar="TARGET",
-                   help="target mean activation of the hidden units (default: no sparsity term)")
-    r.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    r.add_argument("--checkpoint-every", type=_positive_int, default=None, metavar="EPOCHS",
-                   help="CRBM: also save the model every this many epochs")
-    r.add_argument("--latent-dim", type=_positive_int, default=3, help="GPDM: latent dimensions (default 3)")
-    r.add_argument("--dynamics", default="linear+rbf", choices=["linear", "rbf", "linear+rbf"],
-                   help="GPDM: dynamics kernel (default linear+rbf)")
-    r.add_argument("--balance", type=_positive_float, default=1.0, metavar="M",
-                   help="GPDM: exponent M of the prior on the observation hyperparameters (default 1)")
-    r.add_argument("--iterations", type=_positive_int, default=300, help="GPDM: L-BFGS iterations (default 300)")
+    r.add_argument("--seed", type=_non_negative_int, default=0, help="random seed (default 0)")
+    _add_plugin_options(r, {n: prior_entry(n).train_options for n in trainable})
     r.add_argument("--out", required=True, help="output model file (.pt)")
 
     t = sub.add_parser("track", help="track a person through a sequence with a particle filter",
                        description="Track a sequence (our layout or PARSEC bodytrack) with an SIR particle filter "
-                                   "and an edge + silhouette likelihood; writes OUTDIR/result.json and "
-                                   "OUTDIR/estimates.npz.")
+                                   "and an image likelihood; writes OUTDIR/result.json and OUTDIR/estimates.npz.")
     t.add_argument("sequence", metavar="DIR", help="sequence folder")
-    t.add_argument("--prior", required=True, choices=["zero-velocity", "constant-velocity", "crbm", "gpdm"],
-                   help="motion prior")
+    t.add_argument("--prior", required=True, choices=available_priors(), help="motion prior")
     t.add_argument("--model", nargs="+", metavar="MODEL",
                    help="trained prior model(s); for crbm several orders (e.g. 1 and 3) grow the history")
-    t.add_argument("--gibbs-steps", type=_positive_int, default=30,
-                   help="CRBM: alternating Gibbs steps per sample (default 30)")
-    t.add_argument("--root-noise", type=_non_negative_float, default=5.0, metavar="MM",
-                   help="CRBM, GPDM: ground-plane diffusion of each sample in mm (default 5)")
-    t.add_argument("--latent-noise", type=_non_negative_float, default=1.0,
-                   help="GPDM: multiple of the predictive standard deviation added to each latent step (default 1)")
+    t.add_argument("--likelihood", default="edge-silhouette", choices=available_likelihoods(),
+                   help="image likelihood (default edge-silhouette)")
+    _add_plugin_options(t, {n: prior_entry(n).options for n in available_priors()})
+    _add_plugin_options(t, {n: likelihood_entry(n).options for n in available_likelihoods()})
     t.add_argument("--particles", type=_positive_int, default=1000, help="number of particles (default 1000)")
     t.add_argument("--views", default=None, help="comma-separated camera indices (default: all)")
     t.add_argument("--frames", type=_positive_int, default=None,
                    help="track frames 0..N-1 (default: the whole sequence)")
-    t.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    t.add_argument("--seed", type=_non_negative_int, default=0, help="random seed (default 0)")
     t.add_argument("--annealing-layers", type=_positive_int, default=1,
                    help="annealed layers per frame (default 1: plain SIR)")
     t.add_argument("--resampling", default="systematic",
@@ -157,12 +148,6 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--train-mocap", nargs="+", default=None, metavar="FILE",
                    help="mocap clips whose frame-to-frame changes set the random-walk scale (default: the shipped "
                         "subject-7 walks 07_01 and 07_02); bodytrack folders use PoseParameters.txt")
-    t.add_argument("--prior-scale", type=_positive_float, default=1.0,
-                   help="multiply the random-walk noise (default 1)")
-    t.add_argument("--sharpness", type=_positive_float, default=LIKELIHOOD_DEFAULTS.sharpness,
-                   help=f"likelihood sharpness (default {LIKELIHOOD_DEFAULTS.sharpness:g})")
-    t.add_argument("--bidirectional", action="store_true",
-                   help="also penalise foreground the model does not cover (for monocular tracking)")
     t.add_argument("--out", required=True, help="output folder")
     t.add_argument("--video", help="also write an overlay video of the estimates (.mp4)")
 
@@ -175,6 +160,49 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--frames", type=_number(int, 4, strict=False), default=90,
                    help="frames to render and track (default 90: 1.5 s)")
     return p
+
+
+def _option_type(option: Option):
+    """The argparse type of a plugin option: the conversion only (ranges are checked per plugin)."""
+    def parse(text: str):
+        try:
+            return option.parse(text, option.flag)
+        except InputError as exc:
+            raise argparse.ArgumentTypeError(exc.reason) from None
+    return parse if option.type is not str else str
+
+
+def _add_plugin_options(parser: argparse.ArgumentParser, declared: dict[str, tuple[Option, ...]]) -> None:
+    """One flag per option name over all plugins (default None: "not given"), its help naming the plugins."""
+    users: dict[str, list[str]] = {}
+    first: dict[str, Option] = {}
+    for plugin, options in declared.items():
+        for o in options:
+            users.setdefault(o.name, []).append(plugin)
+            first.setdefault(o.name, o)
+    for name, o in first.items():
+        text = f"{', '.join(users[name])}: {o.help}"
+        if o.type is bool:
+            parser.add_argument(o.flag, dest=name, action="store_true", default=None, help=text)
+        else:
+            parser.add_argument(o.flag, dest=name, type=_option_type(o), default=None,
+                                metavar=o.name.upper(), help=text)
+
+
+def _given_options(args: argparse.Namespace, kind: str, name: str, declared: tuple[Option, ...],
+                   all_declared: dict[str, tuple[Option, ...]]) -> dict:
+    """The plugin options set on the command line for plugin ``name``; a flag of another plugin is refused."""
+    mine = {o.name for o in declared}
+    given = {}
+    for options in all_declared.values():
+        for o in options:
+            value = getattr(args, o.name, None)
+            if value is None or o.name in given:
+                continue
+            if o.name not in mine:
+                raise InputError(f"{o.flag} does not apply to {kind} {name}")
+            given[o.name] = value
+    return given
 
 
 def _convert_one(mocap: str | Path, skeleton, fps: float, length_unit, out: Path):
@@ -201,64 +229,14 @@ def cmd_convert(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_demo(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
-    from data_tools.load import load_mocap
-    from data_tools.retarget import retarget
-    from data_tools.samples import CMU_ATTRIBUTION, sample_walks
-    from data_tools.sequence import read_sequence
-    from data_tools.synth import SynthSettings, synthesize
-    from priors.crbm import CRBMConfig, CRBMPrior, train_crbm
-    from priors.random_walk import ZeroVelocityPrior, step_rms
-    from tracker.app.tracking import track, write_results
-    from tracker.engine.filter import FilterSettings
-    from tracker.app.visualize import error_plot, overlay_frames, write_video
-
-    out = Path(args.out)
-    asf, walks = sample_walks()
-    train, test = walks  # 07_01 trains the priors, 07_02 is rendered and tracked
-    print(f"1/4 Rendering {args.frames} frames of CMU walk {test.stem} into 4 cameras (60 Hz, 640x480)")
-    result = retarget(load_mocap(test, asf), fps=60.0)
-    synthesize(result, out / "sequence", SynthSettings(frames=args.frames), source=f"{test.name} (shipped sample)",
-               progress=lambda it: tqdm(it, desc="rendering", unit="frame"))
-    seq = read_sequence(out / "sequence")
-    train_poses = retarget(load_mocap(train, asf), fps=60.0).poses
-    print(f"2/4 Training a first-order CRBM (150 hidden units, CD-10, 300 epochs) on {train.stem}")
-    crbm = train_crbm([train_poses], CRBMConfig(order=1, hidden=150, epochs=300), 60.0, seq.model.dof_names,
-                      seq.model.name, [train.name])
-    crbm.save(out / "crbm1.pt")
-    print(f"   {crbm.training_seconds:.1f} s, reconstruction error {crbm.reconstruction_errors[0]:.3f} -> "
-          f"{crbm.reconstruction_errors[-1]:.3f} -> {out / 'crbm1.pt'}")
-    priors = {"zero-velocity": ZeroVelocityPrior(step_rms([train_poses])), "crbm": CRBMPrior([crbm])}
-    print("3/4 Tracking with each prior, 1000 particles, 4 views, seed 0")
-    runs = {}
-    for name, prior in priors.items():
-        with tqdm(total=args.frames - 2, desc=name, unit="frame") as bar:
-            runs[name] = track(seq, prior, FilterSettings(n_particles=1000), seed=0,
-                               on_frame=lambda k, e: (bar.update(1), bar.set_postfix(error_mm=f"{e:.0f}")))
-        res = write_results(out / f"track_{name}", runs[name], seq, name, 1000, 0, {})
-        print(f"   {name}: mean marker error {res['mean_error_mm']:.1f} ± {res['std_error_mm']:.1f} mm over "
-              f"{res['frames']} frames, {runs[name].seconds_per_frame:.3f} s per frame -> {out / f'track_{name}'}")
-    print("4/4 Writing the error plot and the overlay video (CRBM estimates)")
-    curves = {name: (np.arange(r.first_tracked, len(r.poses)), r.errors) for name, r in runs.items()}
-    error_plot(out / "error_per_frame.png", curves, f"Tracking CMU {test.stem}, 4 views, 1000 particles")
-    best = runs["crbm"]
-    write_video(out / "overlay.mp4", overlay_frames(seq, best.poses, best.views, best.errors, best.first_tracked),
-                seq.fps)
-    print(f"   {out / 'error_per_frame.png'}, {out / 'overlay.mp4'}")
-    print(CMU_ATTRIBUTION)
-    return 0
-
-
 def cmd_synth(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from data_tools.load import load_mocap
     from data_tools.retarget import retarget
-    from data_tools.synth import SynthSettings, synthesize
+    from data_tools.synth import SynthConfig, synthesize
 
-    settings = SynthSettings(views=args.views, fps=args.fps, start=args.start, frames=args.frames, seed=args.seed,
+    settings = SynthConfig(views=args.views, fps=args.fps, start=args.start, frames=args.frames, seed=args.seed,
                              width=args.width, height=args.height, noise=args.noise,
                              lighting_change=args.lighting_change, occluder=args.occluder,
                              missing_camera=args.missing_camera)
@@ -279,7 +257,7 @@ def cmd_show(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from data_tools.sequence import read_sequence
-    from tracker.app.tracking import read_poses_file
+    from data_tools.estimates import read_poses_file
     from tracker.app.visualize import overlay_grid, write_video
 
     if not args.out and not args.video:
@@ -332,169 +310,80 @@ def _parse_views(text: str | None, n_views: int) -> list[int]:
     return views
 
 
-def _training_poses(files: list[str] | None, fps: float) -> list[np.ndarray]:
-    """Retargeted poses of the training clips (default: the shipped walks) at the tracking rate."""
-    from data_tools.load import load_mocap
-    from data_tools.retarget import retarget
-    from data_tools.samples import sample_walks
+def cmd_demo(args: argparse.Namespace) -> int:
+    from tracker.app.demo import run_demo
 
-    if files is None:
-        asf, walks = sample_walks()
-        clips = [load_mocap(w, asf) for w in walks]
-    else:
-        clips = [load_mocap(f) for f in files]
-    return [retarget(c, fps=fps).poses for c in clips]
+    return run_demo(Path(args.out), args.frames)
 
 
-def build_random_walk_prior(name: str, seq, train_files: list[str] | None, scale: float):
-    """The zero- or constant-velocity prior for ``seq``, its noise from training clips (15-cone sequences) or
-    from ``PoseParameters.txt`` (bodytrack)."""
-    from priors.random_walk import ConstantVelocityPrior, ZeroVelocityPrior, step_rms
+def _progress_bar(desc: str):
+    """A ``progress(done, total, metrics)`` callback drawing one tqdm bar (created on the first call)."""
+    from tqdm import tqdm
 
-    if seq.layout == "bodytrack":
-        if seq.diffusion_std is None:
-            raise InputError("bodytrack folder has no PoseParameters.txt for the random-walk scale", seq.root)
-        std = seq.diffusion_std
-    else:
-        if seq.fps is None:
-            raise InputError("the sequence states no frame rate (groundtruth.npz or meta.json 'fps')", seq.root)
-        std = step_rms(_training_poses(train_files, seq.fps))
-        if len(std) != seq.model.n_dofs:
-            raise InputError(f"training clips have {len(std)} pose numbers, the sequence's model "
-                             f"{seq.model.n_dofs}")
-    std = std * scale
-    return ZeroVelocityPrior(std) if name == "zero-velocity" else ConstantVelocityPrior(std)
+    state = {}
 
+    def progress(done: int, total: int, metrics: dict) -> None:
+        if "bar" not in state:
+            state["bar"] = tqdm(total=total, desc=desc, unit="it")
+        bar = state["bar"]
+        bar.update(done - bar.n)
+        bar.set_postfix({k: f"{v:.4g}" for k, v in metrics.items()})
+        if done >= total:
+            bar.close()
 
-def _training_clips(files: list[str], skeletons: list[str] | None, fps: float):
-    from data_tools.load import load_mocap
-    from data_tools.retarget import retarget
-
-    if skeletons and len(skeletons) not in (1, len(files)):
-        raise InputError(f"give one --skeleton for all clips or one per clip ({len(files)}), got {len(skeletons)}")
-    results = []
-    for i, f in enumerate(files):
-        skel = None if not skeletons else skeletons[0 if len(skeletons) == 1 else i]
-        if skel is not None and not str(f).lower().endswith(".amc"):
-            skel = None
-        results.append(retarget(load_mocap(f, skel), fps=fps))
-    return results
+    return progress
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     out = Path(args.out)
-    results = _training_clips(args.mocap, args.skeleton, args.fps)
-    model0 = results[0].model
-    frames = sum(len(r.poses) for r in results)
-    clips = [r.poses for r in results]
-    sources = [str(f) for f in args.mocap]
-    if args.prior == "gpdm":
-        from priors.gpdm import GPDMConfig, train_gpdm_prior
-
-        config = GPDMConfig(latent_dim=args.latent_dim, dynamics=args.dynamics, order=args.order or 1,
-                            balance=args.balance, iterations=args.iterations, seed=args.seed).check()
-        print(f"training a {config.latent_dim}D GPDM ({config.dynamics} dynamics, order {config.order}, "
-              f"M = {config.balance:g}) on {len(results)} clip(s), {frames} frames at {args.fps:g} fps")
-        with tqdm(total=config.iterations, desc="L-BFGS", unit="it") as bar:
-            def progress(done: int, value: float) -> None:
-                bar.update(done - bar.n)
-                bar.set_postfix(objective=f"{value:.1f}")
-
-            model = train_gpdm_prior(clips, config, args.fps, model0.dof_names, model0.name, sources, progress)
-        model.save(out)
-        h = model.gpdm.objective_history
-        print(f"objective {h[0]:.1f} -> {h[-1]:.1f}, {model.gpdm.training_seconds:.1f} s -> {out}")
-        return 0
-    from priors.crbm import CRBMConfig, train_crbm
-
-    noise = args.history_noise
-    if noise != "auto":
-        try:
-            noise = float(noise)
-        except ValueError:
-            raise InputError(f"--history-noise must be 'auto' or a number, got {noise!r}") from None
-    config = CRBMConfig(order=args.order or 3, hidden=args.hidden, epochs=args.epochs, cd_k=args.cd_k,
-                        batch_size=args.batch_size, history_noise=noise, sparsity_target=args.sparsity,
-                        seed=args.seed).check()
-    print(f"training a CRBM of order {config.order} with {args.hidden} hidden units on {len(results)} clip(s), "
-          f"{frames} frames at {args.fps:g} fps")
-    with tqdm(total=args.epochs, desc="CD-%d" % args.cd_k, unit="epoch") as bar:
-        def progress(epoch: int, err: float) -> None:
-            bar.update(1)
-            bar.set_postfix(reconstruction=f"{err:.4f}")
-
-        model = train_crbm(clips, config, args.fps, model0.dof_names, model0.name, sources, progress,
-                           (out, args.checkpoint_every) if args.checkpoint_every else None)
-    model.save(out)
-    errs = model.reconstruction_errors
-    print(f"reconstruction error {errs[0]:.4f} (epoch 1) -> {errs[-1]:.4f} (epoch {len(errs)}), "
-          f"{model.training_seconds:.1f} s -> {out}")
+    trainable = {n: prior_entry(n).train_options for n in available_priors() if prior_entry(n).train is not None}
+    options = _given_options(args, "prior", args.prior, trainable[args.prior], trainable)
+    print(f"training a {args.prior} prior on {len(args.mocap)} clip(s) at {args.fps:g} fps", flush=True)
+    model = train(args.prior, args.mocap, skeletons=args.skeleton, fps=args.fps, rng=args.seed,
+                  progress=_progress_bar(f"training {args.prior}"), checkpoint=out, **options)
+    with atomic_path(out) as tmp:
+        model.save(tmp)
+    print(f"{model.summary()} -> {out}")
     return 0
-
-
-def build_prior(args: argparse.Namespace, seq):
-    """The prior named on the command line, checked against the sequence."""
-    if args.prior in ("zero-velocity", "constant-velocity"):
-        if args.model:
-            raise InputError(f"--model is for learned priors; {args.prior} takes its scale from --train-mocap")
-        return build_random_walk_prior(args.prior, seq, args.train_mocap, args.prior_scale)
-    if not args.model:
-        raise InputError(f"--prior {args.prior} needs --model MODEL (train one with python -m tracker train "
-                         f"--prior {args.prior})")
-    if args.prior == "gpdm":
-        from priors.gpdm import GPDMPrior, load_gpdm_prior
-
-        if len(args.model) != 1:
-            raise InputError("--prior gpdm takes one --model")
-        model = load_gpdm_prior(args.model[0])
-        model.check_compatible(seq.model.name, seq.model.dof_names, seq.fps, args.model[0])
-        return GPDMPrior(model, noise_scale=args.latent_noise, root_noise_mm=args.root_noise, seed=args.seed)
-    from priors.crbm import CRBMPrior, load_crbm
-
-    models = [load_crbm(m) for m in args.model]
-    for path, m in zip(args.model, models):
-        m.check_compatible(seq.model.name, seq.model.dof_names, seq.fps, path)
-    return CRBMPrior(models, gibbs_steps=args.gibbs_steps, seed=args.seed, root_noise_mm=args.root_noise)
 
 
 def cmd_track(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from data_tools.sequence import read_sequence
-    from tracker.app.tracking import read_poses_file, track, write_results
-    from tracker.engine.filter import FilterSettings
+    from data_tools.estimates import read_poses_file
     from tracker.app.visualize import overlay_frames, write_video
 
     if args.video and Path(args.video).suffix.lower() != ".mp4":
         raise InputError("--video must be an .mp4 file", args.video)
-    seq = read_sequence(args.sequence)
+    seq = load_sequence(args.sequence)
     views = _parse_views(args.views, seq.n_views)
     if args.frames is not None and args.frames > seq.n_frames:
         raise InputError(f"--frames {args.frames} is past the end of the sequence ({seq.n_frames} frames)", seq.root)
-    prior = build_prior(args, seq)
+    priors = {n: prior_entry(n).options for n in available_priors()}
+    likelihoods = {n: likelihood_entry(n).options for n in available_likelihoods()}
+    prior_options = _given_options(args, "prior", args.prior, priors[args.prior], priors)
+    lik_options = _given_options(args, "likelihood", args.likelihood, likelihoods[args.likelihood], likelihoods)
+    prior = build_prior(args.prior, seq, args.model or (), train_mocap=args.train_mocap, **prior_options)
+    likelihood = build_likelihood(args.likelihood, seq, views, **lik_options)
     init = read_poses_file(args.init, "initial poses") if args.init else None
-    settings = FilterSettings(n_particles=args.particles, resampling=args.resampling,
-                              annealing_layers=args.annealing_layers)
-    lparams = LikelihoodParams(sharpness=args.sharpness, bidirectional=args.bidirectional)
     T = args.frames or seq.n_frames
     errors: list[float] = []
     with tqdm(total=T, desc=f"tracking ({args.prior})", unit="frame") as bar:
-        def on_frame(k: int, err: float | None) -> None:
+        def on_frame(step, err: float | None) -> None:
             bar.update(1)
             if err is not None:
                 errors.append(err)
                 bar.set_postfix(error_mm=f"{err:.0f}", mean_mm=f"{np.mean(errors):.0f}")
 
-        run = track(seq, prior, settings, args.seed, views, args.frames, args.known_frames, init, lparams,
-                    on_frame=on_frame)
+        run = track(seq, prior, likelihood=likelihood, particles=args.particles, views=views, frames=args.frames,
+                    seed=args.seed, annealing_layers=args.annealing_layers, resampling=args.resampling,
+                    known_frames=args.known_frames, init=init, on_frame=on_frame)
         bar.update(T - bar.n)
+    run.settings["prior"] = args.prior
+    run.settings["prior_models"] = [str(m) for m in (args.model or ())]
     out = Path(args.out)
-    result = write_results(out, run, seq, args.prior, args.particles, args.seed,
-                           {"annealing_layers": args.annealing_layers, "resampling": args.resampling,
-                            "sharpness": args.sharpness, "bidirectional": args.bidirectional})
-    if run.filter.recovered:
+    result = run.save(out)
+    if run.recovered_frames:
         print(f"warning: no particle explained frame(s) {result['recovered_frames']}; the filter re-diffused "
               f"around its last estimate", file=sys.stderr)
     err = "" if run.mean_error is None else (f", mean error {result['mean_error_mm']:.1f} "
@@ -512,9 +401,23 @@ COMMANDS = {"convert": cmd_convert, "synth": cmd_synth, "show": cmd_show, "train
             "demo": cmd_demo}
 
 
+def _plugins_from_argv(argv: list[str]) -> list[str]:
+    """``--plugin`` values, read before the parser is built (plugins add choices and flags to it)."""
+    found = []
+    for i, a in enumerate(argv):
+        if a == "--plugin" and i + 1 < len(argv):
+            found.append(argv[i + 1])
+        elif a.startswith("--plugin="):
+            found.append(a.split("=", 1)[1])
+    return found
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
     try:
+        for spec in _plugins_from_argv(argv):
+            import_plugin(spec)
+        args = build_parser().parse_args(argv)
         return COMMANDS[args.command](args)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)

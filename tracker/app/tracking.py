@@ -1,62 +1,99 @@
-"""Tracking experiments: wire a sequence, a prior, the likelihood and the filter together, and score the result.
+"""Tracking a sequence: wire a sequence, a prior and a likelihood into the filter, and score the result.
 
-This (with the command line) is the only place that knows concrete priors and
-likelihoods; the filter sees their interfaces.
+:func:`track` is the one implementation behind ``tracker.track`` and
+``python -m tracker track``; :class:`TrackingResult` holds everything a run
+produced and writes ``result.json`` and ``estimates.npz`` (DESIGN.md
+"Command line"), so Python and the command line write the same files.
 """
 from __future__ import annotations
 
 import json
-import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Sequence as Seq
+from typing import Any, Callable, Iterable, Mapping, Sequence as Seq
 
 import numpy as np
 
+from data_tools.estimates import write_estimates
+from data_tools.files import atomic_path, write_text_atomic
 from data_tools.sequence import Sequence
-from likelihoods.edge_silhouette import EdgeSilhouetteLikelihood, LikelihoodParams
-from likelihoods.observations import DEFAULT_PARAMS, ObservationParams, Observations, observe
-from tracker.engine.prior import MotionPrior
 from tracker.core.errors import InputError
-from tracker.engine.filter import FilterResult, FilterSettings, ParticleFilter
 from tracker.core.kinematics import markers as model_markers
 from tracker.core.metrics import marker_error
+from tracker.engine.filter import FilterConfig, ParticleFilter
+from tracker.engine.likelihood import Likelihood
+from tracker.engine.prior import MotionPrior
+from tracker.engine.recording import DEFAULT_RECORD, FrameStep
 
 
 @dataclass
-class TrackingRun:
-    """One tracking run: estimates for every frame ``T x D`` (the known frames first, then the tracked ones),
-    markers ``T x 15 x 3``, the tracked frame indices, per-frame marker error (mm) on the tracked frames when
-    there is ground truth, and timings."""
+class TrackingResult:
+    """One tracking run.
+
+    ``poses`` ``T x D`` and ``markers`` ``T x 15 x 3`` (mm) hold the known frames first, then the weighted-mean
+    estimate of every tracked frame; ``best_poses`` likewise with the best particle; ``first_tracked`` is the
+    first tracked frame; ``errors`` the per-frame marker error (mm) of the tracked frames, when the sequence
+    has ground truth; ``records`` what the filter recorded per tracked frame (``ess``, timings, ...);
+    ``settings`` every setting that produced the run (written to ``result.json``).
+    """
 
     poses: np.ndarray
     markers: np.ndarray
+    best_poses: np.ndarray
     first_tracked: int
     errors: np.ndarray | None
-    filter: FilterResult
-    observation_seconds: float
-    views: list[int]
+    records: dict[str, np.ndarray]
+    settings: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def tracked_frames(self) -> list[int]:
+        return list(range(self.first_tracked, len(self.poses)))
 
     @property
     def mean_error(self) -> float | None:
+        """Mean marker error over the tracked frames (mm), or None without ground truth."""
         return None if self.errors is None else float(np.mean(self.errors))
 
     @property
+    def ess(self) -> np.ndarray:
+        return self.records["ess"]
+
+    @property
     def seconds_per_frame(self) -> float:
-        n = max(len(self.filter.seconds), 1)
-        return (float(self.filter.seconds.sum()) + self.observation_seconds) / n
+        """Wall time per tracked frame: reading, observations and the filter step."""
+        n = max(len(self.tracked_frames), 1)
+        return float(sum(self.records[k].sum() for k in ("load_seconds", "observe_seconds", "filter_seconds")
+                         if k in self.records)) / n
 
+    @property
+    def recovered_frames(self) -> list[int]:
+        """Frames no particle explained (the filter re-diffused there)."""
+        rec = self.records.get("recovered")
+        return [] if rec is None else [self.first_tracked + int(k) for k in np.flatnonzero(rec)]
 
-def frame_observations(seq: Sequence, frame: int, views: Seq[int],
-                       params: ObservationParams = DEFAULT_PARAMS) -> Observations:
-    """Silhouettes and edge maps of one frame in the chosen views (provided masks where the layout has them)."""
-    images = [seq.image(frame, v) for v in views]
-    masks = [seq.mask(frame, v) for v in views] if seq.mask_paths is not None else None
-    backgrounds = None if masks is not None else [seq.background(v) for v in views]
-    if backgrounds is not None and any(b is None for b in backgrounds):
-        missing = [seq.rig[v].name for v, b in zip(views, backgrounds) if b is None]
-        raise InputError(f"no background plate and no masks for camera(s) {', '.join(missing)}", seq.root)
-    return observe(images, backgrounds, masks, params)
+    def to_dict(self) -> dict[str, Any]:
+        """The content of ``result.json``."""
+        errors = self.errors
+        return {
+            **self.settings,
+            "frames": len(self.tracked_frames),
+            "mean_error_mm": self.mean_error,
+            "std_error_mm": None if errors is None else float(np.std(errors)),
+            "per_frame_error_mm": None if errors is None else [round(float(e), 3) for e in errors],
+            "seconds_per_frame": self.seconds_per_frame,
+            "tracked_frames": self.tracked_frames, "first_tracked_frame": self.first_tracked,
+            "mean_effective_sample_size": float(np.mean(self.ess)) if "ess" in self.records else None,
+            "recovered_frames": self.recovered_frames,
+        }
+
+    def save(self, out: str | Path) -> dict[str, Any]:
+        """Write ``OUT/result.json`` and ``OUT/estimates.npz`` (each atomically); returns the JSON content."""
+        out = Path(out)
+        result = self.to_dict()
+        with atomic_path(out / "estimates.npz") as tmp:
+            write_estimates(tmp, self.poses, self.markers, self.best_poses)
+        write_text_atomic(out / "result.json", json.dumps(result, indent=1))
+        return result
 
 
 def known_start(seq: Sequence, n_known: int, init: np.ndarray | None = None) -> tuple[np.ndarray, int]:
@@ -72,6 +109,8 @@ def known_start(seq: Sequence, n_known: int, init: np.ndarray | None = None) -> 
         init = np.atleast_2d(np.asarray(init, float))
         if init.ndim != 2 or init.shape[1] != D:
             raise InputError(f"initial poses must be n x {D} for the {seq.model.name} model, got {init.shape}")
+        if len(init) == 0:
+            raise InputError("initial poses are empty: give at least one pose")
         if not np.all(np.isfinite(init)):
             raise InputError("initial poses contain NaN or infinite values")
         known = init[:n_known]
@@ -84,88 +123,64 @@ def known_start(seq: Sequence, n_known: int, init: np.ndarray | None = None) -> 
     raise InputError("no ground truth and no initial pose: give initial poses (--init)", seq.root)
 
 
-def track(seq: Sequence, prior: MotionPrior, settings: FilterSettings, seed: int, views: Seq[int] | None = None,
-          n_frames: int | None = None, n_known: int = 2, init: np.ndarray | None = None,
-          likelihood_params: LikelihoodParams = LikelihoodParams(),
-          observation_params: ObservationParams = DEFAULT_PARAMS,
-          on_frame: Callable[[int, float | None], None] | None = None) -> TrackingRun:
-    """Track ``seq`` from its known first poses; frames ``0 .. n_frames-1`` (default: all)."""
-    views = list(range(seq.n_views)) if views is None else list(views)
-    rig = seq.rig.subset(views)
-    T = seq.n_frames if n_frames is None else n_frames
+def check_views(views: Iterable[int] | None, n_views: int, source=None) -> list[int]:
+    """Distinct camera indices within ``0 .. n_views-1`` (default: all)."""
+    if views is None:
+        return list(range(n_views))
+    views = [int(v) for v in views]
+    if not views or len(set(views)) != len(views):
+        raise InputError(f"views must list distinct camera indices, got {views}", source)
+    bad = [v for v in views if not 0 <= v < n_views]
+    if bad:
+        raise InputError(f"views {bad} out of range: the sequence has {n_views} cameras (0..{n_views - 1})", source)
+    return views
+
+
+def seed_description(seed: int | np.random.SeedSequence | np.random.Generator) -> Any:
+    """How a run's seed is recorded in ``result.json``."""
+    if isinstance(seed, np.random.SeedSequence):
+        return {"entropy": seed.entropy, "spawn_key": list(seed.spawn_key)}
+    if isinstance(seed, np.random.Generator):
+        return "a caller's numpy Generator"
+    return int(seed)
+
+
+def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, config: FilterConfig,
+                 rng: np.random.Generator, views: Seq[int], n_frames: int | None = None, n_known: int = 2,
+                 init: np.ndarray | None = None,
+                 record: Iterable[str] | Mapping[str, Callable[[FrameStep], Any]] = DEFAULT_RECORD,
+                 on_frame: Callable[[FrameStep, float | None], None] | None = None) -> TrackingResult:
+    """Track ``seq`` (frames ``0 .. n_frames-1``, default all) in ``views`` from its known first poses.
+
+    ``on_frame(step, error_mm)`` is called after every tracked frame with the filter's
+    :class:`~tracker.engine.recording.FrameStep` and that frame's marker error (None without ground truth).
+    """
+    T = seq.n_frames if n_frames is None else int(n_frames)
     if not 1 <= T <= seq.n_frames:
-        raise InputError(f"--frames {n_frames} is outside 1..{seq.n_frames} (the sequence's length)", seq.root)
+        raise InputError(f"frames {n_frames} is outside 1..{seq.n_frames} (the sequence's length)", seq.root)
     known, n0 = known_start(seq, n_known, init)
     if n0 >= T:
         raise InputError(f"nothing to track: {n0} known frame(s) and only {T} frame(s) requested", seq.root)
-    likelihood = EdgeSilhouetteLikelihood(seq.model, rig, likelihood_params)
     gt = seq.groundtruth
-    obs_time = [0.0]
+    record = dict(record) if isinstance(record, Mapping) else list(record)
+    if isinstance(record, list):  # the result needs these whatever else the caller records
+        record += [k for k in ("mean_poses", "best_poses") if k not in record]
 
-    def frames():
-        for k in range(n0, T):
-            t0 = time.perf_counter()
-            obs = frame_observations(seq, k, views, observation_params)
-            obs_time[0] += time.perf_counter() - t0
-            yield lambda poses, obs=obs: likelihood(poses, obs)
-
-    def report(i: int, mean: np.ndarray) -> None:
+    def report(step: FrameStep) -> None:
         if on_frame is not None:
-            err = None
-            if gt is not None:
-                err = float(marker_error(model_markers(seq.model, mean), gt.markers[n0 + i]))
-            on_frame(n0 + i, err)
+            err = None if gt is None else float(marker_error(model_markers(seq.model, step.mean),
+                                                             gt.markers[step.frame]))
+            on_frame(step, err)
 
-    pf = ParticleFilter(prior, settings, np.random.default_rng(seed))
-    result = pf.run(known, frames(), report)
-    poses = np.concatenate([known[:n0], result.mean_poses])
+    if isinstance(record, dict):
+        record.setdefault("mean_poses", lambda s: s.mean)
+        record.setdefault("best_poses", lambda s: s.best)
+    pf = ParticleFilter(prior, likelihood, config, rng)
+    records = pf.run(known, (seq.frame(k, views) for k in range(n0, T)), record, report)
+    D = seq.model.n_dofs
+    poses = np.concatenate([known[:n0], records["mean_poses"].reshape(-1, D)])
+    best = np.concatenate([known[:n0], records["best_poses"].reshape(-1, D)])
     est_markers = model_markers(seq.model, poses)
-    errors = None
-    if gt is not None:
-        errors = marker_error(est_markers[n0:], gt.markers[n0:T])
-    return TrackingRun(poses=poses, markers=est_markers, first_tracked=n0, errors=errors, filter=result,
-                       observation_seconds=obs_time[0], views=views)
-
-
-def read_poses_file(path: str | Path, what: str = "poses", model=None) -> np.ndarray:
-    """The ``poses`` array ``T x D`` of an .npz (``estimates.npz``, ``--init``); with ``model`` its layout is
-    checked too."""
-    path = Path(path)
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            if "poses" not in z.files:
-                raise InputError("no 'poses' array in the file", path)
-            poses = np.asarray(z["poses"], float)
-    except (OSError, ValueError) as exc:
-        raise InputError(f"cannot read {what} ({exc})", path) from None
-    if model is not None:
-        if poses.ndim != 2 or poses.shape[1] != model.n_dofs:
-            raise InputError(f"{what} must be T x {model.n_dofs} for the {model.name} model, got {poses.shape}",
-                             path)
-        if not np.all(np.isfinite(poses)):
-            raise InputError(f"{what} contain NaN or infinite values", path)
-    return poses
-
-
-def write_results(out: str | Path, run: TrackingRun, seq: Sequence, prior_name: str, particles: int, seed: int,
-                  extra: dict | None = None) -> dict:
-    """``OUTDIR/result.json`` and ``OUTDIR/estimates.npz`` as DESIGN.md specifies (plus documented extras)."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    tracked = list(range(run.first_tracked, len(run.poses)))
-    result = {
-        "prior": prior_name, "particles": particles, "views": run.views, "seed": seed, "frames": len(tracked),
-        "mean_error_mm": run.mean_error,
-        "std_error_mm": None if run.errors is None else float(np.std(run.errors)),
-        "per_frame_error_mm": None if run.errors is None else [round(float(e), 3) for e in run.errors],
-        "seconds_per_frame": run.seconds_per_frame,
-        "tracked_frames": tracked, "first_tracked_frame": run.first_tracked,
-        "sequence": str(seq.root), "model": seq.model.name,
-        "mean_effective_sample_size": float(np.mean(run.filter.ess)),
-        "recovered_frames": [run.first_tracked + k for k in run.filter.recovered],
-        **(extra or {}),
-    }
-    (out / "result.json").write_text(json.dumps(result, indent=1))
-    np.savez(out / "estimates.npz", poses=run.poses, markers=run.markers,
-             best_poses=np.concatenate([run.poses[:run.first_tracked], run.filter.best_poses]))
-    return result
+    errors = None if gt is None else marker_error(est_markers[n0:], gt.markers[n0:T])
+    return TrackingResult(poses=poses, markers=est_markers, best_poses=best, first_tracked=n0, errors=errors,
+                          records=records)

@@ -46,6 +46,9 @@ from tracker.core.rotations import (
 
 ROOT_FEATURE_NAMES = ("forward_velocity", "lateral_velocity", "height", "pitch", "roll", "yaw_rate")
 N_ROOT = 6
+#: Feature indices of the root's step to the next frame (forward, lateral velocity, yaw rate): with forward
+#: differences a frame's features hold the step *to the next* frame.
+STEP_FEATURES = (0, 1, 5)
 
 
 def feature_names(dof_names: Sequence[str]) -> list[str]:
@@ -87,12 +90,15 @@ def poses_to_invariant(poses: np.ndarray) -> np.ndarray:
     return np.concatenate([root, poses[..., N_ROOT:]], axis=-1)
 
 
-def invariant_to_poses(features: np.ndarray, start_xy: np.ndarray, start_yaw: np.ndarray) -> np.ndarray:
+def invariant_to_poses(features: np.ndarray, start_xy: np.ndarray, start_yaw: np.ndarray,
+                       reference_exp_map: np.ndarray | None = None) -> np.ndarray:
     """Pose sequences ``(..., T, D)`` from invariant features ``(..., T, D)``.
 
     ``start_xy`` ``(..., 2)`` (mm) and ``start_yaw`` ``(...)`` (rad) are the
     ground position and heading of frame 0. Frame t's position and heading are
-    integrated from the steps held by frames 0 .. t-1.
+    integrated from the steps held by frames 0 .. t-1. Root exp maps are made
+    continuous in time, starting from the branch nearest ``reference_exp_map``
+    ``(..., 3)`` when given (the pose before frame 0), else from the principal one.
     """
     f = np.asarray(features, dtype=float)
     if f.ndim < 2 or f.shape[-1] < N_ROOT + 1:
@@ -107,7 +113,11 @@ def invariant_to_poses(features: np.ndarray, start_xy: np.ndarray, start_yaw: np
     x = start_xy[..., 0, None] + np.concatenate([zeros, np.cumsum(dx[..., :-1], axis=-1)], axis=-1)
     y = start_xy[..., 1, None] + np.concatenate([zeros, np.cumsum(dy[..., :-1], axis=-1)], axis=-1)
     R = yaw_pitch_roll_to_matrix(yaw, f[..., 3], f[..., 4])
-    rot = continuous_exp_maps(matrix_to_exp_map(R), time_axis=-2)
+    if reference_exp_map is None:
+        rot = continuous_exp_maps(matrix_to_exp_map(R), time_axis=-2)
+    else:
+        ref = np.asarray(reference_exp_map, float)[..., None, :]
+        rot = continuous_exp_maps(np.concatenate([ref, matrix_to_exp_map(R)], axis=-2), time_axis=-2)[..., 1:, :]
     root = np.concatenate([np.stack([x, y, f[..., 2]], axis=-1), rot], axis=-1)
     return np.concatenate([root, f[..., N_ROOT:]], axis=-1)
 
@@ -204,7 +214,7 @@ class FeatureNormaliser:
 
 
 def next_poses(previous: np.ndarray, previous_features: np.ndarray, features: np.ndarray) -> np.ndarray:
-    """One step of the inverse for a batch: poses ``(..., D)`` at frame t.
+    """One step of :func:`invariant_to_poses` for a batch: poses ``(..., D)`` at frame t.
 
     ``previous`` ``(..., D)`` are the poses at t-1; ``previous_features``
     ``(..., D)`` are frame t-1's invariant features, whose velocities and yaw
@@ -213,12 +223,42 @@ def next_poses(previous: np.ndarray, previous_features: np.ndarray, features: np
     nearest the previous pose's, so particle means stay meaningful.
     """
     prev = np.asarray(previous, float)
-    pf = np.asarray(previous_features, float)
-    f = np.asarray(features, float)
-    yaw0 = heading(prev[..., None, :])[..., 0]
-    c, s = np.cos(yaw0), np.sin(yaw0)
-    x = prev[..., 0] + pf[..., 0] * c - pf[..., 1] * s
-    y = prev[..., 1] + pf[..., 0] * s + pf[..., 1] * c
-    R = yaw_pitch_roll_to_matrix(yaw0 + pf[..., 5], f[..., 3], f[..., 4])
-    rot = continuous_exp_maps(np.stack([prev[..., 3:6], matrix_to_exp_map(R)], axis=-2), time_axis=-2)[..., 1, :]
-    return np.concatenate([np.stack([x, y, f[..., 2]], axis=-1), rot, f[..., N_ROOT:]], axis=-1)
+    pair = np.stack([np.asarray(previous_features, float), np.asarray(features, float)], axis=-2)
+    return invariant_to_poses(pair, prev[..., :2], heading(prev[..., None, :])[..., 0], prev[..., 3:6])[..., 1, :]
+
+
+def pending_step(known: np.ndarray) -> np.ndarray:
+    """The root step ``(3,)`` (:data:`STEP_FEATURES`) that leads out of the last of the known poses ``n x D``:
+    the step between the last two (zero with one known pose). Learned priors carry it per particle, because
+    the newest frame's step is chosen by the sample that follows it."""
+    known = np.atleast_2d(np.asarray(known, float))
+    if len(known) < 2:
+        return np.zeros(len(STEP_FEATURES))
+    return poses_to_invariant(known[-2:])[-1, list(STEP_FEATURES)]
+
+
+def step_rms(clips: Sequence[np.ndarray]) -> np.ndarray:
+    """RMS frame-to-frame change ``(D,)`` over pose sequences (each ``T x D``, T >= 2): the random-walk scale
+    of the hand-made priors and the one-step diffusion scale of the learned ones (mm or rad per frame)."""
+    if not clips:
+        raise InputError("no training clips to estimate the frame-to-frame scale from")
+    steps = []
+    for poses in clips:
+        poses = np.asarray(poses, float)
+        if poses.ndim != 2 or len(poses) < 2:
+            raise InputError(f"training clips need at least 2 frames of poses (T x D), got {poses.shape}")
+        steps.append(np.diff(poses, axis=0))
+    if len({c.shape[1] for c in steps}) != 1:
+        raise InputError("training clips have different numbers of pose parameters")
+    return np.sqrt(np.mean(np.concatenate(steps) ** 2, axis=0))
+
+
+def clip_features(clips: Sequence[np.ndarray], dof_names: Sequence[str],
+                  normaliser: "FeatureNormaliser | None" = None) -> tuple[list[np.ndarray], "FeatureNormaliser"]:
+    """Normalised invariant features of pose clips (one ``(T_i - 1) x K`` array per clip: each clip's last
+    frame is dropped, its velocities only repeat the step before) and the normaliser (fitted on them unless
+    given)."""
+    feats = [poses_to_invariant(np.asarray(c, float))[:-1] for c in clips]
+    if normaliser is None:
+        normaliser = FeatureNormaliser.fit(feats, feature_names(dof_names))
+    return [normaliser.transform(f) for f in feats], normaliser

@@ -1,4 +1,4 @@
-"""Sequential importance resampling with an N-order augmented state, optionally annealed.
+"""Sequential importance resampling with an N-order augmented state, optionally annealed: the engine.
 
 Each frame (Taylor 2009, Sec. 6.3; DESIGN.md "Particle filter"):
 
@@ -19,24 +19,37 @@ resamples, and diffuses with the prior's one-step scale times
 and every frame ends with resampling.
 
 If every weight is ``-inf`` (no particle explains the frame) the filter
-records the frame, re-diffuses the particles around the last estimate, and
-goes on; it never produces NaN. Every random draw comes from the one
-generator passed in.
+records the frame as recovered, re-diffuses the particles around the last
+estimate, and goes on; it never produces NaN.
+
+The engine knows priors and likelihoods only through their interfaces
+(:mod:`tracker.engine.prior`, :mod:`tracker.engine.likelihood`). Every random
+draw comes from the one generator passed in. :meth:`ParticleFilter.start` and
+:meth:`ParticleFilter.step` expose the loop one frame at a time (its whole
+state is a :class:`FilterState`); :meth:`ParticleFilter.run` runs it over a
+sequence of frames and returns what the caller asked to record.
 """
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
-from typing import Callable, Iterable
+from dataclasses import dataclass
+from typing import Any, Callable, Iterable, Iterator, Mapping
 
 import numpy as np
 
-from tracker.engine.prior import MotionPrior
-from tracker.engine.resampling import SCHEMES, effective_sample_size, normalise_log_weights
+from tracker.core.errors import InputError
+from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood
+from tracker.engine.prior import MotionPrior, PriorState
+from tracker.engine.recording import DEFAULT_RECORD, FrameStep, Recording
+from tracker.engine.resampling import SCHEMES
+from tracker.engine.weights import LogWeights, effective_sample_size
 
 
 @dataclass(frozen=True)
-class FilterSettings:
+class FilterConfig:
+    """Particle count, resampling scheme and ESS trigger, and the annealing options (layers per frame, target
+    survival rate, diffusion decay per layer)."""
+
     n_particles: int = 1000
     resampling: str = "systematic"
     ess_threshold: float = 0.5
@@ -44,32 +57,39 @@ class FilterSettings:
     survival_rate: float = 0.5
     layer_diffusion_decay: float = 0.5
 
-    def check(self) -> "FilterSettings":
-        if self.n_particles < 1:
-            raise ValueError(f"need at least one particle, got {self.n_particles}")
+    def check(self) -> "FilterConfig":
+        if int(self.n_particles) < 1:
+            raise InputError(f"need at least one particle, got {self.n_particles}")
         if self.resampling not in SCHEMES:
-            raise ValueError(f"unknown resampling scheme {self.resampling!r}; choose from {', '.join(SCHEMES)}")
+            raise InputError(f"unknown resampling scheme {self.resampling!r}; choose from {', '.join(SCHEMES)}")
         if not 0.0 <= self.ess_threshold <= 1.0:
-            raise ValueError(f"ess_threshold must lie in [0, 1], got {self.ess_threshold}")
-        if self.annealing_layers < 1:
-            raise ValueError(f"annealing layers must be at least 1, got {self.annealing_layers}")
+            raise InputError(f"ess_threshold must lie in [0, 1], got {self.ess_threshold}")
+        if int(self.annealing_layers) < 1:
+            raise InputError(f"annealing layers must be at least 1, got {self.annealing_layers}")
         if not 0.0 < self.survival_rate < 1.0:
-            raise ValueError(f"survival rate must lie in (0, 1), got {self.survival_rate}")
+            raise InputError(f"survival rate must lie in (0, 1), got {self.survival_rate}")
+        if not 0.0 < self.layer_diffusion_decay <= 1.0:
+            raise InputError(f"layer diffusion decay must lie in (0, 1], got {self.layer_diffusion_decay}")
         return self
 
 
-@dataclass
-class FilterResult:
-    """Per tracked frame: ``mean_poses`` and ``best_poses`` ``T x D``, ``ess`` ``(T,)`` (before resampling),
-    ``seconds`` ``(T,)`` (prior + likelihood + resampling), ``resampled`` ``(T,)`` bool; ``recovered`` lists
-    the tracked-frame indices where every weight was -inf."""
+@dataclass(frozen=True)
+class FilterState:
+    """Everything the filter carries from one frame to the next.
 
-    mean_poses: np.ndarray
-    best_poses: np.ndarray
-    ess: np.ndarray
-    seconds: np.ndarray
-    resampled: np.ndarray
-    recovered: list[int] = field(default_factory=list)
+    ``history`` ``P x N x D``: each particle's last N poses, oldest first;
+    ``prior_state``: the prior's own per-particle state; ``weights``: the
+    log-weights carried into the next frame; ``recent_estimates`` ``N x D``: the
+    last N estimates (where recovery restarts from); ``available``: how many
+    history slots hold real poses (1..N); ``tracked``: frames tracked so far.
+    """
+
+    history: np.ndarray
+    prior_state: PriorState
+    weights: LogWeights
+    recent_estimates: np.ndarray
+    available: int
+    tracked: int = 0
 
 
 def choose_beta(log_lik: np.ndarray, survival_rate: float, iterations: int = 40) -> float:
@@ -102,77 +122,108 @@ def choose_beta(log_lik: np.ndarray, survival_rate: float, iterations: int = 40)
 class ParticleFilter:
     """SIR over poses with the prior's order as the augmented-state length."""
 
-    def __init__(self, prior: MotionPrior, settings: FilterSettings, rng: np.random.Generator):
+    def __init__(self, prior: MotionPrior, likelihood: Likelihood, config: FilterConfig,
+                 rng: np.random.Generator):
         self.prior = prior
-        self.settings = settings.check()
+        self.likelihood = likelihood
+        self.config = config.check()
         self.rng = rng
-        self.resample = SCHEMES[settings.resampling]
+        self.resample = SCHEMES[config.resampling]
 
-    def run(self, known: np.ndarray, frame_log_likelihoods: Iterable[Callable[[np.ndarray], np.ndarray]],
-            on_frame: Callable[[int, np.ndarray], None] | None = None) -> FilterResult:
-        """Track from the known poses ``n0 x D`` through one log-likelihood function per frame.
+    # -- one frame at a time -------------------------------------------------------------------------------
 
-        Each function maps poses ``P x D`` to log-likelihoods ``(P,)``.
-        ``on_frame(k, mean_pose)`` is called after every tracked frame.
-        """
-        s = self.settings
+    def start(self, known: np.ndarray) -> FilterState:
+        """The state before the first tracked frame, from the known poses ``n0 x D`` (newest last)."""
         known = np.atleast_2d(np.asarray(known, float))
-        P, D, N = s.n_particles, known.shape[1], self.prior.order
-        hist_known = known[-N:]
-        if len(hist_known) < N:  # pad the oldest slots with the earliest known pose
-            hist_known = np.concatenate([np.repeat(hist_known[:1], N - len(hist_known), axis=0), hist_known])
-        history = np.repeat(hist_known[None], P, axis=0)  # P x N x D
-        estimate_history = hist_known.copy()
-        available = min(len(known), N)
-        state = self.prior.start(known, P, self.rng)
-        log_w = np.zeros(P)
-        means, bests, esss, secs, resampled, recovered = [], [], [], [], [], []
-        diffusion = self.prior.diffusion_std()
-        for k, log_lik in enumerate(frame_log_likelihoods):
-            t0 = time.perf_counter()
-            x, state = self.prior.sample(history, available, state, self.rng)
-            ll = log_lik(x)
-            if s.annealing_layers > 1:
-                for m in range(s.annealing_layers - 1):
-                    if not np.any(np.isfinite(ll)):
-                        break
-                    w = normalise_log_weights(choose_beta(ll, s.survival_rate) * ll)
-                    idx = self.resample(w, self.rng)
-                    x, history, ll = x[idx], history[idx], ll[idx]
-                    state = self.prior.reindex(state, idx)
-                    x = x + self.rng.standard_normal(x.shape) * diffusion * s.layer_diffusion_decay ** (m + 1)
-                    ll = log_lik(x)
-                frame_log_w = choose_beta(ll, s.survival_rate) * ll
-            else:
-                frame_log_w = log_w + ll
-            if not np.any(np.isfinite(frame_log_w)):
-                recovered.append(k)
-                x = estimate_history[-1] + self.rng.standard_normal((P, D)) * diffusion
-                history = np.repeat(estimate_history[None], P, axis=0)
-                ll = log_lik(x)
-                frame_log_w = ll if np.any(np.isfinite(ll)) else np.zeros(P)
-            w = normalise_log_weights(frame_log_w)
-            mean = w @ x
-            means.append(mean)
-            bests.append(x[int(np.argmax(w))])
-            ess = effective_sample_size(w)
-            esss.append(ess)
-            history = np.concatenate([history[:, 1:], x[:, None]], axis=1)
-            estimate_history = np.concatenate([estimate_history[1:], mean[None]])
-            available = min(available + 1, N)
-            do_resample = s.annealing_layers > 1 or ess < s.ess_threshold * P
-            if do_resample:
-                idx = self.resample(w, self.rng)
-                history = history[idx]
-                state = self.prior.reindex(state, idx)
-                log_w = np.zeros(P)
-            else:
-                with np.errstate(divide="ignore"):
-                    log_w = np.log(w)
-            resampled.append(do_resample)
-            secs.append(time.perf_counter() - t0)
-            if on_frame is not None:
-                on_frame(k, mean)
-        return FilterResult(np.array(means).reshape(-1, D), np.array(bests).reshape(-1, D), np.array(esss),
-                            np.array(secs), np.array(resampled, bool), recovered)
+        P, N = self.config.n_particles, self.prior.order
+        recent = known[-N:]
+        if len(recent) < N:  # pad the oldest slots with the earliest known pose
+            recent = np.concatenate([np.repeat(recent[:1], N - len(recent), axis=0), recent])
+        history = np.repeat(recent[None], P, axis=0)
+        prior_state = self.prior.start(known, P, self.rng)
+        return FilterState(history, prior_state, LogWeights.uniform(P), recent.copy(), min(len(known), N))
 
+    def step(self, state: FilterState, frame: Frame, load_seconds: float = 0.0) -> tuple[FilterState, FrameStep]:
+        """Track one frame: propose, weigh (annealed if configured), estimate, resample when due."""
+        cfg = self.config
+        t0 = time.perf_counter()
+        frame_lik = self.likelihood.prepare(frame)
+        t1 = time.perf_counter()
+        x, prior_state = self.prior.sample(state.history, state.available, state.prior_state, self.rng)
+        history = state.history
+        ll = frame_lik(x)
+        if cfg.annealing_layers > 1:
+            x, history, prior_state, weights = self._anneal(x, history, prior_state, ll, frame_lik)
+        else:
+            weights = state.weights.add(ll)
+        recovered = not weights.any_finite
+        if recovered:
+            x, history, weights = self._recover(state, frame_lik)
+        W = weights.normalised
+        mean = W @ x
+        best = x[int(np.argmax(W))]
+        ess = effective_sample_size(W)
+        history = np.concatenate([history[:, 1:], x[:, None]], axis=1)
+        recent = np.concatenate([state.recent_estimates[1:], mean[None]])
+        resampled = cfg.annealing_layers > 1 or ess < cfg.ess_threshold * cfg.n_particles
+        if resampled:
+            idx = self.resample(W, self.rng)
+            history = history[idx]
+            prior_state = self.prior.reindex(prior_state, idx)
+            carried = LogWeights.uniform(cfg.n_particles)
+        else:
+            carried = weights.renormalised()
+        t2 = time.perf_counter()
+        new_state = FilterState(history, prior_state, carried, recent, min(state.available + 1, self.prior.order),
+                                state.tracked + 1)
+        step = FrameStep(index=state.tracked, frame=frame.index, particles=x, weights=weights, mean=mean, best=best,
+                         ess=ess, resampled=bool(resampled), recovered=recovered,
+                         seconds={"load": load_seconds, "observe": t1 - t0, "filter": t2 - t1})
+        return new_state, step
+
+    def _anneal(self, x: np.ndarray, history: np.ndarray, prior_state: PriorState, ll: np.ndarray,
+                frame_lik: FrameLikelihood) -> tuple[np.ndarray, np.ndarray, PriorState, LogWeights]:
+        """Deutscher & Reid's layers: sharpen, resample, diffuse less each layer; the last layer's weights."""
+        cfg = self.config
+        diffusion = self.prior.diffusion_std()
+        for m in range(cfg.annealing_layers - 1):
+            if not np.any(np.isfinite(ll)):
+                break
+            w = LogWeights(choose_beta(ll, cfg.survival_rate) * ll).normalised
+            idx = self.resample(w, self.rng)
+            x, history, ll = x[idx], history[idx], ll[idx]
+            prior_state = self.prior.reindex(prior_state, idx)
+            x = x + self.rng.standard_normal(x.shape) * diffusion * cfg.layer_diffusion_decay ** (m + 1)
+            ll = frame_lik(x)
+        return x, history, prior_state, LogWeights(choose_beta(ll, cfg.survival_rate) * ll)
+
+    def _recover(self, state: FilterState, frame_lik: FrameLikelihood
+                 ) -> tuple[np.ndarray, np.ndarray, LogWeights]:
+        """No particle explains the frame: re-diffuse around the last estimate, restart the histories there."""
+        P, D = state.history.shape[0], state.history.shape[2]
+        x = state.recent_estimates[-1] + self.rng.standard_normal((P, D)) * self.prior.diffusion_std()
+        history = np.repeat(state.recent_estimates[None], P, axis=0)
+        ll = frame_lik(x)
+        return x, history, LogWeights(ll if np.any(np.isfinite(ll)) else np.zeros(P))
+
+    # -- a whole sequence ----------------------------------------------------------------------------------
+
+    def run(self, known: np.ndarray, frames: Iterable[Frame],
+            record: Iterable[str] | Mapping[str, Callable[[FrameStep], Any]] = DEFAULT_RECORD,
+            on_frame: Callable[[FrameStep], None] | None = None) -> dict[str, np.ndarray]:
+        """Track from the known poses ``n0 x D`` through ``frames``; returns the recorded quantities, one array
+        each with tracked frames on the leading axis (see :mod:`tracker.engine.recording`).
+        ``on_frame(step)`` sees every :class:`FrameStep` (particles and weights included)."""
+        recording = Recording(record)
+        state = self.start(known)
+        iterator: Iterator[Frame] = iter(frames)
+        while True:
+            t0 = time.perf_counter()
+            frame = next(iterator, None)
+            if frame is None:
+                break
+            state, step = self.step(state, frame, time.perf_counter() - t0)
+            recording.add(step)
+            if on_frame is not None:
+                on_frame(step)
+        return recording.result()

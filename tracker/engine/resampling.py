@@ -1,4 +1,4 @@
-"""Resampling schemes for particle filters (Douc, Cappé & Moulines 2005), and the effective sample size.
+"""Resampling schemes for particle filters (Douc, Cappé & Moulines 2005), chosen by name from :data:`SCHEMES`.
 
 Each takes normalised weights ``w`` ``(P,)`` and a numpy ``Generator`` and
 returns ``P`` indices (sorted) whose expected counts are ``P * w``.
@@ -11,20 +11,6 @@ from __future__ import annotations
 from typing import Callable
 
 import numpy as np
-
-
-def normalise_log_weights(log_w: np.ndarray) -> np.ndarray:
-    """Weights ``(P,)`` summing to 1 from log-weights; raises if every log-weight is ``-inf``."""
-    top = np.max(log_w)
-    if not np.isfinite(top):
-        raise ValueError("every log-weight is -inf (or NaN): no particle explains the observation")
-    w = np.exp(log_w - top)
-    return w / w.sum()
-
-
-def effective_sample_size(w: np.ndarray) -> float:
-    """``1 / sum(w^2)`` for normalised weights: P for uniform weights, 1 when one particle has it all."""
-    return float(1.0 / np.sum(w * w))
 
 
 def _from_positions(w: np.ndarray, positions: np.ndarray) -> np.ndarray:
@@ -59,6 +45,7 @@ def residual(w: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.sort(np.concatenate([kept, extra]))
 
 
+#: ``indices = scheme(weights, rng)`` by name.
 SCHEMES: dict[str, Callable[[np.ndarray, np.random.Generator], np.ndarray]] = {
     "systematic": systematic, "stratified": stratified, "multinomial": multinomial, "residual": residual,
 }

@@ -1,0 +1,228 @@
+"""The public Python API (re-exported by ``import tracker``): load, synthesize, build, train, track.
+
+Everything the command line does goes through these functions, so a notebook
+and the shell produce the same numbers and the same files::
+
+    import tracker
+    seq = tracker.synthesize("07_02.amc", "walk", frames=60)
+    model = tracker.train("crbm", ["07_01.amc"], order=1, epochs=300, rng=0)
+    model.save("crbm1.pt")
+    for prior, models in [("zero-velocity", []), ("crbm", ["crbm1.pt"])]:
+        result = tracker.track(seq, prior, models=models, particles=500, seed=0)
+        print(prior, result.mean_error)
+
+Random numbers: every function that draws takes ``seed`` / ``rng`` (an int, a
+``numpy.random.SeedSequence`` or a ``numpy.random.Generator``); nothing touches
+global random state.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Callable, Iterable, Mapping, Sequence as Seq
+
+import numpy as np
+
+from data_tools.load import load_mocap, load_training_clips
+from data_tools.retarget import RetargetResult, retarget
+from data_tools.samples import sample_walks
+from data_tools.sequence import Sequence, read_sequence
+from data_tools.synth import SynthConfig, SynthOutput, synthesize as render_sequence
+from tracker.app.plugins import load_plugins
+from tracker.app.tracking import TrackingResult, check_views, run_tracking, seed_description
+from tracker.core.errors import InputError
+from tracker.core.representation import step_rms
+from tracker.engine.filter import FilterConfig
+from tracker.engine.likelihood import Likelihood
+from tracker.engine.prior import MotionPrior
+from tracker.engine.recording import DEFAULT_RECORD, FrameStep
+from tracker.engine.registry import (
+    LIKELIHOODS, PRIORS, LikelihoodContext, LikelihoodEntry, PriorContext, PriorEntry, TrainingData,
+    resolve_options,
+)
+
+SeedLike = int | np.random.SeedSequence | np.random.Generator
+
+
+def make_rng(seed: SeedLike) -> np.random.Generator:
+    """A numpy Generator from an int, a SeedSequence or a Generator (returned as it is)."""
+    if isinstance(seed, np.random.Generator):
+        return seed
+    if isinstance(seed, (int, np.integer)) and not 0 <= int(seed) < 2 ** 63:
+        raise InputError(f"seed must lie in 0..2^63-1, got {seed}")
+    return np.random.default_rng(seed)
+
+
+# -- discovery ----------------------------------------------------------------------------------------------
+
+def prior_entry(name: str) -> PriorEntry:
+    load_plugins()
+    return PRIORS.get(name)
+
+
+def likelihood_entry(name: str) -> LikelihoodEntry:
+    load_plugins()
+    return LIKELIHOODS.get(name)
+
+
+def available_priors() -> list[str]:
+    """Names of the registered priors (built-in and plugins)."""
+    load_plugins()
+    return PRIORS.names()
+
+
+def available_likelihoods() -> list[str]:
+    """Names of the registered likelihoods."""
+    load_plugins()
+    return LIKELIHOODS.names()
+
+
+# -- data ---------------------------------------------------------------------------------------------------
+
+def load_sequence(path: str | Path) -> Sequence:
+    """A sequence folder in our layout or PARSEC bodytrack's (DESIGN.md "Sequences on disk")."""
+    return read_sequence(path)
+
+
+def load_clip(mocap: str | Path, skeleton: str | Path | None = None, fps: float = 60.0,
+              length_unit: float | None = None) -> RetargetResult:
+    """A mocap file (AMC with its ASF, or BVH) retargeted to the 15-cone body model at ``fps`` Hz."""
+    return retarget(load_mocap(mocap, skeleton, length_unit), fps=fps)
+
+
+def synthesize(mocap: str | Path | RetargetResult, out: str | Path, *, skeleton: str | Path | None = None,
+               config: SynthConfig | None = None, progress: Callable | None = None, **settings) -> Sequence:
+    """Render a mocap clip (a file, or a clip from :func:`load_clip`) into a synthetic multi-view sequence
+    folder ``out`` and return it. ``settings`` are :class:`~data_tools.synth.SynthConfig` fields (``frames``,
+    ``views``, ``seed``, ``noise``, ...)."""
+    config = config or SynthConfig(**settings)
+    clip = mocap if isinstance(mocap, RetargetResult) else load_clip(mocap, skeleton, config.fps)
+    source = str(mocap) if not isinstance(mocap, RetargetResult) else ""
+    render_sequence(clip, out, config, source=source, progress=progress)
+    return read_sequence(out)
+
+
+def random_walk_scale(seq: Sequence, train_mocap: Iterable[str | Path] | None = None) -> np.ndarray:
+    """Per-dof random-walk scale ``(D,)`` for ``seq``: the RMS frame-to-frame change of training clips at the
+    sequence's frame rate (default: the shipped subject-7 walks), or a bodytrack folder's
+    ``PoseParameters.txt``."""
+    if seq.layout == "bodytrack":
+        if seq.diffusion_std is None:
+            raise InputError("bodytrack folder has no PoseParameters.txt for the random-walk scale", seq.root)
+        return seq.diffusion_std
+    if seq.fps is None:
+        raise InputError("the sequence states no frame rate (groundtruth.npz or meta.json 'fps')", seq.root)
+    if train_mocap is None:
+        asf, walks = sample_walks()
+        clips = [retarget(load_mocap(w, asf), fps=seq.fps).poses for w in walks]
+    else:
+        clips = [r.poses for r in load_training_clips(list(train_mocap), None, seq.fps)]
+    return step_rms(clips)
+
+
+# -- building -------------------------------------------------------------------------------------------------
+
+def build_prior(name: str, sequence: Sequence, models: Seq[str | Path] = (), *,
+                train_mocap: Iterable[str | Path] | None = None, step_std: np.ndarray | None = None,
+                device: str = "cpu", **options) -> MotionPrior:
+    """The registered prior ``name`` for ``sequence``, from its model files (learned priors) and options.
+
+    Random-walk priors take their scale from ``step_std`` ``(D,)`` if given, else from ``train_mocap``
+    clips (default: the shipped walks) or the bodytrack folder (:func:`random_walk_scale`).
+    """
+    entry = prior_entry(name)
+    models = [Path(m) for m in models]
+    if entry.model_files == "none" and models:
+        raise InputError(f"prior {name} takes no model files")
+    if entry.model_files != "none" and not models:
+        raise InputError(f"prior {name} needs a model file (train one with: python -m tracker train --prior {name})")
+    if entry.model_files == "one" and len(models) > 1:
+        raise InputError(f"prior {name} takes one model file, got {len(models)}")
+    resolved = resolve_options(f"prior {name}", entry.options, options)
+    source = (lambda: step_std) if step_std is not None else (lambda: random_walk_scale(sequence, train_mocap))
+    context = PriorContext(sequence.model, sequence.fps, device, str(sequence.root), source)
+    return entry.build(context, models, resolved)
+
+
+def build_likelihood(name: str, sequence: Sequence, views: Iterable[int] | None = None, **options) -> Likelihood:
+    """The registered likelihood ``name`` for the cameras ``views`` (default all) of ``sequence``."""
+    entry = likelihood_entry(name)
+    views = check_views(views, sequence.n_views, sequence.root)
+    resolved = resolve_options(f"likelihood {name}", entry.options, options)
+    return entry.build(LikelihoodContext(sequence.model, sequence.rig.subset(views)), resolved)
+
+
+# -- training -------------------------------------------------------------------------------------------------
+
+def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
+          skeletons: Iterable[str | Path] | None = None, fps: float = 60.0, rng: SeedLike = 0,
+          progress: Callable[[int, int, dict], None] | None = None, checkpoint: str | Path | None = None,
+          **options) -> Any:
+    """Train the learned prior ``prior`` on mocap files (or retargeted clips) of any subjects and lengths.
+
+    Each AMC pairs with its own skeleton (``skeletons``: one for all or one per file; default
+    ``<subject>.asf`` beside it). ``options`` are the prior's training options (see
+    ``python -m tracker train --help``). Returns the trained model; ``model.save(path)`` writes its file.
+    """
+    entry = prior_entry(prior)
+    if entry.train is None:
+        trainable = [n for n in available_priors() if PRIORS.get(n).train is not None]
+        raise InputError(f"prior {prior} is not learned; trainable priors: {', '.join(trainable)}")
+    resolved = resolve_options(f"training {prior}", entry.train_options, options)
+    items = list(mocap)
+    if items and all(isinstance(c, RetargetResult) for c in items):
+        clips, sources = items, ["(in memory)"] * len(items)
+    else:
+        clips, sources = load_training_clips(items, skeletons, fps), [str(f) for f in items]
+    data = TrainingData(tuple(c.poses for c in clips), fps, clips[0].model, tuple(sources))
+    return entry.train(data, resolved, make_rng(rng), progress, None if checkpoint is None else Path(checkpoint))
+
+
+# -- tracking -------------------------------------------------------------------------------------------------
+
+def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velocity", *,
+          models: Seq[str | Path] = (), prior_options: Mapping[str, Any] | None = None,
+          likelihood: str | Likelihood = "edge-silhouette", likelihood_options: Mapping[str, Any] | None = None,
+          particles: int = 1000, views: Iterable[int] | None = None, frames: int | None = None,
+          seed: SeedLike = 0, annealing_layers: int = 1, resampling: str = "systematic", known_frames: int = 2,
+          init: np.ndarray | None = None, train_mocap: Iterable[str | Path] | None = None, device: str = "cpu",
+          record: Iterable[str] | Mapping[str, Callable[[FrameStep], Any]] = DEFAULT_RECORD,
+          on_frame: Callable[[FrameStep, float | None], None] | None = None) -> TrackingResult:
+    """Track a person through ``sequence`` with a particle filter and return a :class:`TrackingResult`.
+
+    ``prior`` and ``likelihood`` are registered names (built from ``models`` and the option dicts) or ready
+    objects. The filter tracks frames ``known_frames .. frames-1`` (default: to the end) from the ground truth's
+    first poses (or ``init``, or a bodytrack ``InitialPose.txt``) with ``particles`` particles in ``views``
+    (default all), ``annealing_layers`` layers per frame. ``record`` chooses what is kept per frame
+    (:mod:`tracker.engine.recording`; add ``"particles"`` and ``"weights"`` to keep those); ``on_frame(step,
+    error_mm)`` sees every frame as it is tracked. ``result.save(dir)`` writes ``result.json`` and
+    ``estimates.npz`` exactly as ``python -m tracker track`` does.
+    """
+    seq = sequence if isinstance(sequence, Sequence) else load_sequence(sequence)
+    views = check_views(views, seq.n_views, seq.root)
+    config = FilterConfig(n_particles=particles, resampling=resampling, annealing_layers=annealing_layers).check()
+    if frames is not None and not 1 <= int(frames) <= seq.n_frames:
+        raise InputError(f"frames {frames} is outside 1..{seq.n_frames} (the sequence's length)", seq.root)
+    rng = make_rng(seed)
+    if isinstance(prior, str):
+        prior_obj = build_prior(prior, seq, models, train_mocap=train_mocap, device=device,
+                                **dict(prior_options or {}))
+    else:
+        if models or prior_options:
+            raise InputError("models and prior_options apply to a prior given by name, not to a prior object")
+        prior_obj = prior
+    if isinstance(likelihood, str):
+        lik_obj = build_likelihood(likelihood, seq, views, **dict(likelihood_options or {}))
+    else:
+        lik_obj = likelihood
+    result = run_tracking(seq, prior_obj, lik_obj, config, rng, views, frames, known_frames, init, record,
+                          on_frame)
+    result.settings = {
+        "prior": prior if isinstance(prior, str) else prior_obj.name,
+        "particles": config.n_particles, "views": views, "seed": seed_description(seed),
+        "sequence": str(seq.root), "model": seq.model.name,
+        "annealing_layers": config.annealing_layers, "resampling": config.resampling,
+        "prior_settings": prior_obj.settings(), "prior_models": [str(m) for m in models],
+        "likelihood": likelihood if isinstance(likelihood, str) else lik_obj.name,
+        **lik_obj.settings(),
+    }
+    return result

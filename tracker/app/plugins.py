@@ -1,0 +1,53 @@
+"""Finding plugins: the built-in prior and likelihood modules, entry points, and modules named by the user.
+
+Importing a plugin module runs its ``register_prior`` / ``register_likelihood``
+decorators (:mod:`tracker.engine.registry`).
+"""
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import pkgutil
+import sys
+from importlib.metadata import entry_points
+from pathlib import Path
+
+from tracker.core.errors import InputError
+
+#: Entry-point group through which an installed package adds priors or likelihoods.
+ENTRY_POINT_GROUP = "pose_tracker.plugins"
+_BUILTIN_PACKAGES = ("priors", "likelihoods")
+_loaded = False
+
+
+def load_plugins() -> None:
+    """Import every module of the built-in plugin packages and every ``pose_tracker.plugins`` entry point
+    (once per process)."""
+    global _loaded
+    if _loaded:
+        return
+    _loaded = True
+    for package in _BUILTIN_PACKAGES:
+        pkg = importlib.import_module(package)
+        for info in pkgutil.iter_modules(pkg.__path__):
+            importlib.import_module(f"{package}.{info.name}")
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        ep.load()
+
+
+def import_plugin(spec: str) -> None:
+    """Import a plugin by module name (``mypackage.myprior``) or file path (``./my_prior.py``)."""
+    path = Path(spec)
+    if path.suffix == ".py":
+        if not path.is_file():
+            raise InputError("plugin file not found", path)
+        name = f"pose_tracker_plugin_{path.stem}"
+        module_spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(module_spec)  # type: ignore[arg-type]
+        sys.modules[name] = module
+        module_spec.loader.exec_module(module)  # type: ignore[union-attr]
+        return
+    try:
+        importlib.import_module(spec)
+    except ModuleNotFoundError as exc:
+        raise InputError(f"cannot import plugin module {spec!r} ({exc})") from None

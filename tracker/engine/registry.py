@@ -1,0 +1,218 @@
+"""Priors and likelihoods found by name: the extension points of the toolkit.
+
+A plugin module registers a *builder* for its prior or likelihood; the API and
+the command line look builders up here, and the command line's choices and
+per-plugin options come from these entries. Built-in plugins are the modules of
+the ``priors`` and ``likelihoods`` packages (each registers itself on import;
+the application layer imports them all, :func:`tracker.app.plugins.load_plugins`);
+a package of your own registers through the ``pose_tracker.plugins``
+entry-point group, or any module can be imported with
+``python -m tracker --plugin MODULE_OR_FILE``. This module holds only the
+tables: the engine never imports a plugin.
+
+A prior builder is called as ``build(context, model_files, options)`` and
+returns a :class:`~tracker.engine.prior.MotionPrior`; a learned prior also
+registers ``train(data, options, rng, progress)`` returning an object with
+``save(path)``. A likelihood builder is called as ``build(context, options)``
+and returns a :class:`~tracker.engine.likelihood.Likelihood`. ``options`` is a
+dict holding every declared :class:`Option`, checked and defaulted.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import Any, Callable, Generic, Mapping, Sequence, TypeVar
+
+import numpy as np
+
+from tracker.core.body import BodyModel
+from tracker.core.cameras import CameraRig
+from tracker.core.errors import InputError
+
+@dataclass(frozen=True)
+class Option:
+    """One setting of a plugin: its keyword ``name`` (``--name-with-dashes`` on the command line), value type
+    (``int``, ``float``, ``str`` or ``bool``), default, help text, and optional bounds or choices."""
+
+    name: str
+    type: type
+    default: Any
+    help: str
+    minimum: float | None = None
+    strict: bool = False
+    choices: tuple = ()
+
+    @property
+    def flag(self) -> str:
+        return "--" + self.name.replace("_", "-")
+
+    def parse(self, value: Any, owner: str) -> Any:
+        """``value`` converted to the option's type and checked; an :class:`InputError` names the option."""
+        if value is None:
+            return None
+        try:
+            if self.type is bool:
+                if isinstance(value, str):
+                    if value.lower() not in ("true", "false", "1", "0", "yes", "no"):
+                        raise ValueError(value)
+                    value = value.lower() in ("true", "1", "yes")
+                out = bool(value)
+            elif self.type is int:
+                if isinstance(value, float) and not value.is_integer():
+                    raise ValueError(value)
+                out = int(value)
+            else:
+                out = self.type(value)
+        except (TypeError, ValueError):
+            raise InputError(f"{owner}: {self.name} must be {self.type.__name__}, got {value!r}") from None
+        if self.type in (int, float):
+            if not math.isfinite(out):
+                raise InputError(f"{owner}: {self.name} must be finite, got {value!r}")
+            if self.minimum is not None and (out < self.minimum or (self.strict and out == self.minimum)):
+                bound = "greater than" if self.strict else "at least"
+                raise InputError(f"{owner}: {self.name} must be {bound} {self.minimum:g}, got {value!r}")
+        if self.choices and out not in self.choices:
+            raise InputError(f"{owner}: {self.name} must be one of {', '.join(map(str, self.choices))}, got {value!r}")
+        return out
+
+
+def resolve_options(owner: str, declared: Sequence[Option], given: Mapping[str, Any]) -> dict[str, Any]:
+    """Every declared option, from ``given`` (checked) or its default; an undeclared name is refused."""
+    known = {o.name: o for o in declared}
+    unknown = [k for k in given if k not in known]
+    if unknown:
+        offered = ", ".join(known) or "none"
+        raise InputError(f"{owner} takes no option {', '.join(map(repr, unknown))} (its options: {offered})")
+    return {name: (o.parse(given[name], owner) if given.get(name) is not None else o.default)
+            for name, o in known.items()}
+
+
+@dataclass
+class PriorContext:
+    """What a prior builder may need about the sequence it will track.
+
+    ``body_model`` and ``fps`` (Hz; ``None`` when the sequence states none);
+    ``device`` for priors with a torch path; ``source`` names the sequence in
+    messages. :meth:`step_std` is the per-dof RMS frame-to-frame change used as
+    the random-walk scale, computed on first use by ``step_std_source`` (from
+    training clips or the sequence's own file) so priors that do not need it
+    cost nothing.
+    """
+
+    body_model: BodyModel
+    fps: float | None
+    device: str = "cpu"
+    source: str | None = None
+    step_std_source: Callable[[], np.ndarray] | None = None
+
+    @cached_property
+    def _step_std(self) -> np.ndarray:
+        if self.step_std_source is None:
+            raise InputError("this prior needs a random-walk scale, and none was given (training clips or "
+                             "a step_std)", self.source)
+        std = np.asarray(self.step_std_source(), float)
+        if std.shape != (self.body_model.n_dofs,):
+            raise InputError(f"random-walk scale has {std.shape} entries; the {self.body_model.name} model has "
+                             f"{self.body_model.n_dofs} pose numbers", self.source)
+        return std
+
+    def step_std(self) -> np.ndarray:
+        return self._step_std
+
+
+@dataclass(frozen=True)
+class TrainingData:
+    """Pose clips (each ``T_i x D`` at ``fps`` Hz, retargeted to ``body_model``) and where they came from."""
+
+    clips: tuple[np.ndarray, ...]
+    fps: float
+    body_model: BodyModel
+    sources: tuple[str, ...] = ()
+
+    @property
+    def n_frames(self) -> int:
+        return sum(len(c) for c in self.clips)
+
+
+@dataclass(frozen=True)
+class LikelihoodContext:
+    """What a likelihood builder needs: the body model and the calibrated cameras of the tracked views."""
+
+    body_model: BodyModel
+    rig: CameraRig
+
+
+@dataclass(frozen=True)
+class PriorEntry:
+    name: str
+    build: Callable[[PriorContext, Sequence[Path], dict], Any]
+    summary: str = ""
+    options: tuple[Option, ...] = ()
+    model_files: str = "none"  # "none", "one" or "several"
+    train: Callable[..., Any] | None = None
+    train_options: tuple[Option, ...] = ()
+
+
+@dataclass(frozen=True)
+class LikelihoodEntry:
+    name: str
+    build: Callable[[LikelihoodContext, dict], Any]
+    summary: str = ""
+    options: tuple[Option, ...] = ()
+
+
+E = TypeVar("E")
+
+
+@dataclass
+class Registry(Generic[E]):
+    """Entries by name; a name registers once (re-registering the same builder, as a re-import does, is fine)."""
+
+    kind: str
+    entries: dict[str, E] = field(default_factory=dict)
+
+    def add(self, entry: E) -> E:
+        old = self.entries.get(entry.name)  # type: ignore[attr-defined]
+        if old is not None and getattr(old.build, "__qualname__", None) != getattr(entry.build, "__qualname__", 0):
+            raise ValueError(f"a {self.kind} named {entry.name!r} is already registered")  # type: ignore
+        self.entries[entry.name] = entry  # type: ignore[attr-defined]
+        return entry
+
+    def get(self, name: str) -> E:
+        if name not in self.entries:
+            raise InputError(f"unknown {self.kind} {name!r}; available: {', '.join(self.names())}")
+        return self.entries[name]
+
+    def names(self) -> list[str]:
+        return list(self.entries)
+
+
+PRIORS: Registry[PriorEntry] = Registry("prior")
+LIKELIHOODS: Registry[LikelihoodEntry] = Registry("likelihood")
+
+
+def register_prior(name: str, *, summary: str = "", options: Sequence[Option] = (), model_files: str = "none",
+                   train: Callable[..., Any] | None = None, train_options: Sequence[Option] = ()):
+    """Decorator registering ``build(context, model_files, options) -> MotionPrior`` under ``name``.
+
+    ``model_files`` says whether the prior takes none, ``"one"`` or ``"several"`` model files; ``train``
+    (learned priors) is ``train(data: TrainingData, options, rng, progress, checkpoint) -> model`` with
+    ``model.save(path)``, configured by ``train_options``.
+    """
+    if model_files not in ("none", "one", "several"):
+        raise ValueError(f"model_files must be 'none', 'one' or 'several', got {model_files!r}")
+
+    def decorate(build):
+        PRIORS.add(PriorEntry(name, build, summary, tuple(options), model_files, train, tuple(train_options)))
+        return build
+    return decorate
+
+
+def register_likelihood(name: str, *, summary: str = "", options: Sequence[Option] = ()):
+    """Decorator registering ``build(context, options) -> Likelihood`` under ``name``."""
+    def decorate(build):
+        LIKELIHOODS.add(LikelihoodEntry(name, build, summary, tuple(options)))
+        return build
+    return decorate
