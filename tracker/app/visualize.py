@@ -128,30 +128,35 @@ def write_video(path, frames, fps: float) -> None:
 
     from tracker.core.errors import InputError
 
+    from data_tools.files import atomic_path
+
     path = Path(path)
     writer = None
-    try:
-        for img in frames:
-            if writer is None:
-                path.parent.mkdir(parents=True, exist_ok=True)
-                writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), float(fps),
-                                         (img.shape[1], img.shape[0]))
-                if not writer.isOpened():
-                    raise InputError("cannot open the video for writing", path)
-            writer.write(cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
-    finally:
-        if writer is not None:
-            writer.release()
+    with atomic_path(path) as tmp:  # a failure part-way leaves no truncated video behind
+        try:
+            for img in frames:
+                if writer is None:
+                    writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), float(fps),
+                                             (img.shape[1], img.shape[0]))
+                    if not writer.isOpened():
+                        raise InputError("cannot open the video for writing", path)
+                writer.write(cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
+        finally:
+            if writer is not None:
+                writer.release()
 
 
 def error_plot(path, curves: dict[str, tuple[np.ndarray, np.ndarray]], title: str) -> None:
-    """Marker error per frame (mm), one line per run: ``{label: (frames, errors)}``; PNG via matplotlib."""
-    import matplotlib
+    """Marker error per frame (mm), one line per run: ``{label: (frames, errors)}``; PNG via matplotlib.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    Draws on a bare :class:`matplotlib.figure.Figure`, never through pyplot, so the process's matplotlib
+    backend (a notebook's inline plots) is left alone."""
+    from matplotlib.figure import Figure
 
-    fig, ax = plt.subplots(figsize=(7, 3.5), dpi=120)
+    from data_tools.files import atomic_path
+
+    fig = Figure(figsize=(7, 3.5), dpi=120)
+    ax = fig.subplots()
     for name, (frames, errs) in curves.items():
         ax.plot(frames, errs, label=f"{name} (mean {np.mean(errs):.0f} mm)")
     ax.set_xlabel("frame")
@@ -161,5 +166,5 @@ def error_plot(path, curves: dict[str, tuple[np.ndarray, np.ndarray]], title: st
     ax.grid(alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp)
