@@ -25,7 +25,7 @@ from priors.crbm import CRBMConfig, CRBMPrior, train_crbm  # noqa: E402
 from tracker.core.body import DOF_NAMES  # noqa: E402
 from tracker.core.kinematics import markers  # noqa: E402
 from tracker.core.metrics import marker_error  # noqa: E402
-from tracker.core.representation import poses_to_invariant  # noqa: E402
+from tracker.core.representation import STEP_FEATURES, poses_to_invariant  # noqa: E402
 
 MOCAP = REPO.parent / "shared" / "mocap" / "cmu" / "07"
 HORIZON = 20
@@ -37,10 +37,11 @@ def rollout(prior, past: np.ndarray, horizon: int) -> np.ndarray:
     n = prior.order
     hist = past[:, -n:]
     # Each start's own pending step: the step between its last two true frames.
-    state = poses_to_invariant(past[:, -2:])[:, -1, [0, 1, 5]]
+    state = poses_to_invariant(past[:, -2:])[:, -1, list(STEP_FEATURES)]
     out = []
+    rng = np.random.default_rng(0)
     for _ in range(horizon):
-        x, state = prior.sample(hist, n, state, None)
+        x, state = prior.sample(hist, n, state, rng)
         hist = np.concatenate([hist[:, 1:], x[:, None]], axis=1)
         out.append(x)
     return np.stack(out, axis=1)
@@ -63,9 +64,10 @@ def main() -> None:
     results["last frame"] = last
     results["constant velocity"] = constvel
     for order in (1, 3, 6):
-        m = train_crbm(train, CRBMConfig(order=order, hidden=150, epochs=500, cd_k=10), 60.0, DOF_NAMES)
+        m = train_crbm(train, CRBMConfig(order=order, hidden=150, epochs=500, cd_k=10), 60.0, DOF_NAMES,
+                       rng=np.random.default_rng(0))
         print(f"order {order}: trained in {m.training_seconds:.1f} s", flush=True)
-        results[f"CRBM-{order} Gibbs"] = rollout(CRBMPrior([m], gibbs_steps=30, seed=0, root_noise_mm=0.0), past, HORIZON)
+        results[f"CRBM-{order} Gibbs"] = rollout(CRBMPrior([m], gibbs_steps=30, root_noise_mm=0.0), past, HORIZON)
         results[f"CRBM-{order} free energy"] = rollout(CRBMPrior([m], mode="free-energy", root_noise_mm=0.0), past, HORIZON)
     table = {name: marker_error(markers(model, pred), truth).mean(axis=0) for name, pred in results.items()}
     steps = [1, 2, 3, 5, 10, 15, 20]

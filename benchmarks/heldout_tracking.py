@@ -23,13 +23,12 @@ from data_tools.asf_amc import asf_amc_clip  # noqa: E402
 from data_tools.retarget import retarget  # noqa: E402
 from data_tools.sequence import read_sequence  # noqa: E402
 from data_tools.synth import SynthConfig, synthesize  # noqa: E402
-from likelihoods.edge_silhouette import EdgeSilhouetteConfig  # noqa: E402
 from priors.crbm import CRBMConfig, CRBMPrior, train_crbm  # noqa: E402
 from priors.gpdm import GPDMConfig, GPDMPrior, train_gpdm_prior  # noqa: E402
-from priors.random_walk import ConstantVelocityPrior, ZeroVelocityPrior, step_rms  # noqa: E402
+from priors.random_walk import ConstantVelocityPrior, ZeroVelocityPrior  # noqa: E402
+from tracker.core.representation import step_rms  # noqa: E402
 from tracker.core.body import DOF_NAMES  # noqa: E402
-from tracker.app.tracking import track  # noqa: E402
-from tracker.engine.filter import FilterConfig  # noqa: E402
+from tracker import track  # noqa: E402
 from tracker.core.metrics import summarize_runs  # noqa: E402
 
 SHARED = REPO.parent / "shared"
@@ -58,7 +57,8 @@ def main() -> None:
     if any(p.startswith("crbm") for p in args.priors):
         # CRBMs trained on the four training walks (07_11 stays held out).
         train = [retarget(asf_amc_clip(asf, MOCAP / f"07_{i}.amc"), fps=60).poses for i in ("01", "02", "09", "10")]
-        crbm = {o: train_crbm(train, CRBMConfig(order=o, hidden=150, epochs=500, cd_k=10), 60.0, DOF_NAMES)
+        crbm = {o: train_crbm(train, CRBMConfig(order=o, hidden=150, epochs=500, cd_k=10), 60.0, DOF_NAMES,
+                                rng=np.random.default_rng(o))
                 for o in (1, 3)}
         for o in (1, 3):
             print(f"CRBM order {o}: trained in {crbm[o].training_seconds:.1f} s, reconstruction error "
@@ -87,8 +87,8 @@ def main() -> None:
                 means, secs = [], []
                 for seed in range(args.seeds):
                     t0 = time.perf_counter()
-                    run = track(seq, prior, FilterConfig(n_particles=args.particles), seed=seed, views=views,
-                                likelihood_params=EdgeSilhouetteConfig(bidirectional=bidir))
+                    run = track(seq, prior, particles=args.particles, seed=seed, views=views,
+                                likelihood_options={"bidirectional": bidir})
                     means.append(run.mean_error)
                     secs.append(run.seconds_per_frame)
                     print(f"  {prior_name}, {label}, seed {seed}: {run.mean_error:.1f} mm "

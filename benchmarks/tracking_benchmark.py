@@ -24,8 +24,9 @@ from data_tools.retarget import retarget  # noqa: E402
 from data_tools.sequence import read_sequence  # noqa: E402
 from data_tools.synth import SynthConfig, synthesize  # noqa: E402
 from likelihoods.edge_silhouette import EdgeSilhouetteLikelihood  # noqa: E402
-from priors.random_walk import ZeroVelocityPrior, step_rms  # noqa: E402
-from tracker.app.tracking import frame_observations, track  # noqa: E402
+from priors.random_walk import ZeroVelocityPrior  # noqa: E402
+from tracker import track  # noqa: E402
+from tracker.core.representation import step_rms  # noqa: E402
 from tracker.engine.filter import FilterConfig, ParticleFilter  # noqa: E402
 
 SHARED = REPO.parent / "shared"
@@ -40,22 +41,24 @@ def synthetic(tmp: Path) -> None:
     seq = read_sequence(tmp / "walk")
     std = step_rms([retarget(asf_amc_clip(asf, mocap / f"07_{i}.amc"), fps=60).poses for i in ("01", "02")])
     P, V = 1000, 4
-    run = track(seq, ZeroVelocityPrior(std), FilterConfig(n_particles=P), seed=0)
-    n = len(run.filter.seconds)
+    run = track(seq, ZeroVelocityPrior(std), particles=P, seed=0)
+    r = run.records
+    n = len(r["filter_seconds"])
     per_frame = run.seconds_per_frame
+    observe = (r["load_seconds"] + r["observe_seconds"]).mean()
     print(f"15-cone, {P} particles x {V} views, {n} frames: {per_frame * 1000:.0f} ms per frame "
-          f"= {1 / per_frame:.1f} frames/s (observations {run.observation_seconds / n * 1000:.0f} ms, "
-          f"filter {run.filter.seconds.mean() * 1000:.0f} ms); mean error {run.mean_error:.1f} mm")
-    obs = frame_observations(seq, 20, range(V))
+          f"= {1 / per_frame:.1f} frames/s (observations {observe * 1000:.0f} ms, "
+          f"filter {r['filter_seconds'].mean() * 1000:.0f} ms); mean error {run.mean_error:.1f} mm")
     lik = EdgeSilhouetteLikelihood(seq.model, seq.rig)
+    scorer = lik.prepare(seq.frame(20, range(V)))
     poses = seq.groundtruth.poses[20] + np.random.default_rng(0).normal(0, 1, (P, 40)) * std
-    ms = best_ms(lambda: lik(poses, obs))
+    ms = best_ms(lambda: scorer(poses))
     print(f"  likelihood alone: {ms:.1f} ms per {P} particles -> {P * V / ms * 1000:,.0f} particle-views/s")
     prior = ZeroVelocityPrior(std)
     hist = np.repeat(poses[:, None], 1, axis=1)
     rng = np.random.default_rng(0)
     print(f"  prior sample: {best_ms(lambda: prior.sample(hist, 1, None, rng)):.2f} ms; "
-          f"observations (4 views): {best_ms(lambda: frame_observations(seq, 20, range(V))):.1f} ms")
+          f"observations (4 views): {best_ms(lambda: lik.prepare(seq.frame(20, range(V)))):.1f} ms")
 
 
 def crbm_sampling() -> None:
@@ -67,11 +70,13 @@ def crbm_sampling() -> None:
     asf = mocap / "07.asf"
     train = [retarget(asf_amc_clip(asf, mocap / f"07_{i}.amc"), fps=60).poses for i in ("01", "02", "09", "10")]
     for order in (1, 3, 6):
-        model = train_crbm(train, CRBMConfig(order=order, hidden=150, epochs=500), 60.0, DOF_NAMES)
+        model = train_crbm(train, CRBMConfig(order=order, hidden=150, epochs=500), 60.0, DOF_NAMES,
+                           rng=np.random.default_rng(0))
         prior = CRBMPrior([model])
         hist = np.repeat(train[0][None, 20:20 + order], 1000, axis=0)
         state = prior.start(train[0][:20 + order], 1000, np.random.default_rng(0))
-        ms = best_ms(lambda: prior.sample(hist, order, state, None))
+        rng = np.random.default_rng(0)
+        ms = best_ms(lambda: prior.sample(hist, order, state, rng))
         print(f"CRBM order {order} (150 hidden, trained 500 epochs on {sum(len(t) for t in train)} frames in "
               f"{model.training_seconds:.1f} s): {ms:.1f} ms to sample 1000 particles")
 
@@ -82,14 +87,15 @@ def bodytrack() -> None:
         print("bodytrack frame not found; skipped")
         return
     seq = read_sequence(folder)
-    obs = frame_observations(seq, 0, range(4))
     lik = EdgeSilhouetteLikelihood(seq.model, seq.rig)
     P, layers = 4000, 5
     prior = ZeroVelocityPrior(seq.diffusion_std)
+    frame0 = seq.frame(0, range(4))
 
-    def frame():
-        pf = ParticleFilter(prior, FilterConfig(n_particles=P, annealing_layers=layers), np.random.default_rng(0))
-        return pf.run(seq.initial_poses, [lambda x: lik(x, obs)])
+    def frame():  # one filter step, the frame's observations included (images already decoded)
+        pf = ParticleFilter(prior, lik, FilterConfig(n_particles=P, annealing_layers=layers),
+                            np.random.default_rng(0))
+        return pf.run(seq.initial_poses, [frame0])
 
     ms = best_ms(frame, repeats=3)
     evals = P * layers
