@@ -5,6 +5,8 @@ The public API (``import tracker``)::
     tracker.load_sequence, tracker.load_clip, tracker.synthesize    data
     tracker.build_prior, tracker.build_likelihood, tracker.train    models
     tracker.track -> TrackingResult (.save writes result.json)     tracking
+    tracker.compare(experiment.toml, out, jobs=2)                  experiments (tables, plots)
+    tracker.set_threads(n)                                         threads for BLAS, OpenCV, torch
     tracker.marker_error, tracker.sequence_error, tracker.summarize_runs
     tracker.register_prior, tracker.register_likelihood, tracker.Option,
     tracker.MotionPrior, tracker.Likelihood, tracker.FrameLikelihood, tracker.Frame   extending
@@ -32,7 +34,8 @@ _EXPORTS = {
     "build_prior": "tracker.app.api", "build_likelihood": "tracker.app.api", "train": "tracker.app.api",
     "track": "tracker.app.api", "available_priors": "tracker.app.api", "available_likelihoods": "tracker.app.api",
     "random_walk_scale": "tracker.app.api",
-    "TrackingResult": "tracker.app.tracking",
+    "TrackingResult": "tracker.app.tracking", "compare": "tracker.app.compare",
+    "load_experiment": "tracker.app.experiment", "set_threads": "tracker.app.threads",
     "SynthConfig": "data_tools.synth",
     "marker_error": "tracker.core.metrics", "sequence_error": "tracker.core.metrics",
     "summarize_runs": "tracker.core.metrics",

@@ -20,6 +20,7 @@ from tracker.app.api import (
     prior_entry, track, train,
 )
 from tracker.app.plugins import import_plugin
+from tracker.app.threads import set_threads
 from tracker.core.errors import InputError
 from tracker.engine.registry import Option
 
@@ -59,6 +60,8 @@ def build_parser() -> argparse.ArgumentParser:
                 description="3D human pose tracking with learned dynamical priors.")
     p.add_argument("--plugin", action="append", default=[], metavar="MODULE_OR_FILE",
                    help="import a module (or .py file) that registers priors or likelihoods; repeatable")
+    p.add_argument("--threads", type=_positive_int, default=None,
+                   help="threads for numpy/BLAS, OpenCV and torch (default: the cores available to the process)")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
 
@@ -150,6 +153,17 @@ def build_parser() -> argparse.ArgumentParser:
                         "subject-7 walks 07_01 and 07_02); bodytrack folders use PoseParameters.txt")
     t.add_argument("--out", required=True, help="output folder")
     t.add_argument("--video", help="also write an overlay video of the estimates (.mp4)")
+
+    e = sub.add_parser("compare", help="run an experiment: priors x sequences x settings x seeds, with tables",
+                       description="Run every configuration of an experiment file (TOML; see "
+                                   "tracker/app/experiment.py and benchmarks/experiments/) in parallel, skipping "
+                                   "runs finished before, and write table.md, table.csv and per_frame.png.")
+    e.add_argument("experiment", metavar="EXPERIMENT", help="experiment file (.toml)")
+    e.add_argument("--out", required=True, help="output folder (runs, cached sequences and models, tables)")
+    e.add_argument("--jobs", type=_positive_int, default=1, help="parallel runs (default 1)")
+    e.add_argument("--backend", default="joblib", choices=["joblib", "dask", "ray"],
+                   help="joblib (this machine, default), dask or ray (a local cluster, or --address)")
+    e.add_argument("--address", default=None, help="scheduler address of an existing Dask or Ray cluster")
 
     d = sub.add_parser("demo", help="render, track and score a shipped walk (the built-in default job)",
                        description="Render 1.5 s of the shipped CMU walk 07_02 into 4 cameras, train a CRBM on "
@@ -310,6 +324,16 @@ def _parse_views(text: str | None, n_views: int) -> list[int]:
     return views
 
 
+def cmd_compare(args: argparse.Namespace) -> int:
+    from tracker.app.compare import compare
+
+    summary = compare(args.experiment, args.out, jobs=args.jobs, backend=args.backend, address=args.address,
+                      threads=args.threads)
+    print(summary["table"])
+    print(f"-> {Path(args.out) / 'table.md'}, table.csv, per_frame.png")
+    return 0
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     from tracker.app.demo import run_demo
 
@@ -398,7 +422,7 @@ def cmd_track(args: argparse.Namespace) -> int:
 
 
 COMMANDS = {"convert": cmd_convert, "synth": cmd_synth, "show": cmd_show, "train": cmd_train, "track": cmd_track,
-            "demo": cmd_demo}
+            "compare": cmd_compare, "demo": cmd_demo}
 
 
 def _plugins_from_argv(argv: list[str]) -> list[str]:
@@ -418,6 +442,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         for spec in _plugins_from_argv(argv):
             import_plugin(spec)
         args = build_parser().parse_args(argv)
+        if args.command != "compare":  # compare gives each worker its share instead
+            set_threads(args.threads)
         return COMMANDS[args.command](args)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)

@@ -1,0 +1,147 @@
+"""The experiment runner: validation, seeding independent of workers, resume after a kill, caching,
+tables, and the Dask and Ray backends on local two-worker clusters."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tracker.app.compare import compare
+from tracker.app.experiment import load_experiment
+from tracker.app.report import bootstrap_interval
+from tracker.core.errors import InputError
+
+SAMPLE = Path(__file__).resolve().parents[1] / "data_tools" / "samples" / "cmu07"
+
+
+def write_experiment(folder: Path, priors=("zero-velocity", "constant-velocity"), seeds=2, extra="",
+                     tracking="particles = 40\nframes = 5") -> Path:
+    text = f'''description = "tiny"
+seed = 11
+seeds = {seeds}
+{extra}
+[tracking]
+{tracking}
+
+[[sequence]]
+name = "walk"
+mocap = "{SAMPLE / '07_02.amc'}"
+frames = 6
+'''
+    for p in priors:
+        text += f'\n[[prior]]\nname = "{p}"\n'
+    path = folder / "exp.toml"
+    path.write_text(text)
+    return path
+
+
+def run_numbers(out: Path) -> dict:
+    return {json.loads((d / "result.json").read_text())["run"]["key"]:
+            json.loads((d / "result.json").read_text())["per_frame_error_mm"] for d in (out / "runs").iterdir()}
+
+
+@pytest.mark.parametrize("mutation, expected", [
+    ("seedz = 3", "unknown key(s) 'seedz'"),
+    ('[[prior]]\nname = "zero-velocity"\nlabel = "zero-velocity"', "prior labels must be unique"),
+    ('[[prior]]\nname = "crbm"', "needs models = [...] or train = [...]"),
+    ('[[prior]]\nname = "crbm"\nmodels = ["missing.pt"]', "file not found"),
+    ('[[prior]]\nname = "nope"', "unknown prior 'nope'"),
+    ('[[prior]]\nname = "zero-velocity"\nlabel = "z2"\noptions = { gibbs_steps = 3 }', "takes no option"),
+])
+def test_experiment_file_is_validated_whole(tmp_path, mutation, expected):
+    path = write_experiment(tmp_path)
+    path.write_text(path.read_text() + "\n" + mutation + "\n") if mutation.startswith("[[") else \
+        path.write_text(mutation + "\n" + path.read_text())
+    with pytest.raises(InputError) as err:
+        load_experiment(path)
+    assert expected in str(err.value) and str(path) in str(err.value)
+
+
+def test_views_out_of_range_and_unfit_model_refused_before_any_run(tmp_path):
+    path = write_experiment(tmp_path, tracking="particles = 40\nframes = 5\nviews = [0, 7]")
+    with pytest.raises(InputError, match=r"views \[0, 7\] out of range for sequence 'walk'"):
+        compare(path, tmp_path / "out", say=lambda s: None, progress=False)
+    assert not any((tmp_path / "out" / "runs").iterdir())
+    import tracker
+
+    model = tracker.train("crbm", [SAMPLE / "07_01.amc"], skeletons=[SAMPLE / "07.asf"], fps=30.0, order=1,
+                          epochs=2, hidden=10)
+    model.save(tmp_path / "c30.pt")
+    path = write_experiment(tmp_path, priors=())
+    path.write_text(path.read_text() + f'\n[[prior]]\nname = "crbm"\nmodels = ["{tmp_path / "c30.pt"}"]\n')
+    with pytest.raises(InputError, match="prior 'crbm' on sequence 'walk'.*30 fps"):
+        compare(path, tmp_path / "out", say=lambda s: None, progress=False)
+
+
+def test_numbers_do_not_depend_on_workers_and_finished_runs_are_skipped(tmp_path):
+    path = write_experiment(tmp_path)
+    said = []
+    compare(path, tmp_path / "a", jobs=1, say=said.append, progress=False)
+    compare(path, tmp_path / "b", jobs=2, say=said.append, progress=False)
+    assert run_numbers(tmp_path / "a") == run_numbers(tmp_path / "b") and len(run_numbers(tmp_path / "a")) == 4
+    said.clear()
+    summary = compare(path, tmp_path / "a", jobs=2, say=said.append, progress=False)
+    assert any("4 finished before (skipped), 0 to run" in s for s in said)
+    assert "zero-velocity" in summary["table"] and "Paired difference" in summary["table"]
+    for name in ("table.md", "table.csv", "per_frame.png"):
+        assert (tmp_path / "a" / name).stat().st_size > 100
+    # Changing one setting reruns only the runs it affects: a third prior adds two runs.
+    path = write_experiment(tmp_path, priors=("zero-velocity", "constant-velocity", "gpdm"))
+    path.write_text(path.read_text().replace('name = "gpdm"', 'name = "zero-velocity"\nlabel = "zv-scaled"\n'
+                                             'options = { prior_scale = 0.5 }'))
+    said.clear()
+    compare(path, tmp_path / "a", jobs=1, say=said.append, progress=False)
+    assert any("6 runs: 4 finished before (skipped), 2 to run" in s for s in said)
+    rows = (tmp_path / "a" / "table.csv").read_text()
+    assert "zv-scaled" in rows and rows.count("mean_error_mm") == 3
+
+
+def test_killed_experiment_resumes_without_redoing_finished_runs(tmp_path):
+    path = write_experiment(tmp_path, seeds=4, tracking="particles = 40\nframes = 6")
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "tracker", "compare", str(path), "--out", str(out), "--jobs", "1"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    deadline = time.time() + 120
+    while time.time() < deadline:
+        done = [d for d in (out / "runs").glob("*") if not d.name.startswith(".")] if (out / "runs").exists() else []
+        if len(done) >= 2:
+            break
+        time.sleep(0.2)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    finished = {d.name for d in (out / "runs").glob("*") if not d.name.startswith(".")}
+    assert 2 <= len(finished) < 8, finished
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-500:]
+    assert f"8 runs: {len(finished)} finished before (skipped), {8 - len(finished)} to run" in r.stdout
+    after = {d.name for d in (out / "runs").iterdir()}
+    assert finished <= after and len(after) == 8  # nothing half-written left, nothing redone
+
+
+def test_bad_command_line_values_exit_2(tmp_path):
+    path = write_experiment(tmp_path)
+    for args, expected in [(["--jobs", "0"], "must be at least 1"), (["--backend", "spark"], "invalid choice")]:
+        r = subprocess.run([sys.executable, "-m", "tracker", "compare", str(path), "--out", str(tmp_path / "o"),
+                            *args], capture_output=True, text=True)
+        assert r.returncode == 2 and expected in r.stderr and "Traceback" not in r.stderr
+
+
+def test_bootstrap_interval_covers_the_mean():
+    d = np.random.default_rng(0).normal(5.0, 1.0, 20)
+    lo, hi = bootstrap_interval(d)
+    assert lo < d.mean() < hi and hi - lo < 2.0
+    assert bootstrap_interval(d) == bootstrap_interval(d)  # seeded
+
+
+@pytest.mark.parametrize("backend", ["dask", "ray"])
+def test_cluster_backends_with_two_workers(tmp_path, backend):
+    pytest.importorskip("distributed" if backend == "dask" else "ray")
+    path = write_experiment(tmp_path)
+    compare(path, tmp_path / "local", jobs=1, say=lambda s: None, progress=False)
+    compare(path, tmp_path / backend, jobs=2, backend=backend, say=lambda s: None, progress=False)
+    assert run_numbers(tmp_path / backend) == run_numbers(tmp_path / "local")

@@ -1,0 +1,379 @@
+"""Experiments: a grid of sequences x priors x view sets x particle counts x annealing layers x likelihood
+variants x seeds, read from a TOML file, validated as a whole before anything runs.
+
+File layout (paths are relative to the experiment file; every key is checked, unknown ones refused)::
+
+    description = "Table 6.1 analogue"       # free text, shown in the table
+    seed = 2009                              # master seed: run k of seed index i uses SeedSequence(seed).spawn(..)[i]
+    seeds = 5                                # runs per configuration
+    fps = 60                                 # rate of rendered sequences and trained models (default 60)
+    baseline = "zero-velocity"               # the row others are compared with (default: the first prior)
+
+    [tracking]                               # grid axes; each a value or a list of values
+    particles = 1000
+    views = [[0, 1, 2, 3], [0]]              # view sets
+    annealing_layers = 1
+    frames = 150                             # track frames 0..frames-1 (default: whole sequences)
+
+    [[sequence]]                             # a sequence folder ...
+    name = "bodytrack"
+    path = "../../../shared/bodytrack/sequenceB_1"
+    [[sequence]]                             # ... or a mocap clip the runner renders (and caches)
+    name = "subject 16 walk"
+    mocap = "../../../shared/mocap/cmu/16/16_15.amc"
+    start = 0                                # synth options: start, frames, views, seed, noise, ...
+    frames = 150
+
+    [[prior]]
+    label = "zero-velocity"                  # row label (default: the name)
+    name = "zero-velocity"                   # a registered prior
+    train_mocap = ["..."]                    # random-walk scale clips (default: the shipped walks)
+    options = { prior_scale = 1.0 }
+    [[prior]]
+    label = "CRBM-3 (grown from 1)"
+    name = "crbm"
+    models = ["crbm3.pt"]                    # model files, or models the runner trains (and caches):
+    train = [{ mocap = ["a.amc", "b.amc"], options = { order = 1 } },
+             { mocap = ["a.amc", "b.amc"], options = { order = 3 } }]
+
+    [[likelihood]]                           # variants (default: one edge-silhouette)
+    label = "bidirectional"
+    name = "edge-silhouette"
+    options = { bidirectional = true }
+
+Each run is identified by a hash of everything that determines its numbers (its settings, the sequence's
+and the model files' content hashes, the package version), so a finished run is never redone and changing
+one setting reruns only the runs it affects.
+"""
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import sys
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tracker.core.errors import InputError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+TOP_KEYS = {"description", "seed", "seeds", "fps", "baseline", "tracking", "sequence", "prior", "likelihood"}
+TRACKING_KEYS = {"particles", "views", "annealing_layers", "frames", "known_frames", "resampling"}
+SEQUENCE_KEYS = {"name", "path", "mocap", "skeleton", "start", "frames", "views", "seed", "noise", "width",
+                 "height", "lighting_change", "occluder", "missing_camera"}
+PRIOR_KEYS = {"label", "name", "options", "models", "train", "train_mocap"}
+TRAIN_KEYS = {"mocap", "skeletons", "options", "seed"}
+LIKELIHOOD_KEYS = {"label", "name", "options"}
+
+
+def file_hash(path: Path) -> str:
+    """SHA-256 of a file's bytes (hex)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def config_hash(obj: Any, length: int = 16) -> str:
+    """A short stable hash of a JSON-able object (keys sorted)."""
+    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:length]
+
+
+@dataclass(frozen=True)
+class SequenceSpec:
+    name: str
+    path: Path | None = None          # an existing folder
+    mocap: Path | None = None         # or a clip to render
+    skeleton: Path | None = None
+    synth: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class TrainSpec:
+    mocap: tuple[Path, ...]
+    skeletons: tuple[Path, ...] | None
+    options: dict
+    seed: int
+
+
+@dataclass(frozen=True)
+class PriorSpec:
+    label: str
+    name: str
+    options: dict
+    models: tuple[Path, ...]
+    train: tuple[TrainSpec, ...]
+    train_mocap: tuple[Path, ...] | None
+
+
+@dataclass(frozen=True)
+class LikelihoodSpec:
+    label: str
+    name: str
+    options: dict
+
+
+@dataclass
+class Experiment:
+    """A validated experiment (see the module docstring for the file)."""
+
+    path: Path
+    description: str
+    seed: int
+    seeds: int
+    fps: float
+    baseline: str
+    tracking: dict[str, list]
+    sequences: list[SequenceSpec]
+    priors: list[PriorSpec]
+    likelihoods: list[LikelihoodSpec]
+
+    def seed_sequence(self, index: int) -> np.random.SeedSequence:
+        """The generator seed of seed index ``index``: the same for every prior and sequence (paired runs), and
+        independent of which worker runs it or when (``SeedSequence(seed).spawn(n)[index]``)."""
+        return np.random.SeedSequence(self.seed, spawn_key=(index,))
+
+
+class _Where:
+    """Builds one-line errors that name the experiment file and the entry."""
+
+    def __init__(self, path: Path):
+        self.path = path
+
+    def error(self, entry: str, message: str) -> InputError:
+        return InputError(f"{entry}: {message}" if entry else message, self.path)
+
+    def keys(self, table: Any, allowed: set[str], entry: str) -> dict:
+        if not isinstance(table, dict):
+            raise self.error(entry, f"expected a table, got {type(table).__name__}")
+        unknown = sorted(set(table) - allowed)
+        if unknown:
+            raise self.error(entry, f"unknown key(s) {', '.join(map(repr, unknown))} (allowed: "
+                                    f"{', '.join(sorted(allowed))})")
+        return table
+
+    def file(self, value: Any, entry: str, folder: bool = False) -> Path:
+        if not isinstance(value, str) or not value:
+            raise self.error(entry, f"expected a path, got {value!r}")
+        p = Path(value).expanduser()
+        p = p if p.is_absolute() else (self.path.parent / p)
+        if not (p.is_dir() if folder else p.is_file()):
+            raise self.error(entry, f"{'folder' if folder else 'file'} not found: {p}")
+        return p.resolve()
+
+    def int_(self, value: Any, entry: str, minimum: int) -> int:
+        if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+            raise self.error(entry, f"expected an integer >= {minimum}, got {value!r}")
+        return value
+
+
+def _as_list(value: Any) -> list:
+    return list(value) if isinstance(value, list) else [value]
+
+
+def load_experiment(path: str | Path) -> Experiment:
+    """Read and validate an experiment file; every problem is one :class:`InputError` naming the entry."""
+    from tracker.app.api import likelihood_entry, prior_entry
+    from tracker.engine.registry import resolve_options
+
+    path = Path(path).resolve()
+    w = _Where(path)
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8-sig"))
+    except FileNotFoundError:
+        raise InputError("experiment file not found", path) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read experiment file ({exc})", path) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"not valid TOML ({exc})", path) from None
+    w.keys(doc, TOP_KEYS, "")
+    seed = w.int_(doc.get("seed", 0), "seed", 0)
+    seeds = w.int_(doc.get("seeds", 1), "seeds", 1)
+    fps = doc.get("fps", 60.0)
+    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 1 <= fps <= 1000:
+        raise w.error("fps", f"expected a frame rate in 1..1000 Hz, got {fps!r}")
+    tracking = w.keys(doc.get("tracking", {}), TRACKING_KEYS, "[tracking]")
+    grid = {
+        "particles": [w.int_(p, "[tracking] particles", 1) for p in _as_list(tracking.get("particles", 1000))],
+        "annealing_layers": [w.int_(a, "[tracking] annealing_layers", 1)
+                             for a in _as_list(tracking.get("annealing_layers", 1))],
+        "views": [],
+        "frames": tracking.get("frames"),
+        "known_frames": w.int_(tracking.get("known_frames", 2), "[tracking] known_frames", 1),
+        "resampling": tracking.get("resampling", "systematic"),
+    }
+    views = tracking.get("views")
+    view_sets = [None] if views is None else (views if views and isinstance(views[0], list) else [views])
+    for vs in view_sets:
+        if vs is not None and (not vs or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 0
+                                                 for v in vs) or len(set(vs)) != len(vs)):
+            raise w.error("[tracking] views", f"each view set must list distinct camera indices, got {vs!r}")
+    grid["views"] = view_sets
+    if grid["frames"] is not None:
+        grid["frames"] = w.int_(grid["frames"], "[tracking] frames", 2)
+
+    sequences = []
+    for i, s in enumerate(doc.get("sequence", [])):
+        entry = f"[[sequence]] {i + 1}"
+        w.keys(s, SEQUENCE_KEYS, entry)
+        name = s.get("name") or f"sequence {i + 1}"
+        entry = f"sequence {name!r}"
+        if ("path" in s) == ("mocap" in s):
+            raise w.error(entry, "give either path (a sequence folder) or mocap (a clip to render)")
+        if "path" in s:
+            extra = sorted(set(s) - {"name", "path"})
+            if extra:
+                raise w.error(entry, f"{', '.join(extra)} apply to rendered sequences (mocap = ...), not to path")
+            sequences.append(SequenceSpec(name, path=w.file(s["path"], entry, folder=True)))
+        else:
+            synth = {k: v for k, v in s.items() if k not in ("name", "mocap", "skeleton")}
+            sequences.append(SequenceSpec(name, mocap=w.file(s["mocap"], entry),
+                                          skeleton=w.file(s["skeleton"], entry) if "skeleton" in s else None,
+                                          synth=synth))
+    if not sequences:
+        raise w.error("", "no [[sequence]] entries")
+    if len({s.name for s in sequences}) != len(sequences):
+        raise w.error("[[sequence]]", "sequence names must be unique")
+
+    priors = []
+    for i, p in enumerate(doc.get("prior", [])):
+        w.keys(p, PRIOR_KEYS, f"[[prior]] {i + 1}")
+        if "name" not in p:
+            raise w.error(f"[[prior]] {i + 1}", "needs a name (a registered prior)")
+        label = p.get("label", p["name"])
+        entry = f"prior {label!r}"
+        try:
+            spec = prior_entry(p["name"])
+            resolve_options(f"prior {p['name']}", spec.options, p.get("options", {}))
+        except InputError as exc:
+            raise w.error(entry, exc.reason) from None
+        models = tuple(w.file(m, entry) for m in _as_list(p.get("models", [])))
+        trains = []
+        for j, t in enumerate(_as_list(p.get("train", []))):
+            te = f"{entry} train {j + 1}"
+            w.keys(t, TRAIN_KEYS, te)
+            if spec.train is None:
+                raise w.error(te, f"prior {p['name']} is not learned: it has nothing to train")
+            try:
+                resolve_options(f"training {p['name']}", spec.train_options, t.get("options", {}))
+            except InputError as exc:
+                raise w.error(te, exc.reason) from None
+            mocap = tuple(w.file(m, te) for m in _as_list(t.get("mocap", [])))
+            if not mocap:
+                raise w.error(te, "needs mocap = [training clips]")
+            skels = tuple(w.file(m, te) for m in _as_list(t["skeletons"])) if "skeletons" in t else None
+            trains.append(TrainSpec(mocap, skels, dict(t.get("options", {})), w.int_(t.get("seed", 0), te, 0)))
+        if spec.model_files == "none" and (models or trains):
+            raise w.error(entry, f"prior {p['name']} takes no model files")
+        if spec.model_files != "none" and not (models or trains):
+            raise w.error(entry, f"prior {p['name']} needs models = [...] or train = [...]")
+        if spec.model_files == "one" and len(models) + len(trains) != 1:
+            raise w.error(entry, f"prior {p['name']} takes exactly one model")
+        train_mocap = tuple(w.file(m, entry) for m in _as_list(p["train_mocap"])) if "train_mocap" in p else None
+        priors.append(PriorSpec(label, p["name"], dict(p.get("options", {})), models, tuple(trains), train_mocap))
+    if not priors:
+        raise w.error("", "no [[prior]] entries")
+    if len({p.label for p in priors}) != len(priors):
+        raise w.error("[[prior]]", "prior labels must be unique (set label = ...)")
+
+    likelihoods = []
+    for i, lk in enumerate(doc.get("likelihood", [{"name": "edge-silhouette"}])):
+        w.keys(lk, LIKELIHOOD_KEYS, f"[[likelihood]] {i + 1}")
+        name = lk.get("name", "edge-silhouette")
+        label = lk.get("label", name)
+        try:
+            resolve_options(f"likelihood {name}", likelihood_entry(name).options, lk.get("options", {}))
+        except InputError as exc:
+            raise w.error(f"likelihood {label!r}", exc.reason) from None
+        likelihoods.append(LikelihoodSpec(label, name, dict(lk.get("options", {}))))
+    if len({lk.label for lk in likelihoods}) != len(likelihoods):
+        raise w.error("[[likelihood]]", "likelihood labels must be unique")
+    baseline = doc.get("baseline", priors[0].label)
+    if baseline not in {p.label for p in priors}:
+        raise w.error("baseline", f"{baseline!r} is not a prior label")
+    return Experiment(path, str(doc.get("description", "")), seed, seeds, float(fps), baseline, grid, sequences,
+                      priors, likelihoods)
+
+
+# -- runs ------------------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One tracking run, self-contained so that any worker (process, Dask or Ray) can execute it."""
+
+    key: str                     # hash of everything that determines the numbers: the run folder's name
+    sequence: str                # sequence name (table column)
+    sequence_path: str
+    row: str                     # table row label
+    prior: str
+    prior_options: dict
+    models: tuple[str, ...]
+    train_mocap: tuple[str, ...] | None
+    likelihood: str
+    likelihood_options: dict
+    views: tuple[int, ...] | None
+    particles: int
+    annealing_layers: int
+    frames: int | None
+    known_frames: int
+    resampling: str
+    seed_index: int
+    seed_entropy: int
+    out: str                     # the experiment's runs/ folder
+    threads: int = 1
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def row_label(prior: PriorSpec, likelihood: LikelihoodSpec, views, particles: int, layers: int,
+              exp: Experiment) -> str:
+    """The table row of a configuration: the prior's label, plus each grid axis that has several values."""
+    parts = [prior.label]
+    if len(exp.likelihoods) > 1:
+        parts.append(likelihood.label)
+    if len(exp.tracking["views"]) > 1:
+        parts.append(f"{len(views)} view{'s' if len(views) != 1 else ''}" if views else "all views")
+    if len(exp.tracking["particles"]) > 1:
+        parts.append(f"{particles} particles")
+    if len(exp.tracking["annealing_layers"]) > 1:
+        parts.append(f"{layers} layers")
+    return ", ".join(parts)
+
+
+def expand_runs(exp: Experiment, sequence_paths: dict[str, Path], sequence_hashes: dict[str, str],
+                model_paths: dict[str, tuple[Path, ...]], out: Path, version: str) -> list[RunSpec]:
+    """Every run of the grid, each with its content hash as key."""
+    runs = []
+    model_hashes = {label: [file_hash(m) for m in paths] for label, paths in model_paths.items()}
+    for seq, prior, lik, views, particles, layers in itertools.product(
+            exp.sequences, exp.priors, exp.likelihoods, exp.tracking["views"], exp.tracking["particles"],
+            exp.tracking["annealing_layers"]):
+        train_mocap = None if prior.train_mocap is None else tuple(str(p) for p in prior.train_mocap)
+        for i in range(exp.seeds):
+            identity = {
+                "sequence": sequence_hashes[seq.name], "prior": prior.name, "prior_options": prior.options,
+                "models": model_hashes[prior.label],
+                "train_mocap": None if train_mocap is None else [file_hash(Path(p)) for p in train_mocap],
+                "likelihood": lik.name, "likelihood_options": lik.options, "views": views,
+                "particles": particles, "annealing_layers": layers, "frames": exp.tracking["frames"],
+                "known_frames": exp.tracking["known_frames"], "resampling": exp.tracking["resampling"],
+                "seed": [exp.seed, i], "version": version,
+            }
+            runs.append(RunSpec(
+                key=config_hash(identity), sequence=seq.name, sequence_path=str(sequence_paths[seq.name]),
+                row=row_label(prior, lik, views, particles, layers, exp), prior=prior.name,
+                prior_options=prior.options, models=tuple(str(m) for m in model_paths[prior.label]),
+                train_mocap=train_mocap, likelihood=lik.name, likelihood_options=lik.options,
+                views=None if views is None else tuple(views), particles=particles, annealing_layers=layers,
+                frames=exp.tracking["frames"], known_frames=exp.tracking["known_frames"],
+                resampling=exp.tracking["resampling"], seed_index=i, seed_entropy=exp.seed, out=str(out)))
+    return runs

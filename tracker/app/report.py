@@ -1,0 +1,140 @@
+"""An experiment's tables (Taylor 2009, Table 6.1 layout) and per-frame plot.
+
+For every table row (prior, and likelihood variant / view set / particle count where the grid has several)
+and sequence: mean ± standard deviation over seeds of each run's mean over frames, for the marker error
+(absolute and pelvis-relative), PA-MPJPE, 3D PCK at 150 mm (formulas: :mod:`tracker.core.metrics`) and
+seconds per frame. The paired differences table gives, for every row against the baseline, the mean over
+seed indices of (row - baseline) marker error with a 95% percentile bootstrap interval (10,000 resamples of
+the seed indices, seeded): runs of the same seed index share their generator's seed, so the pairing removes
+common sequence difficulty.
+"""
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+import numpy as np
+
+from data_tools.files import atomic_path, write_text_atomic
+
+METRICS = (
+    ("mean_error_mm", "per_frame_error_mm", "Marker error (mm)"),
+    ("relative_error_mm", "per_frame_relative_error_mm", "Pelvis-relative marker error (mm)"),
+    ("pa_mpjpe_mm", "per_frame_pa_mpjpe_mm", "PA-MPJPE (mm)"),
+    ("pck150", "per_frame_pck150", "3D PCK at 150 mm (%)"),
+)
+BOOTSTRAP_DRAWS = 10_000
+
+
+def bootstrap_interval(differences: np.ndarray, level: float = 0.95, draws: int = BOOTSTRAP_DRAWS,
+                       seed: int = 0) -> tuple[float, float]:
+    """Percentile bootstrap interval of the mean of paired differences ``(n,)``."""
+    d = np.asarray(differences, float)
+    if len(d) < 2:
+        return float("nan"), float("nan")
+    rng = np.random.default_rng(seed)
+    means = d[rng.integers(0, len(d), (draws, len(d)))].mean(axis=1)
+    lo, hi = np.quantile(means, [(1 - level) / 2, (1 + level) / 2])
+    return float(lo), float(hi)
+
+
+def _cell(values: list[float], digits: int = 1) -> str:
+    v = np.asarray(values, float)
+    if v.size == 0 or not np.all(np.isfinite(v)):
+        return "n/a"
+    sd = v.std(ddof=1) if v.size > 1 else 0.0
+    return f"{v.mean():.{digits}f} ± {sd:.{digits}f}"
+
+
+def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
+    """``table.md``, ``table.csv`` and ``per_frame.png`` from the run results; returns the summary."""
+    rows = list(dict.fromkeys(r["run"]["row"] for r in results))
+    seqs = list(dict.fromkeys(r["run"]["sequence"] for r in results))
+    by = {}
+    for r in results:
+        by.setdefault((r["run"]["row"], r["run"]["sequence"]), []).append(r)
+    for group in by.values():
+        group.sort(key=lambda r: r["run"]["seed_index"])
+
+    def per_run(r: dict, per_frame_key: str) -> float:
+        v = r.get(per_frame_key)
+        return float(np.mean(v)) if v else float("nan")
+
+    md = io.StringIO()
+    md.write(f"# {exp.description or exp.path.stem}\n\n")
+    md.write(f"`{exp.path.name}`: {exp.seeds} seed(s) per configuration, master seed {exp.seed}; "
+             f"mean ± std over seeds of each run's mean over its tracked frames.\n")
+    csv_rows = [["metric", "row", "sequence", "mean", "std", "runs", "seconds_per_frame"]]
+    for metric, per_frame_key, title in METRICS:
+        md.write(f"\n## {title}\n\n| prior | " + " | ".join(seqs) + " | s/frame |\n")
+        md.write("|---" * (len(seqs) + 2) + "|\n")
+        for row in rows:
+            cells, secs = [], []
+            for s in seqs:
+                group = by.get((row, s), [])
+                vals = [per_run(r, per_frame_key) for r in group]
+                cells.append(_cell(vals))
+                secs += [r["seconds_per_frame"] for r in group]
+                if group:
+                    v = np.asarray(vals)
+                    csv_rows.append([metric, row, s, f"{np.mean(v):.4f}",
+                                     f"{(v.std(ddof=1) if v.size > 1 else 0.0):.4f}", len(v),
+                                     f"{np.mean([r['seconds_per_frame'] for r in group]):.4f}"])
+            md.write(f"| {row} | " + " | ".join(cells) + f" | {np.mean(secs):.3f} |\n")
+    baseline_rows = [row for row in rows if row.split(", ")[0] == exp.baseline]
+    if len(rows) > 1 and baseline_rows:
+        md.write(f"\n## Paired difference to {exp.baseline} (marker error, mm; 95% bootstrap interval over seeds)\n\n")
+        md.write("| prior | " + " | ".join(seqs) + " |\n" + "|---" * (len(seqs) + 1) + "|\n")
+        for row in rows:
+            base_row = exp.baseline + row[len(row.split(", ")[0]):]
+            if row == base_row or base_row not in rows:
+                continue
+            cells = []
+            for s in seqs:
+                a = {r["run"]["seed_index"]: per_run(r, "per_frame_error_mm") for r in by.get((row, s), [])}
+                b = {r["run"]["seed_index"]: per_run(r, "per_frame_error_mm") for r in by.get((base_row, s), [])}
+                common = sorted(set(a) & set(b))
+                d = np.array([a[i] - b[i] for i in common])
+                if d.size == 0 or not np.all(np.isfinite(d)):
+                    cells.append("n/a")
+                    continue
+                lo, hi = bootstrap_interval(d)
+                cells.append(f"{d.mean():+.1f} [{lo:+.1f}, {hi:+.1f}]" if d.size > 1 else f"{d.mean():+.1f}")
+            md.write(f"| {row} | " + " | ".join(cells) + " |\n")
+    md.write(f"\n{meta['runs']} runs ({meta['ran_now']} run now with {meta['jobs']} {meta['backend']} job(s) "
+             f"in {meta['wall_seconds_now']:.0f} s); package version {meta['version']}.\n")
+    write_text_atomic(out / "table.md", md.getvalue())
+    buf = io.StringIO()
+    csv.writer(buf).writerows(csv_rows)
+    write_text_atomic(out / "table.csv", buf.getvalue())
+    _plot(out / "per_frame.png", rows, seqs, by)
+    return {"table": md.getvalue(), "runs": len(results)}
+
+
+def _plot(path: Path, rows: list[str], seqs: list[str], by: dict) -> None:
+    """Per-frame marker error of each row, mean over seeds with a ±1 std band, one panel per sequence."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7.5, 3.2 * len(seqs)), dpi=110)
+    axes = fig.subplots(len(seqs), 1, squeeze=False)[:, 0]
+    for ax, s in zip(axes, seqs):
+        for row in rows:
+            group = [r for r in by.get((row, s), []) if r.get("per_frame_error_mm")]
+            if not group:
+                continue
+            n = min(len(r["per_frame_error_mm"]) for r in group)
+            errs = np.array([r["per_frame_error_mm"][:n] for r in group])
+            frames = np.array(group[0]["tracked_frames"][:n])
+            mean, sd = errs.mean(axis=0), errs.std(axis=0)
+            line, = ax.plot(frames, mean, label=f"{row} ({errs.mean():.0f} mm)")
+            ax.fill_between(frames, mean - sd, mean + sd, color=line.get_color(), alpha=0.2, linewidth=0)
+        ax.set_title(s)
+        ax.set_xlabel("frame")
+        ax.set_ylabel("marker error (mm)")
+        ax.set_ylim(bottom=0)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp)

@@ -1,0 +1,41 @@
+"""How many threads numpy's BLAS, OpenCV and torch use: the number a run is given, never more.
+
+On a shared machine their defaults (one thread per core each, spinning while they wait) slow a run many
+times over; parallel runs split the cores between them (:func:`share_of_cores`).
+"""
+from __future__ import annotations
+
+import os
+
+from tracker.core.errors import InputError
+
+
+def available_cores() -> int:
+    """Cores this process may run on (its CPU affinity where the platform reports one)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def share_of_cores(jobs: int) -> int:
+    """Threads each of ``jobs`` parallel workers gets so that together they do not oversubscribe the cores."""
+    return max(1, available_cores() // max(1, jobs))
+
+
+def set_threads(n: int | None) -> int:
+    """Limit BLAS (through threadpoolctl), OpenCV and torch to ``n`` threads (default: the available cores)."""
+    n = available_cores() if n is None else int(n)
+    if n < 1:
+        raise InputError(f"threads must be at least 1, got {n}")
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(n)
+    import cv2
+
+    cv2.setNumThreads(n)
+    import torch
+
+    if torch.get_num_threads() != n:
+        torch.set_num_threads(n)
+    return n
