@@ -170,7 +170,7 @@ def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
     resolved = resolve_options(f"training {prior}", entry.train_options, options)
     items = list(mocap)
     if items and all(isinstance(c, RetargetResult) for c in items):
-        clips, sources = items, ["(in memory)"] * len(items)
+        clips, sources = items, [c.source for c in items]
     else:
         clips, sources = load_training_clips(items, skeletons, fps), [str(f) for f in items]
     data = TrainingData(tuple(c.poses for c in clips), fps, clips[0].model, tuple(sources))
@@ -184,7 +184,8 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
           likelihood: str | Likelihood = "edge-silhouette", likelihood_options: Mapping[str, Any] | None = None,
           particles: int = 1000, views: Iterable[int] | None = None, frames: int | None = None,
           seed: SeedLike = 0, annealing_layers: int = 1, resampling: str = "systematic", known_frames: int = 2,
-          init: np.ndarray | None = None, train_mocap: Iterable[str | Path] | None = None, device: str = "cpu",
+          init: np.ndarray | None = None, train_mocap: Iterable[str | Path] | None = None,
+          step_std: np.ndarray | None = None, device: str = "cpu",
           record: Iterable[str] | Mapping[str, Callable[[FrameStep], Any]] = DEFAULT_RECORD,
           on_frame: Callable[[FrameStep, float | None], None] | None = None) -> TrackingResult:
     """Track a person through ``sequence`` with a particle filter and return a :class:`TrackingResult`.
@@ -192,7 +193,8 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     ``prior`` and ``likelihood`` are registered names (built from ``models`` and the option dicts) or ready
     objects. The filter tracks frames ``known_frames .. frames-1`` (default: to the end) from the ground truth's
     first poses (or ``init``, or a bodytrack ``InitialPose.txt``) with ``particles`` particles in ``views``
-    (default all), ``annealing_layers`` layers per frame. ``record`` chooses what is kept per frame
+    (default all), ``annealing_layers`` layers per frame. Random-walk priors take their scale from ``step_std``
+    or ``train_mocap`` (:func:`build_prior`). ``record`` chooses what is kept per frame
     (:mod:`tracker.engine.recording`; add ``"particles"`` and ``"weights"`` to keep those); ``on_frame(step,
     error_mm)`` sees every frame as it is tracked. ``result.save(dir)`` writes ``result.json`` and
     ``estimates.npz`` exactly as ``python -m tracker track`` does.
@@ -204,7 +206,7 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
         raise InputError(f"frames {frames} is outside 1..{seq.n_frames} (the sequence's length)", seq.root)
     rng = make_rng(seed)
     if isinstance(prior, str):
-        prior_obj = build_prior(prior, seq, models, train_mocap=train_mocap, device=device,
+        prior_obj = build_prior(prior, seq, models, train_mocap=train_mocap, step_std=step_std, device=device,
                                 **dict(prior_options or {}))
     else:
         if models or prior_options:

@@ -79,13 +79,17 @@ def prepare_models(exp: Experiment, out: Path, version: str, say: Callable[[str]
     for p in exp.priors:
         files = list(p.models)
         for t in p.train:
-            ident = {"prior": p.name, "mocap": [file_hash(m) for m in t.mocap],
+            ident = {"prior": p.name, "mocap": [[file_hash(m.path), m.start, m.frames] for m in t.mocap],
                      "skeletons": None if t.skeletons is None else [file_hash(m) for m in t.skeletons],
                      "options": t.options, "seed": t.seed, "fps": exp.fps, "version": version}
             path = out / "models" / f"{config_hash(ident)}.pt"
             if not path.exists():
                 say(f"training {p.name} for {p.label!r} on {len(t.mocap)} clip(s)")
-                model = train(p.name, t.mocap, skeletons=t.skeletons, fps=exp.fps, rng=t.seed, **t.options)
+                try:
+                    clips = load_clips(t.mocap, exp.fps)
+                except InputError as exc:
+                    raise InputError(f"prior {p.label!r}: {exc}", exp.path) from None
+                model = train(p.name, clips, fps=exp.fps, rng=t.seed, **t.options)
                 with atomic_path(path) as tmp:
                     model.save(tmp)
             files.append(path)
@@ -93,7 +97,31 @@ def prepare_models(exp: Experiment, out: Path, version: str, say: Callable[[str]
     return models
 
 
-def check_grid(exp: Experiment, sequence_paths: dict[str, Path], models: dict[str, tuple[Path, ...]]) -> None:
+def load_clips(clips, fps: float) -> list:
+    """Retargeted training clips of :class:`~tracker.app.experiment.ClipSpec` entries, each cut to its range."""
+    from data_tools.load import load_training_clips
+
+    loaded = load_training_clips([m.path for m in clips], None, fps)
+    cut = [slice(m.start, None if m.frames is None else m.start + m.frames) for m in clips]
+    out = [replace(c, poses=c.poses[k], markers=c.markers[k], model_markers=c.model_markers[k])
+           for c, k in zip(loaded, cut)]
+    for c, m in zip(out, clips):
+        if len(c.poses) < 3:
+            raise InputError(f"training clip {m.path.name} has {len(c.poses)} frame(s) from start {m.start}")
+    return out
+
+
+def prepare_scales(exp: Experiment) -> dict[str, np.ndarray | None]:
+    """Random-walk scales by prior label, from each prior's ``train_mocap`` clips (None: the defaults)."""
+    from tracker.core.representation import step_rms
+
+    return {p.label: None if p.train_mocap is None else step_rms([c.poses for c in load_clips(p.train_mocap,
+                                                                                              exp.fps)])
+            for p in exp.priors}
+
+
+def check_grid(exp: Experiment, sequence_paths: dict[str, Path], models: dict[str, tuple[Path, ...]],
+               scales: dict[str, np.ndarray | None]) -> None:
     """Views in range, enough frames, and every prior (with its models) fits every sequence: one line naming
     the experiment file and the entry otherwise."""
     from tracker.app.api import build_prior, load_sequence
@@ -110,7 +138,7 @@ def check_grid(exp: Experiment, sequence_paths: dict[str, Path], models: dict[st
                              f"({seq.n_frames} frames)", exp.path)
         for p in exp.priors:
             try:
-                build_prior(p.name, seq, models[p.label], train_mocap=p.train_mocap, **p.options)
+                build_prior(p.name, seq, models[p.label], step_std=scales[p.label], **p.options)
             except InputError as exc:
                 raise InputError(f"prior {p.label!r} on sequence {name!r}: {exc}", exp.path) from None
 
@@ -144,7 +172,8 @@ def execute_run(spec: RunSpec) -> dict:
                         likelihood=spec.likelihood, likelihood_options=spec.likelihood_options,
                         particles=spec.particles, views=spec.views, frames=spec.frames, seed=seed,
                         annealing_layers=spec.annealing_layers, resampling=spec.resampling,
-                        known_frames=spec.known_frames, train_mocap=spec.train_mocap, on_frame=on_frame)
+                        known_frames=spec.known_frames,
+                        step_std=None if spec.step_std is None else np.array(spec.step_std), on_frame=on_frame)
             log.write(f"done in {time.perf_counter() - t0:.1f} s\n")
         result = run.save(tmp)
         from data_tools.sequence import read_sequence
@@ -247,8 +276,9 @@ def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str
     version = tracker.__version__
     sequence_paths, sequence_hashes = prepare_sequences(exp, out, version, say)
     models = prepare_models(exp, out, version, say)
-    check_grid(exp, sequence_paths, models)
-    specs = expand_runs(exp, sequence_paths, sequence_hashes, models, runs_dir, version)
+    scales = prepare_scales(exp)
+    check_grid(exp, sequence_paths, models, scales)
+    specs = expand_runs(exp, sequence_paths, sequence_hashes, models, scales, runs_dir, version)
     per_worker = threads or share_of_cores(jobs if backend == "joblib" or not address else 1)
     specs = [replace(s, threads=per_worker) for s in specs]
     todo = [s for s in specs if not (runs_dir / s.key / "result.json").exists()]

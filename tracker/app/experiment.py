@@ -27,14 +27,14 @@ File layout (paths are relative to the experiment file; every key is checked, un
     [[prior]]
     label = "zero-velocity"                  # row label (default: the name)
     name = "zero-velocity"                   # a registered prior
-    train_mocap = ["..."]                    # random-walk scale clips (default: the shipped walks)
+    train_mocap = ["..."]                    # random-walk scale clips, like train's mocap (default: shipped walks)
     options = { prior_scale = 1.0 }
     [[prior]]
     label = "CRBM-3 (grown from 1)"
     name = "crbm"
     models = ["crbm3.pt"]                    # model files, or models the runner trains (and caches):
     train = [{ mocap = ["a.amc", "b.amc"], options = { order = 1 } },
-             { mocap = ["a.amc", "b.amc"], options = { order = 3 } }]
+             { mocap = ["a.amc", { path = "c.amc", start = 0, frames = 600 }], options = { order = 3 } }]
 
     [[likelihood]]                           # variants (default: one edge-silhouette)
     label = "bidirectional"
@@ -97,8 +97,18 @@ class SequenceSpec:
 
 
 @dataclass(frozen=True)
+class ClipSpec:
+    """A training clip: a mocap file, optionally only ``frames`` frames from ``start`` (at the experiment's
+    frame rate)."""
+
+    path: Path
+    start: int = 0
+    frames: int | None = None
+
+
+@dataclass(frozen=True)
 class TrainSpec:
-    mocap: tuple[Path, ...]
+    mocap: tuple[ClipSpec, ...]
     skeletons: tuple[Path, ...] | None
     options: dict
     seed: int
@@ -111,7 +121,7 @@ class PriorSpec:
     options: dict
     models: tuple[Path, ...]
     train: tuple[TrainSpec, ...]
-    train_mocap: tuple[Path, ...] | None
+    train_mocap: tuple[ClipSpec, ...] | None
 
 
 @dataclass(frozen=True)
@@ -173,6 +183,16 @@ class _Where:
         if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
             raise self.error(entry, f"expected an integer >= {minimum}, got {value!r}")
         return value
+
+
+def _clip(w: "_Where", value: Any, entry: str) -> ClipSpec:
+    """A training clip entry: a path, or ``{ path = "...", start = 0, frames = 600 }``."""
+    if isinstance(value, dict):
+        w.keys(value, {"path", "start", "frames"}, entry)
+        frames = value.get("frames")
+        return ClipSpec(w.file(value.get("path"), entry), w.int_(value.get("start", 0), entry + " start", 0),
+                        None if frames is None else w.int_(frames, entry + " frames", 3))
+    return ClipSpec(w.file(value, entry))
 
 
 def _as_list(value: Any) -> list:
@@ -266,7 +286,7 @@ def load_experiment(path: str | Path) -> Experiment:
                 resolve_options(f"training {p['name']}", spec.train_options, t.get("options", {}))
             except InputError as exc:
                 raise w.error(te, exc.reason) from None
-            mocap = tuple(w.file(m, te) for m in _as_list(t.get("mocap", [])))
+            mocap = tuple(_clip(w, m, te) for m in _as_list(t.get("mocap", [])))
             if not mocap:
                 raise w.error(te, "needs mocap = [training clips]")
             skels = tuple(w.file(m, te) for m in _as_list(t["skeletons"])) if "skeletons" in t else None
@@ -277,7 +297,7 @@ def load_experiment(path: str | Path) -> Experiment:
             raise w.error(entry, f"prior {p['name']} needs models = [...] or train = [...]")
         if spec.model_files == "one" and len(models) + len(trains) != 1:
             raise w.error(entry, f"prior {p['name']} takes exactly one model")
-        train_mocap = tuple(w.file(m, entry) for m in _as_list(p["train_mocap"])) if "train_mocap" in p else None
+        train_mocap = tuple(_clip(w, m, entry) for m in _as_list(p["train_mocap"])) if "train_mocap" in p else None
         priors.append(PriorSpec(label, p["name"], dict(p.get("options", {})), models, tuple(trains), train_mocap))
     if not priors:
         raise w.error("", "no [[prior]] entries")
@@ -316,7 +336,7 @@ class RunSpec:
     prior: str
     prior_options: dict
     models: tuple[str, ...]
-    train_mocap: tuple[str, ...] | None
+    step_std: tuple[float, ...] | None  # the random-walk scale (None: the default training clips)
     likelihood: str
     likelihood_options: dict
     views: tuple[int, ...] | None
@@ -350,19 +370,21 @@ def row_label(prior: PriorSpec, likelihood: LikelihoodSpec, views, particles: in
 
 
 def expand_runs(exp: Experiment, sequence_paths: dict[str, Path], sequence_hashes: dict[str, str],
-                model_paths: dict[str, tuple[Path, ...]], out: Path, version: str) -> list[RunSpec]:
+                model_paths: dict[str, tuple[Path, ...]], scales: dict[str, np.ndarray | None], out: Path,
+                version: str) -> list[RunSpec]:
     """Every run of the grid, each with its content hash as key."""
     runs = []
     model_hashes = {label: [file_hash(m) for m in paths] for label, paths in model_paths.items()}
     for seq, prior, lik, views, particles, layers in itertools.product(
             exp.sequences, exp.priors, exp.likelihoods, exp.tracking["views"], exp.tracking["particles"],
             exp.tracking["annealing_layers"]):
-        train_mocap = None if prior.train_mocap is None else tuple(str(p) for p in prior.train_mocap)
+        scale = scales.get(prior.label)
+        step_std = None if scale is None else tuple(float(x) for x in scale)
         for i in range(exp.seeds):
             identity = {
                 "sequence": sequence_hashes[seq.name], "prior": prior.name, "prior_options": prior.options,
                 "models": model_hashes[prior.label],
-                "train_mocap": None if train_mocap is None else [file_hash(Path(p)) for p in train_mocap],
+                "step_std": None if step_std is None else [round(x, 12) for x in step_std],
                 "likelihood": lik.name, "likelihood_options": lik.options, "views": views,
                 "particles": particles, "annealing_layers": layers, "frames": exp.tracking["frames"],
                 "known_frames": exp.tracking["known_frames"], "resampling": exp.tracking["resampling"],
@@ -372,7 +394,7 @@ def expand_runs(exp: Experiment, sequence_paths: dict[str, Path], sequence_hashe
                 key=config_hash(identity), sequence=seq.name, sequence_path=str(sequence_paths[seq.name]),
                 row=row_label(prior, lik, views, particles, layers, exp), prior=prior.name,
                 prior_options=prior.options, models=tuple(str(m) for m in model_paths[prior.label]),
-                train_mocap=train_mocap, likelihood=lik.name, likelihood_options=lik.options,
+                step_std=step_std, likelihood=lik.name, likelihood_options=lik.options,
                 views=None if views is None else tuple(views), particles=particles, annealing_layers=layers,
                 frames=exp.tracking["frames"], known_frames=exp.tracking["known_frames"],
                 resampling=exp.tracking["resampling"], seed_index=i, seed_entropy=exp.seed, out=str(out)))
