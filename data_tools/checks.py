@@ -84,6 +84,10 @@ def real_number(value: Any, what: str, source: str | Path | None = None, *, hi: 
     """A JSON-style scalar that must be a real number (not a string, list or bool) within range."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise InputError(f"{what} must be a number, got {_short(value)}", source)
+    try:
+        value = float(value)
+    except OverflowError:  # an integer beyond the float range
+        value = float("inf")
     return float(check_range(value, what, source, hi=hi, lo=lo, positive=positive, unit=unit))
 
 
