@@ -10,7 +10,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from data_tools.checks import (
-    MAX_DISTORTION, MAX_FOCAL_PX, MAX_IMAGE_SIDE, MAX_POSITION_MM, MAX_PRINCIPAL_PX, MAX_SKEW, check_range, real_number,
+    MAX_DISTORTION, MAX_FOCAL_PX, MAX_IMAGE_SIDE, MAX_POSITION_MM, MAX_PRINCIPAL_PX, MAX_SKEW, check_range, number_array,
+    real_number,
 )
 from data_tools.textfiles import read_json, read_numbers
 from tracker.core.cameras import Camera, CameraRig, make_camera
@@ -38,6 +39,8 @@ def checked_camera(name: Any, width: Any, height: Any, fx: Any, fy: Any, cx: Any
     scalars = {"width": width, "height": height, "fx": fx, "fy": fy, "cx": cx, "cy": cy, "skew": skew}
     for key, value in scalars.items():  # numbers (not text, lists or inf) before make_camera converts them
         real_number(value, f"{label}: {key}", source)
+    R, t, dist = (number_array(v, f"{label}: {k}", source) for k, v in (("R", R), ("t", t), ("dist", dist)))
+    check_range(R, f"{label}: R", source, hi=2.0)  # a rotation has entries in [-1, 1]; keeps R R^T finite
     cam = make_camera(name, width, height, fx, fy, cx, cy, R, t, skew, dist, source=None if source is None
                       else str(source))
     for key, hi, positive, unit in (("width", MAX_IMAGE_SIDE, True, " px"), ("height", MAX_IMAGE_SIDE, True, " px"),

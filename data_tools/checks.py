@@ -91,6 +91,16 @@ def real_number(value: Any, what: str, source: str | Path | None = None, *, hi: 
     return float(check_range(value, what, source, hi=hi, lo=lo, positive=positive, unit=unit))
 
 
+def number_array(value: Any, what: str, source: str | Path | None = None) -> np.ndarray:
+    """A JSON-style nested list of numbers as a float array; text, ragged lists and huge integers are refused."""
+    if isinstance(value, (str, bytes, dict)):
+        raise InputError(f"{what} must be numbers, got {_short(value)}", source)
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise InputError(f"{what} must be numbers (a list or table of them), got {_short(value)}", source) from None
+
+
 def _short(value: Any) -> str:
     text = repr(value)
     return text if len(text) <= 40 else text[:37] + "..."
