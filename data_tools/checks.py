@@ -154,21 +154,38 @@ def checked_array(arrays: Mapping[str, np.ndarray], key: str, path: str | Path, 
     dims = {} if dims is None else dims
     expected = tuple(dims.get(s, -1) if isinstance(s, str) else s for s in shape)
     text = " x ".join(f"{s} ({dims[s]})" if isinstance(s, str) and s in dims else str(s) for s in shape)
-    if a.ndim != len(shape) or any(e >= 0 and e != n for e, n in zip(expected, a.shape)):
-        raise InputError(f"{key} must have shape {text or '() (a single number)'}, got {a.shape}", path)
+    named_empty = any(isinstance(s, str) and n == 0 for s, n in zip(shape, a.shape))
+    if a.ndim != len(shape) or named_empty or any(e >= 0 and e != n for e, n in zip(expected, a.shape)):
+        at_least = ", each named size at least 1" if any(isinstance(s, str) for s in shape) else ""
+        raise InputError(f"{key} must have shape {text or '() (a single number)'}{at_least}, got {a.shape}", path)
     for s, n in zip(shape, a.shape):
         if isinstance(s, str):
             dims.setdefault(s, n)
     return check_range(a, key, path, hi=hi, lo=lo, positive=positive, unit=unit)
 
 
-def checked_text(arrays: Mapping[str, np.ndarray], key: str, path: str | Path) -> str | list[str]:
-    """``arrays[key]`` as a string (0-d) or list of strings (1-d); anything else is refused."""
+def checked_motion(arrays: Mapping[str, np.ndarray], path: str | Path, n_dofs: int,
+                   marker_keys: Sequence[str] = ("markers",)) -> tuple[np.ndarray, list[np.ndarray], float]:
+    """The poses ``T x n_dofs`` (mm and rad), markers ``T x 15 x 3`` (mm, one array per key) and fps of an archive.
+
+    Shared by the ground truth of a sequence and converted clips; every value
+    is checked for type, shape (``T >= 1``) and range.
+    """
+    dims: dict[str, int] = {}
+    poses = checked_array(arrays, "poses", path, ("T", n_dofs), dims, hi=MAX_POSITION_MM, unit=" mm or rad")
+    markers = [checked_array(arrays, k, path, ("T", 15, 3), dims, hi=MAX_POSITION_MM, unit=" mm")
+               for k in marker_keys]
+    fps = float(checked_array(arrays, "fps", path, (), hi=MAX_FPS, positive=True, unit=" Hz"))
+    return poses, markers, fps
+
+
+def checked_text(arrays: Mapping[str, np.ndarray], key: str, path: str | Path, ndim: int = 0) -> str | list[str]:
+    """``arrays[key]`` as a string (``ndim`` 0) or a list of strings (``ndim`` 1); anything else is refused."""
     a = arrays[key]
-    if a.dtype.kind != "U" or a.ndim > 1:
-        raise InputError(f"{key} must be text (a string or a list of strings), got {a.dtype} of shape {a.shape}",
-                         path)
-    return str(a) if a.ndim == 0 else [str(s) for s in a]
+    if a.dtype.kind != "U" or a.ndim != ndim:
+        wanted = "a string" if ndim == 0 else "a list of strings"
+        raise InputError(f"{key} must be {wanted}, got {a.dtype} of shape {a.shape}", path)
+    return str(a) if ndim == 0 else [str(s) for s in a]
 
 
 # ---------------------------------------------------------------------------
