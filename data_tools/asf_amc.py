@@ -177,7 +177,7 @@ def read_asf(path: str | Path) -> AsfSkeleton:
     mm = MM_PER_INCH / length_scale
     check_range(root_pos * mm, "root position", path, hi=MAX_POSITION_MM, unit=" mm", line=root_pos_line)
     for b in bones.values():
-        check_range(b.length * mm, f"bone {b.name} length", path, hi=MAX_BODY_MM, unit=" mm", line=b.line)
+        check_range(b.length * mm, f"bone {b.name} length", path, lo=0.0, hi=MAX_BODY_MM, unit=" mm", line=b.line)
     skeleton = AsfSkeleton(str(path), mm, degrees, root_order, root_axis, root_pos, root_ori, bones, children)
     _check_tree(skeleton, parent_line)
     return skeleton

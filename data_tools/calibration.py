@@ -10,8 +10,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from data_tools.checks import (
-    MAX_DISTORTION, MAX_FOCAL_PX, MAX_IMAGE_SIDE, MAX_POSITION_MM, MAX_PRINCIPAL_PX, MAX_SKEW, check_range, number_array,
-    real_number,
+    MAX_DISTORTION, MAX_FOCAL_PX, MAX_IMAGE_SIDE, MAX_POSITION_MM, MAX_PRINCIPAL_PX, MAX_SKEW, check_range,
+    number_array, real_number,
 )
 from data_tools.textfiles import read_json, read_numbers
 from tracker.core.cameras import Camera, CameraRig, make_camera

@@ -7,7 +7,6 @@ catch garbage (1e308, a string where a number goes), not unusual subjects.
 """
 from __future__ import annotations
 
-import zipfile
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
@@ -118,12 +117,17 @@ def load_npz(path: str | Path, what: str, required: Sequence[str]) -> dict[str, 
     :class:`InputError` naming the file.
     """
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{what} is missing", path)
+    try:
+        with open(path, "rb") as f:
+            magic = f.read(6)
+    except OSError as exc:
+        raise InputError(f"cannot read {what}: {exc.strerror or exc}", path) from None
+    if magic.startswith(b"\x93NUMPY"):
+        raise InputError(f"{what} is a single .npy array, not an .npz archive of named arrays", path)
+    if not magic.startswith(b"PK"):  # np.load would try other formats (pickles, text) on anything else
+        raise InputError(f"cannot read {what}: not an .npz file (an .npz is a zip archive of .npy arrays)", path)
     try:
         with np.load(path, allow_pickle=False) as z:
-            if not isinstance(z, np.lib.npyio.NpzFile):
-                raise InputError(f"{what} is a single .npy array, not an .npz archive of named arrays", path)
             big = [i.filename for i in z.zip.infolist() if i.file_size > MAX_NPZ_MEMBER_BYTES]
             if big:
                 raise InputError(f"{what} member {big[0]} is larger than {MAX_NPZ_MEMBER_BYTES >> 20} MiB", path)

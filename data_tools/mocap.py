@@ -9,7 +9,6 @@ skeleton's naming convention.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
