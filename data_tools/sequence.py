@@ -24,9 +24,13 @@ with nothing printed before it.
 from __future__ import annotations
 
 import json
+import os
 import re
 import struct
+import sys
+import threading
 import zlib
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -154,16 +158,42 @@ def _bmp_size(data: bytes, path: Path) -> tuple[int, int]:
     return width, abs(height)
 
 
+_STDERR_LOCK = threading.Lock()
+
+
+@contextmanager
+def _stderr_silenced():
+    """Point file descriptor 2 at the null device for the duration (a no-op if it cannot be duplicated).
+
+    libpng writes its warnings and errors straight to the C stderr, and OpenCV
+    logs there too; neither heeds OpenCV's log level, so a corrupt image would
+    print library messages before our one-line error. The lock keeps
+    concurrent decodes from restoring each other's descriptors; output of
+    other threads during a decode (about a millisecond) is lost.
+    """
+    with _STDERR_LOCK:
+        try:
+            sys.stderr.flush()
+            saved, null = os.dup(2), os.open(os.devnull, os.O_WRONLY)
+        except (OSError, ValueError):
+            yield
+            return
+        try:
+            os.dup2(null, 2)
+            yield
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            os.close(null)
+
+
 def _decode(data: bytes) -> np.ndarray | None:
-    """``cv2.imdecode`` with OpenCV's own log silenced (its warnings would precede our one-line error)."""
-    level = cv2.utils.logging.getLogLevel()
-    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
-    try:
-        return cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
-    except cv2.error:  # e.g. more pixels than OpenCV allows
-        return None
-    finally:
-        cv2.utils.logging.setLogLevel(level)
+    """``cv2.imdecode`` of a file's bytes, with library messages on stderr suppressed; None if it fails."""
+    with _stderr_silenced():
+        try:
+            return cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+        except cv2.error:  # e.g. more pixels than OpenCV allows
+            return None
 
 
 def read_image(path: Path, width: int, height: int, rgb: bool = False) -> np.ndarray:

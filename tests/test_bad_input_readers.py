@@ -489,12 +489,28 @@ def _bmp_claiming(width: int, height: int) -> bytes:
 
 GOOD_PNG = cv2.imencode(".png", np.full((24, 32, 3), 7, np.uint8))[1].tobytes()
 
+
+def _png_with_bad_data() -> bytes:
+    """GOOD_PNG with its compressed pixels scrambled but every checksum recomputed (libpng itself must object)."""
+    data = bytearray(GOOD_PNG)
+    pos = 8
+    while True:
+        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        if kind == b"IDAT":
+            for k in range(2, length):
+                data[pos + 8 + k] ^= 0x55
+            crc = zlib.crc32(bytes(data[pos + 4:pos + 8 + length]))
+            data[pos + 8 + length:pos + 12 + length] = struct.pack(">I", crc)
+            return bytes(data)
+        pos += 12 + length
+
 IMAGE_CASES = {
     "png claims 100000x100000": (_png_claiming(100000, 100000), "image is 100000x100000 pixels but its camera"),
     "png claims 32x25": (_png_claiming(32, 25), "image is 32x25 pixels but its camera is 32x24"),
     "bmp claims 200000x200000": (_bmp_claiming(200000, 200000), "image is 200000x200000 pixels"),
     "png truncated": (GOOD_PNG[:len(GOOD_PNG) // 2], "cannot read image"),
     "png bit flip": (GOOD_PNG[:40] + bytes([GOOD_PNG[40] ^ 0xFF]) + GOOD_PNG[41:], "cannot read image: corrupt PNG"),
+    "png bad data, good checksums": (_png_with_bad_data(), "cannot read image"),
     "bmp truncated": (_bmp_claiming(32, 24)[:300], "cannot read image"),
     "text": (b"not an image at all", "cannot read image"),
     "empty": (b"", "cannot read image"),
