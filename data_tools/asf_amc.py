@@ -175,9 +175,10 @@ def read_asf(path: str | Path) -> AsfSkeleton:
     if "root" not in children:
         raise InputError("hierarchy has no line for 'root'", path)
     mm = MM_PER_INCH / length_scale
-    check_range(root_pos * mm, "root position", path, hi=MAX_POSITION_MM, unit=" mm", line=root_pos_line)
+    check_range(root_pos, "root position", path, hi=MAX_POSITION_MM, unit=" mm", line=root_pos_line, scale=mm)
     for b in bones.values():
-        check_range(b.length * mm, f"bone {b.name} length", path, lo=0.0, hi=MAX_BODY_MM, unit=" mm", line=b.line)
+        check_range(b.length, f"bone {b.name} length", path, lo=0.0, hi=MAX_BODY_MM, unit=" mm", line=b.line,
+                    scale=mm)
     skeleton = AsfSkeleton(str(path), mm, degrees, root_order, root_axis, root_pos, root_ori, bones, children)
     _check_tree(skeleton, parent_line)
     return skeleton
@@ -293,8 +294,8 @@ def read_amc(path: str | Path, skeleton: AsfSkeleton) -> dict[str, np.ndarray]:
     motion = {name: np.stack([f[name] for f in frames]) for name in moving}
     angle_limit, angle_unit = (MAX_ANGLE_DEG, " degrees") if skeleton.degrees else (np.radians(MAX_ANGLE_DEG),
                                                                                     " radians")
-    check_range(motion["root"][:, root_t] * skeleton.mm_per_unit, "root position", path, hi=MAX_POSITION_MM,
-                unit=" mm", row_lines=value_lines["root"])
+    check_range(motion["root"][:, root_t], "root position", path, hi=MAX_POSITION_MM, unit=" mm",
+                row_lines=value_lines["root"], scale=skeleton.mm_per_unit)
     for name, values in motion.items():
         angles = values[:, root_r] if name == "root" else values
         check_range(angles, f"bone '{name}' angles", path, hi=angle_limit, unit=angle_unit,

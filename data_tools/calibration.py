@@ -41,8 +41,9 @@ def checked_camera(name: Any, width: Any, height: Any, fx: Any, fy: Any, cx: Any
         real_number(value, f"{label}: {key}", source)
     R, t, dist = (number_array(v, f"{label}: {k}", source) for k, v in (("R", R), ("t", t), ("dist", dist)))
     check_range(R, f"{label}: R", source, hi=2.0)  # a rotation has entries in [-1, 1]; keeps R R^T finite
-    cam = make_camera(name, width, height, fx, fy, cx, cy, R, t, skew, dist, source=None if source is None
-                      else str(source))
+    with np.errstate(all="ignore"):  # a degenerate R makes det() warn before make_camera refuses it
+        cam = make_camera(name, width, height, fx, fy, cx, cy, R, t, skew, dist,
+                          source=None if source is None else str(source))
     for key, hi, positive, unit in (("width", MAX_IMAGE_SIDE, True, " px"), ("height", MAX_IMAGE_SIDE, True, " px"),
                                     ("fx", MAX_FOCAL_PX, True, " px"), ("fy", MAX_FOCAL_PX, True, " px"),
                                     ("cx", MAX_PRINCIPAL_PX, False, " px"), ("cy", MAX_PRINCIPAL_PX, False, " px"),

@@ -51,31 +51,34 @@ def _range_text(lo: float, hi: float, positive: bool, unit: str) -> str:
 
 def check_range(values: Any, what: str, source: str | Path | None = None, *, hi: float = np.inf,
                 lo: float | None = None, positive: bool = False, unit: str = "", line: int | None = None,
-                row_lines: Sequence[int] | None = None) -> np.ndarray:
-    """``values`` as a float array, refused unless every entry is finite and in range.
+                row_lines: Sequence[int] | None = None, scale: float = 1.0) -> np.ndarray:
+    """``values * scale`` as a float array, refused unless every entry is finite and in range.
 
     The range is ``[lo, hi]`` (``lo`` defaults to ``-hi``), or ``(0, hi]`` when
-    ``positive``. ``row_lines[i]`` is the file line of row ``i`` (for tables);
-    otherwise ``line`` is reported. The message names ``what``, the first bad
-    entry's index (for 2-d and larger arrays), its value and the range.
+    ``positive``; ``scale`` converts the values to the range's unit (file
+    units to mm, say) without overflow warnings. ``row_lines[i]`` is the file
+    line of row ``i`` (for tables); otherwise ``line`` is reported. The
+    message names ``what``, the first bad entry's index (for 2-d and larger
+    arrays), its value and the range.
     """
-    v = np.asarray(values, dtype=float)
+    raw = np.asarray(values, dtype=float)
+    with np.errstate(over="ignore"):
+        v = raw * scale if scale != 1.0 else raw
     lo = (0.0 if positive else -hi) if lo is None else lo
     ok = (v <= hi) & ((v > lo) if positive else (v >= lo))  # False for NaN
     if np.isinf(hi) or np.isinf(lo):
         ok &= np.isfinite(v)
     if ok.all():
         return v
-    finite = np.isfinite(v)
     idx = tuple(int(i) for i in np.argwhere(~ok)[0]) if v.ndim else ()
     if row_lines is not None and idx:
         line = row_lines[idx[0]]
     where = f"[{', '.join(map(str, idx))}]" if v.ndim >= 2 else ""
     expected = _range_text(lo, hi, positive, unit)
-    if not finite[idx]:
+    if not np.isfinite(raw[idx]):
         raise InputError(f"{what}{where}: NaN or infinite value (expected {expected})", source, line)
-    raise InputError(f"{what}{where} = {v[idx]:.6g} is outside the plausible range (expected {expected})",
-                     source, line)
+    shown = f"{v[idx]:.6g}" if np.isfinite(v[idx]) else f"{raw[idx]:.6g} x {scale:g}"
+    raise InputError(f"{what}{where} = {shown} is outside the plausible range (expected {expected})", source, line)
 
 
 def real_number(value: Any, what: str, source: str | Path | None = None, *, hi: float = np.inf,
@@ -127,7 +130,7 @@ def load_npz(path: str | Path, what: str, required: Sequence[str]) -> dict[str, 
     if not magic.startswith(b"PK"):  # np.load would try other formats (pickles, text) on anything else
         raise InputError(f"cannot read {what}: not an .npz file (an .npz is a zip archive of .npy arrays)", path)
     try:
-        with np.load(path, allow_pickle=False) as z:
+        with open(path, "rb") as f, np.load(f, allow_pickle=False) as z:
             big = [i.filename for i in z.zip.infolist() if i.file_size > MAX_NPZ_MEMBER_BYTES]
             if big:
                 raise InputError(f"{what} member {big[0]} is larger than {MAX_NPZ_MEMBER_BYTES >> 20} MiB", path)
