@@ -29,11 +29,13 @@ from data_tools.asf_amc import asf_amc_clip  # noqa: E402
 from data_tools.bodytrack import PoseParameters, bodytrack_model, read_pose_parameters, read_poses  # noqa: E402
 from data_tools.bvh import bvh_clip  # noqa: E402
 from data_tools.calibration import read_bodytrack_calibration, read_cameras_json, write_cameras_json  # noqa: E402
+from data_tools.clip_io import load_converted_clip  # noqa: E402
 from data_tools.sequence import read_groundtruth, read_image, read_sequence  # noqa: E402
 from test_bad_input_readers import (  # noqa: E402
     BODY_SHAPE_TXT, POSE_PARAMETERS_TXT, POSE_TXT, SAMPLE_ASF, TINY_BVH, amc_lines, cal_text, tiny_rig,
     tiny_sequence, time_limit,
 )
+from tracker.core.body import default_shape  # noqa: E402
 from tracker.core.errors import InputError  # noqa: E402
 from tracker.core.kinematics import forward_kinematics  # noqa: E402
 
@@ -322,6 +324,28 @@ def test_fuzz_groundtruth_npz(seeds, capfd, data):
         assert gt.poses.shape[0] == gt.markers.shape[0] >= 1 and gt.fps > 0
 
     quiet(capfd, lambda: reads_or_refuses(lambda: read_groundtruth(path, 40), check))
+
+
+@FUZZ
+@given(st.data())
+def test_fuzz_converted_clip(seeds, capfd, data):
+    """Converted clips: a mutated body-shape JSON, a replaced array, or damaged bytes."""
+    path = seeds["work"] / "clip.npz"
+    shape = default_shape().to_json().encode()
+    arrays = {"poses": np.zeros((3, 40)), "markers": np.zeros((3, 15, 3)), "model_markers": np.zeros((3, 15, 3)),
+              "fps": np.float64(60.0), "shape": np.array(data.draw(json_mutant(shape)).decode())}
+    if data.draw(st.booleans()):
+        arrays[data.draw(st.sampled_from(sorted(arrays)))] = data.draw(_NASTY_ARRAYS)
+    with open(path, "wb") as f:
+        np.savez(f, **arrays)
+    if data.draw(st.integers(0, 3)) == 0:
+        path.write_bytes(data.draw(mutant(path.read_bytes(), text=False)))
+
+    def check(clip):
+        finite(clip.poses, clip.markers, clip.model_markers, clip.fps)
+        finite(forward_kinematics(clip.model, clip.poses).points)
+
+    quiet(capfd, lambda: reads_or_refuses(lambda: load_converted_clip(path), check))
 
 
 def test_profiles_are_reproducible():
