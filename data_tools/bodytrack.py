@@ -14,6 +14,7 @@ import numpy as np
 from tracker.core.body import BodyModel
 from tracker.core.errors import InputError
 from tracker.core.parsec_body import BODYTRACK_DOF_NAMES, ten_cone_model
+from data_tools.checks import MAX_BODY_MM, MAX_POSITION_MM
 from data_tools.textfiles import read_numbers
 
 N_POSE = len(BODYTRACK_DOF_NAMES)
@@ -21,7 +22,7 @@ N_POSE = len(BODYTRACK_DOF_NAMES)
 
 def read_body_shape(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     """``BodyShapeParameters.txt`` -> (limbs ``10 x 4``, lengths ``(18,)``), mm."""
-    v = read_numbers(path, "body shape file")
+    v = read_numbers(path, "body shape file", MAX_BODY_MM, " mm")
     if v.size != 58:
         raise InputError(f"expected 58 numbers (10 cones x 4, then 18 lengths), found {v.size}", path)
     return v[:40].reshape(10, 4), v[40:]
@@ -29,7 +30,7 @@ def read_body_shape(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
 
 def read_poses(path: str | Path) -> np.ndarray:
     """A pose file (``InitialPose.txt``, or one pose of 31 numbers per line) -> ``T x 31``."""
-    v = read_numbers(path, "pose file")
+    v = read_numbers(path, "pose file", MAX_POSITION_MM, " mm or rad")
     if v.size == 0 or v.size % N_POSE:
         raise InputError(f"expected a multiple of {N_POSE} numbers (one bodytrack pose each), found {v.size}", path)
     return v.reshape(-1, N_POSE)
@@ -45,7 +46,7 @@ class PoseParameters:
 
 
 def read_pose_parameters(path: str | Path) -> PoseParameters:
-    v = read_numbers(path, "pose parameter file")
+    v = read_numbers(path, "pose parameter file", MAX_POSITION_MM, " mm or rad")
     if v.size != 3 * N_POSE:
         raise InputError(f"expected {3 * N_POSE} numbers (31 std devs, 31 lower, 31 upper limits), found {v.size}",
                          path)

@@ -21,7 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from data_tools.mocap import MM_PER_INCH, Y_UP_TO_Z_UP, MocapClip, check_finite, parse_floats, read_lines
+from data_tools.checks import MAX_FPS, MAX_MM_PER_UNIT, MAX_POSITION_MM, MIN_MM_PER_UNIT, check_range, real_number
+from data_tools.mocap import MM_PER_INCH, Y_UP_TO_Z_UP, MocapClip
+from data_tools.textfiles import parse_floats, read_lines
 from tracker.core.errors import InputError
 from tracker.core.rotations import euler_to_matrix
 
@@ -50,6 +52,7 @@ class BvhFile:
     frame_time: float
     frames: np.ndarray  # T x channels
     header_frames: int
+    row_lines: list[int] = field(default_factory=list)  # the file line of each frame
 
 
 def read_bvh(path: str | Path) -> BvhFile:
@@ -99,7 +102,7 @@ def read_bvh(path: str | Path) -> BvhFile:
             if stack.pop() == -2:
                 in_end = False
         elif key == "OFFSET":
-            vals = parse_floats(tok[1:], 3, path, ln, "OFFSET")
+            vals = parse_floats(tok[1:], 3, path, ln, "OFFSET", MAX_POSITION_MM)
             if in_end:
                 owner = next((s for s in reversed(stack) if s >= 0), None)
                 if owner is None:
@@ -140,7 +143,7 @@ def read_bvh(path: str | Path) -> BvhFile:
     header = {}
     while i < n_lines and len(header) < 2:
         ln = i + 1
-        s = lines[i].strip()
+        s = " ".join(lines[i].split())  # tabs and repeated blanks as one space
         i += 1
         if not s:
             continue
@@ -159,6 +162,8 @@ def read_bvh(path: str | Path) -> BvhFile:
                 raise InputError(f"bad frame time {s!r}", path, ln) from None
             if not np.isfinite(header["time"]) or header["time"] <= 0:
                 raise InputError(f"frame time must be positive (a frame rate > 0), got {header['time']}", path, ln)
+            check_range(1.0 / header["time"], "frame rate (1 / Frame Time)", path, hi=MAX_FPS, positive=True,
+                        unit=" Hz", line=ln)
         else:
             raise InputError(f"expected 'Frames:' and 'Frame Time:', got {s[:40]!r}", path, ln)
     if len(header) < 2:
@@ -181,9 +186,9 @@ def read_bvh(path: str | Path) -> BvhFile:
         row_lines.append(ln)
     if len(rows) != header["frames"]:
         raise InputError(f"header says {header['frames']} frames but the file has {len(rows)} (truncated?)", path)
-    frames = np.array(rows, float)
-    check_finite(frames, path, lambda r: row_lines[r], "values in frame data")
-    return BvhFile(str(path), joints, header["time"], frames, header["frames"])
+    frames = np.array(rows, float).reshape(len(rows), n_chan)
+    check_range(frames, "frame values", path, hi=MAX_POSITION_MM, row_lines=row_lines)
+    return BvhFile(str(path), joints, header["time"], frames, header["frames"], row_lines)
 
 
 
@@ -246,8 +251,10 @@ def bvh_clip(path: str | Path, mm_per_unit: float | None = None) -> MocapClip:
     if mm_per_unit is None:
         unit_name, mm_per_unit = infer_unit(bvh)
         notes.append(f"length unit inferred as {unit_name} ({mm_per_unit:.4g} mm)")
-    elif not (np.isfinite(mm_per_unit) and mm_per_unit > 0):
-        raise InputError(f"length unit must be positive mm per file unit, got {mm_per_unit}", path)
+    else:
+        mm_per_unit = real_number(mm_per_unit, "length unit (mm per file unit)", path, lo=MIN_MM_PER_UNIT,
+                                  hi=MAX_MM_PER_UNIT)
     pos, names = _positions(bvh, bvh.frames)
     positions = (pos * mm_per_unit) @ Y_UP_TO_Z_UP.T
+    check_range(positions, "joint positions", path, hi=MAX_POSITION_MM, unit=" mm", row_lines=bvh.row_lines)
     return MocapClip(str(path), positions, names, 1.0 / bvh.frame_time, "bvh", notes)

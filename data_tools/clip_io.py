@@ -13,7 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
+from data_tools.checks import body_shape, checked_motion, checked_text, load_npz
 from data_tools.retarget import RetargetResult
+from data_tools.textfiles import parse_json
 from tracker.core.body import DOF_NAMES, MARKER_NAMES, BodyModel, BodyShape, fifteen_cone_model
 from tracker.core.errors import InputError
 
@@ -45,31 +47,14 @@ def save_converted_clip(result: RetargetResult, path: str | Path) -> None:
 
 
 def load_converted_clip(path: str | Path) -> ConvertedClip:
-    """Read and validate a converted clip; errors name the file and the problem."""
+    """Read and validate a converted clip; every array is checked for type, shape and range, errors name the key."""
     path = Path(path)
-    try:
-        data = np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as exc:
-        raise InputError(f"cannot read converted clip: {exc}", path) from None
-    with data:
-        missing = [k for k in ("poses", "markers", "model_markers", "fps", "shape") if k not in data.files]
-        if missing:
-            raise InputError(f"not a converted clip: lacks {', '.join(missing)}", path)
-        poses, markers, model_markers = data["poses"], data["markers"], data["model_markers"]
-        fps = float(data["fps"])
-        shape = BodyShape.from_json(str(data["shape"]), str(path))
-        source = str(data["source"]) if "source" in data.files else ""
-        if "dof_names" in data.files and list(data["dof_names"]) != DOF_NAMES:
-            raise InputError("pose layout differs from this version's 40-dof layout", path)
-        if "marker_names" in data.files and list(data["marker_names"]) != list(MARKER_NAMES):
-            raise InputError("marker set differs from this version's 15 markers", path)
-    T = poses.shape[0] if poses.ndim == 2 else -1
-    if poses.shape != (T, 40) or markers.shape != (T, 15, 3) or model_markers.shape != (T, 15, 3):
-        raise InputError(f"inconsistent shapes: poses {poses.shape}, markers {markers.shape}, "
-                         f"model_markers {model_markers.shape} (expected T x 40, T x 15 x 3, T x 15 x 3)", path)
-    for name, arr in (("poses", poses), ("markers", markers), ("model_markers", model_markers)):
-        if not np.all(np.isfinite(arr)):
-            raise InputError(f"{name} contain NaN or infinite values", path)
-    if not np.isfinite(fps) or fps <= 0:
-        raise InputError(f"frame rate must be positive, got {fps}", path)
+    arrays = load_npz(path, "converted clip", ("poses", "markers", "model_markers", "fps", "shape"))
+    poses, (markers, model_markers), fps = checked_motion(arrays, path, len(DOF_NAMES), ("markers", "model_markers"))
+    shape = body_shape(parse_json(checked_text(arrays, "shape", path), path, "shape"), path)
+    source = checked_text(arrays, "source", path) if "source" in arrays else ""
+    if "dof_names" in arrays and checked_text(arrays, "dof_names", path, ndim=1) != DOF_NAMES:
+        raise InputError("pose layout differs from this version's 40-dof layout", path)
+    if "marker_names" in arrays and checked_text(arrays, "marker_names", path, ndim=1) != list(MARKER_NAMES):
+        raise InputError("marker set differs from this version's 15 markers", path)
     return ConvertedClip(poses, markers, model_markers, fps, shape, source)

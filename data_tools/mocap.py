@@ -9,10 +9,11 @@ skeleton's naming convention.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
+from data_tools.checks import MAX_FPS, check_range
+from data_tools.textfiles import parse_floats, read_lines  # noqa: F401 -- re-exported for older imports
 from tracker.core.body import EXTRA_POINT_NAMES, MARKER_NAMES
 from tracker.core.errors import InputError
 
@@ -54,13 +55,12 @@ def _name_index(names: list[str]) -> dict[str, int]:
 
 
 def check_fps(fps: float, what: str = "frame rate", source: str | None = None) -> float:
+    """``fps`` as a float, refused unless a number in (0, :data:`~data_tools.checks.MAX_FPS`] Hz."""
     try:
         fps = float(fps)
     except (TypeError, ValueError):
         raise InputError(f"{what} must be a number, got {fps!r}", source) from None
-    if not np.isfinite(fps) or fps <= 0:
-        raise InputError(f"{what} must be positive and finite, got {fps}", source)
-    return fps
+    return float(check_range(fps, what, source, hi=MAX_FPS, positive=True, unit=" Hz"))
 
 
 def resample(clip: MocapClip, fps: float) -> MocapClip:
@@ -155,36 +155,3 @@ def marker_positions(clip: MocapClip, roles=MARKER_NAMES + EXTRA_POINT_NAMES) ->
     if missing:
         raise InputError("skeleton lacks points for: " + "; ".join(missing), clip.path)
     return out
-
-
-def check_finite(values: np.ndarray, path: str | Path, line_of_row=None, what: str = "values") -> None:
-    """Raise an :class:`InputError` at the first row with a NaN or infinite entry.
-
-    ``line_of_row`` maps a row index to its line number in the file, if known.
-    """
-    bad = ~np.isfinite(values)
-    if bad.any():
-        row = int(np.argwhere(bad)[0][0])
-        line = None if line_of_row is None else line_of_row(row)
-        raise InputError(f"NaN or infinite {what}", path, line)
-
-
-def read_lines(path: Path, what: str) -> list[str]:
-    """The lines of a text file; an unreadable file is an :class:`InputError` naming it."""
-    try:
-        return Path(path).read_text(errors="replace").splitlines()
-    except OSError as exc:
-        raise InputError(f"cannot read {what}: {exc.strerror}", path) from None
-
-
-def parse_floats(tokens: list[str], n: int | None, path, line: int, what: str) -> np.ndarray:
-    """Parse ``tokens`` as ``n`` finite numbers (any count if ``n`` is None); errors name file and line."""
-    try:
-        vals = np.array([float(t) for t in tokens])
-    except ValueError:
-        raise InputError(f"{what}: expected numbers, got {' '.join(tokens)!r}", path, line) from None
-    if n is not None and vals.size != n:
-        raise InputError(f"{what}: expected {n} numbers, got {vals.size}", path, line)
-    if not np.all(np.isfinite(vals)):
-        raise InputError(f"{what}: NaN or infinite value", path, line)
-    return vals

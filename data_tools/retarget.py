@@ -119,7 +119,8 @@ def shape_from_points(points: np.ndarray, source: str | None = None) -> BodyShap
     thorax = points[:, _P["thorax"]]
     heights = np.linspace(-0.2, 0.6, 81) * _median_dist(points, "pelvis", "thorax")
     spread = [np.std(np.linalg.norm(thorax - root - h * frames[:, :, 2], axis=-1)) for h in heights]
-    h_abd = float(heights[int(np.argmin(spread))])
+    # One frame cannot show where the spine bends: keep the default shape's abdomen joint, at the pelvis origin.
+    h_abd = float(heights[int(np.argmin(spread))]) if len(points) > 1 else 0.0
     L = {}
     L["torso"] = float(np.median(np.linalg.norm(thorax - root - h_abd * frames[:, :, 2], axis=-1)))
     L["head"] = _median_dist(points, "thorax", "head")
@@ -232,8 +233,8 @@ def retarget(clip: MocapClip, fps: float | None = None, shape: BodyShape | None 
     """
     if fps is not None:
         clip = resample(clip, fps)
-    if clip.n_frames < 2:
-        raise InputError(f"clip has {clip.n_frames} frame(s); at least 2 are needed", clip.path)
+    if clip.n_frames < 1:
+        raise InputError("clip has no frames", clip.path)
     points = marker_positions(clip, FIT_POINTS)
     if not np.all(np.isfinite(points)):
         raise InputError("joint positions contain NaN or infinite values", clip.path)

@@ -14,22 +14,33 @@ PARSEC bodytrack layout (read as it is)::
     DIR/BodyShapeParameters.txt  DIR/InitialPose.txt  [DIR/PoseParameters.txt]
 
 :func:`read_sequence` recognises either and returns a :class:`Sequence`. Images
-come back as ``H x W x 3`` RGB uint8 (colour) or ``H x W`` uint8 (greyscale);
-masks as ``H x W`` bool. Every problem (missing folder or frame, wrong image
-size, unreadable file, empty mask) raises :class:`InputError` naming the file.
+come back from :class:`Sequence` as ``H x W x 3`` RGB uint8 (greyscale files
+are converted, so frames and background plates always match); masks as
+``H x W`` bool. Every problem (missing folder or frame, wrong image size,
+unreadable, truncated or non-image file, empty mask, implausible values in the
+ground truth or ``meta.json``) raises one :class:`InputError` naming the file,
+with nothing printed before it.
 """
 from __future__ import annotations
 
 import json
+import os
 import re
+import struct
+import sys
+import threading
+import zlib
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from tracker.core.body import BodyModel, BodyShape, fifteen_cone_model
 from data_tools.calibration import read_bodytrack_calibration, read_cameras_json, write_cameras_json
+from data_tools.checks import MAX_FPS, body_shape, checked_motion, load_npz, real_number
+from data_tools.textfiles import read_json
+from tracker.core.body import BodyModel, fifteen_cone_model
 from tracker.core.cameras import CameraRig
 from tracker.core.errors import InputError
 from tracker.engine.likelihood import Frame
@@ -85,17 +96,17 @@ class Sequence:
         return frame
 
     def image(self, frame: int, view: int) -> np.ndarray:
-        """Frame ``frame`` of camera ``view``: ``H x W x 3`` RGB or ``H x W`` grey, uint8."""
+        """Frame ``frame`` of camera ``view``: ``H x W x 3`` RGB uint8 (a greyscale file is converted)."""
         self.check_frame(frame)
-        return read_image(self.image_paths[view][frame], self.rig[view].width, self.rig[view].height)
+        return read_image(self.image_paths[view][frame], self.rig[view].width, self.rig[view].height, rgb=True)
 
     def background(self, view: int) -> np.ndarray | None:
-        """The background plate of camera ``view`` (read once, then kept), or None."""
+        """The background plate of camera ``view`` as ``H x W x 3`` RGB (read once, then kept), or None."""
         path = self.background_paths[view]
         if path is None:
             return None
         if view not in self._plates:
-            self._plates[view] = read_image(path, self.rig[view].width, self.rig[view].height)
+            self._plates[view] = read_image(path, self.rig[view].width, self.rig[view].height, rgb=True)
         return self._plates[view]
 
     def mask(self, frame: int, view: int) -> np.ndarray | None:
@@ -123,25 +134,123 @@ class Sequence:
 # Images
 # ---------------------------------------------------------------------------
 
-def read_image(path: Path, width: int, height: int) -> np.ndarray:
-    """Read an image file and check its size against the camera's (``width`` x ``height`` pixels)."""
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _png_size(data: bytes, path: Path) -> tuple[int, int]:
+    """(width, height) of a PNG after checking its chunk structure and every CRC.
+
+    libpng prints its complaints about broken files on stderr before OpenCV
+    reports failure; checking here means it only ever sees intact files.
+    """
+    pos, size, chunks = len(_PNG_SIGNATURE), None, set()
+    while pos + 12 <= len(data):
+        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        end = pos + 12 + length
+        if end > len(data):
+            break
+        if zlib.crc32(data[pos + 4:end - 4]) != struct.unpack(">I", data[end - 4:end])[0]:
+            raise InputError(f"cannot read image: corrupt PNG (CRC error in a {kind[:4]!r} chunk)", path)
+        if kind == b"IHDR" and length >= 8:
+            size = struct.unpack(">II", data[pos + 8:pos + 16])
+        chunks.add(kind)
+        if kind == b"IEND":
+            break
+        pos = end
+    if size is None or b"IEND" not in chunks or b"IDAT" not in chunks:
+        raise InputError("cannot read image: truncated or corrupt PNG (header, data or end chunk missing)", path)
+    return size
+
+
+def _bmp_size(data: bytes, path: Path) -> tuple[int, int]:
+    """(width, height) from a BMP header (BITMAPCOREHEADER or later)."""
+    if len(data) < 26:
+        raise InputError("cannot read image: truncated BMP header", path)
+    if struct.unpack("<I", data[14:18])[0] == 12:
+        return struct.unpack("<HH", data[18:22])
+    width, height = struct.unpack("<ii", data[18:26])
+    return width, abs(height)
+
+
+_STDERR_LOCK = threading.Lock()
+
+
+@contextmanager
+def _stderr_silenced():
+    """Point file descriptor 2 at the null device for the duration (a no-op if it cannot be duplicated).
+
+    libpng writes its warnings and errors straight to the C stderr, and OpenCV
+    logs there too; neither heeds OpenCV's log level, so a corrupt image would
+    print library messages before our one-line error. The lock keeps
+    concurrent decodes from restoring each other's descriptors; output of
+    other threads during a decode (about a millisecond) is lost.
+    """
+    with _STDERR_LOCK:
+        try:
+            sys.stderr.flush()
+            saved, null = os.dup(2), os.open(os.devnull, os.O_WRONLY)
+        except (OSError, ValueError):
+            yield
+            return
+        try:
+            os.dup2(null, 2)
+            yield
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            os.close(null)
+
+
+def _decode(data: bytes) -> np.ndarray | None:
+    """``cv2.imdecode`` of a file's bytes, with library messages on stderr suppressed; None if it fails."""
+    with _stderr_silenced():
+        try:
+            return cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+        except cv2.error:  # e.g. more pixels than OpenCV allows
+            return None
+
+
+def read_image(path: Path, width: int, height: int, rgb: bool = False) -> np.ndarray:
+    """Read an image file and check its size against the camera's (``width`` x ``height`` pixels).
+
+    PNG and BMP only. Returns ``H x W x 3`` RGB or ``H x W`` grey uint8 (an
+    alpha channel is dropped); ``rgb`` converts grey to RGB. Headers (and PNG
+    checksums) are checked before decoding, so a file claiming a huge size is
+    refused without allocating it and a broken file is one :class:`InputError`,
+    with no library warnings printed.
+    """
     path = Path(path)
-    if not path.exists():
-        raise InputError("image file is missing", path)
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    try:
+        n_bytes = path.stat().st_size
+        if n_bytes > 8 * width * height + (1 << 20):  # more than any width x height image file needs
+            raise InputError(f"image file is {n_bytes} bytes: too large for a {width}x{height} image", path)
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise InputError("image file is missing", path) from None
+    except OSError as exc:
+        raise InputError(f"cannot read image: {exc.strerror or exc}", path) from None
+    if data.startswith(_PNG_SIGNATURE):
+        size = _png_size(data, path)
+    elif data.startswith(b"BM"):
+        size = _bmp_size(data, path)
+    else:  # other formats are not checked before decoding, so not decoded at all
+        raise InputError("cannot read image: not a PNG or BMP file (the formats of both sequence layouts)", path)
+    if tuple(size) != (width, height):
+        raise InputError(f"image is {size[0]}x{size[1]} pixels but its camera is {width}x{height}", path)
+    img = _decode(data)
     if img is None:
-        raise InputError("cannot read image (unsupported or corrupt file)", path)
+        raise InputError("cannot read image (unsupported, truncated or corrupt file)", path)
     if img.dtype != np.uint8:
         raise InputError(f"expected an 8-bit image, got {img.dtype}", path)
     if img.shape[:2] != (height, width):
         raise InputError(f"image is {img.shape[1]}x{img.shape[0]} pixels but its camera is {width}x{height}", path)
+    if img.ndim == 3 and img.shape[2] in (1, 2):  # grey (+ alpha)
+        img = img[..., 0]
     if img.ndim == 3:
-        if img.shape[2] == 4:
-            img = img[..., :3]
-        if img.shape[2] != 3:
-            raise InputError(f"expected 1 or 3 channels, got {img.shape[2]}", path)
-        return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
-    return img
+        if img.shape[2] != 3 and img.shape[2] != 4:
+            raise InputError(f"expected 1 to 4 channels, got {img.shape[2]}", path)
+        return cv2.cvtColor(img[..., :3], cv2.COLOR_BGR2RGB)
+    return cv2.cvtColor(img, cv2.COLOR_GRAY2RGB) if rgb else img
 
 
 def read_mask(path: Path, width: int, height: int) -> np.ndarray:
@@ -198,22 +307,10 @@ def write_groundtruth(root: Path, poses: np.ndarray, markers: np.ndarray, fps: f
 
 
 def read_groundtruth(path: Path, n_dofs: int) -> GroundTruth:
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except (OSError, ValueError) as exc:
-        raise InputError(f"cannot read ground truth ({exc})", path) from None
-    missing = [k for k in ("poses", "markers", "fps") if k not in data]
-    if missing:
-        raise InputError(f"ground truth lacks {', '.join(missing)}", path)
-    poses, markers, fps = data["poses"], data["markers"], float(data["fps"])
-    if poses.ndim != 2 or poses.shape[1] != n_dofs:
-        raise InputError(f"poses must be T x {n_dofs}, got {poses.shape}", path)
-    if markers.shape != (len(poses), 15, 3):
-        raise InputError(f"markers must be {len(poses)} x 15 x 3, got {markers.shape}", path)
-    if not (np.all(np.isfinite(poses)) and np.all(np.isfinite(markers)) and np.isfinite(fps) and fps > 0):
-        raise InputError("ground truth contains NaN/infinite values or a non-positive fps", path)
-    return GroundTruth(poses.astype(float), markers.astype(float), fps)
+    """``groundtruth.npz``: poses ``T x n_dofs``, markers ``T x 15 x 3`` (mm) and fps, each checked."""
+    arrays = load_npz(path, "ground truth", ("poses", "markers", "fps"))
+    poses, (markers,), fps = checked_motion(arrays, path, n_dofs)
+    return GroundTruth(poses, markers, fps)
 
 
 def write_meta(root: Path, meta: dict) -> None:
@@ -230,16 +327,15 @@ def write_sequence_header(root: Path, rig: CameraRig, meta: dict) -> None:
 
 def _read_own(root: Path) -> Sequence:
     rig = read_cameras_json(root / "cameras.json")
-    meta = {}
-    if (root / "meta.json").exists():
-        try:
-            meta = json.loads((root / "meta.json").read_text())
-        except json.JSONDecodeError as exc:
-            raise InputError(f"not valid JSON: {exc.msg}", root / "meta.json", exc.lineno) from None
-        if not isinstance(meta, dict):
-            raise InputError("expected a JSON object", root / "meta.json")
+    meta_path = root / "meta.json"
+    meta = read_json(meta_path, "meta.json") if meta_path.exists() else {}
+    if not isinstance(meta, dict):
+        raise InputError("expected a JSON object", meta_path)
     shape = meta.get("body_shape")
-    model = fifteen_cone_model(BodyShape.from_dict(shape, str(root / "meta.json")) if shape else None)
+    model = fifteen_cone_model(None if shape is None else body_shape(shape, meta_path))
+    meta_fps = meta.get("fps")
+    if meta_fps is not None:
+        meta_fps = real_number(meta_fps, "fps", meta_path, hi=MAX_FPS, positive=True, unit=" Hz")
     image_paths, backgrounds = [], []
     for cam in rig.cameras:
         first = (len(image_paths[0]), rig.names[0]) if image_paths else None
@@ -253,7 +349,7 @@ def _read_own(root: Path) -> Sequence:
         if len(gt.poses) != len(image_paths[0]):
             raise InputError(f"ground truth has {len(gt.poses)} frames but the images have {len(image_paths[0])}",
                              root / "groundtruth.npz")
-    fps = gt.fps if gt else meta.get("fps")
+    fps = gt.fps if gt else meta_fps
     seq = Sequence(root=root, layout=OWN, rig=rig, model=model, image_paths=image_paths,
                    background_paths=backgrounds, mask_paths=None, groundtruth=gt,
                    initial_poses=None if gt is None else gt.poses, fps=fps, meta=meta)
@@ -272,13 +368,7 @@ BODYTRACK_FRAME = "image{:04d}.bmp"
 def _read_bodytrack(root: Path, width: int = 640, height: int = 480) -> Sequence:
     from data_tools.bodytrack import bodytrack_model, read_poses
 
-    cal_files = []
-    k = 1
-    while (root / "CALIB" / f"Camera{k}.cal").exists():
-        cal_files.append(root / "CALIB" / f"Camera{k}.cal")
-        k += 1
-    if not cal_files:
-        raise InputError("no CALIB/Camera1.cal: not a bodytrack folder", root)
+    cal_files = [root / "CALIB" / f"Camera{k}.cal" for k in _bodytrack_cameras(root)]
     rig = CameraRig([read_bodytrack_calibration(p, f"CAM{i + 1}", width, height) for i, p in enumerate(cal_files)])
     model, params = bodytrack_model(root)
     image_paths, mask_paths = [], []
@@ -296,6 +386,30 @@ def _read_bodytrack(root: Path, width: int = 640, height: int = 480) -> Sequence
         seq.image(0, v)
         seq.mask(0, v)
     return seq
+
+
+def _numbered(folder: Path, pattern: str, folders: bool) -> set[int]:
+    """The numbers ``k`` of the entries of ``folder`` whose names match ``pattern`` (files, or folders)."""
+    rx = re.compile(pattern)
+    return {int(m.group(1)) for p in folder.iterdir() if (m := rx.fullmatch(p.name)) and p.is_dir() == folders}
+
+
+def _bodytrack_cameras(root: Path) -> list[int]:
+    """Camera numbers 1..N of a bodytrack folder; every ``CAMk/`` needs ``CALIB/Camerak.cal`` and vice versa."""
+    cals = _numbered(root / "CALIB", r"Camera([1-9][0-9]*)\.cal", folders=False)
+    if 1 not in cals:
+        raise InputError("no CALIB/Camera1.cal: not a bodytrack folder", root)
+    cams = _numbered(root, r"CAM([1-9][0-9]*)", folders=True)
+    uncalibrated = sorted(cams - cals)
+    if uncalibrated:
+        k = uncalibrated[0]
+        raise InputError(f"CAM{k}/ has images but CALIB/Camera{k}.cal is missing: every camera needs its "
+                         "calibration (refusing to track with fewer views)", root)
+    gaps = sorted(set(range(1, max(cals) + 1)) - cals)
+    if gaps:
+        raise InputError(f"CALIB/Camera{gaps[0]}.cal is missing: calibrations must be numbered 1..{max(cals)} "
+                         "without gaps", root)
+    return sorted(cals)
 
 
 def read_sequence(root: str | Path) -> Sequence:
