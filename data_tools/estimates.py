@@ -6,28 +6,16 @@ from pathlib import Path
 
 import numpy as np
 
+from data_tools.checks import MAX_POSITION_MM, checked_array, load_npz
 from tracker.core.body import BodyModel
-from tracker.core.errors import InputError
 
 
 def read_poses_file(path: str | Path, what: str = "poses", model: BodyModel | None = None) -> np.ndarray:
-    """The ``poses`` array ``T x D`` of an .npz (``estimates.npz``, ``--init``); with ``model`` its layout is
-    checked too."""
-    path = Path(path)
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            if "poses" not in z.files:
-                raise InputError("no 'poses' array in the file", path)
-            poses = np.asarray(z["poses"], float)
-    except (OSError, ValueError) as exc:
-        raise InputError(f"cannot read {what} ({exc})", path) from None
-    if model is not None:
-        if poses.ndim != 2 or poses.shape[1] != model.n_dofs:
-            raise InputError(f"{what} must be T x {model.n_dofs} for the {model.name} model, got {poses.shape}",
-                             path)
-        if not np.all(np.isfinite(poses)):
-            raise InputError(f"{what} contain NaN or infinite values", path)
-    return poses
+    """The ``poses`` array ``T x D`` (T >= 1) of an .npz (``estimates.npz``, ``--init``), checked for type and
+    plausible range; with ``model`` its pose layout is checked too."""
+    arrays = load_npz(path, what, ("poses",))
+    width = "D" if model is None else model.n_dofs
+    return checked_array(arrays, "poses", path, ("T", width), hi=MAX_POSITION_MM, unit=" mm or rad")
 
 
 def write_estimates(path: str | Path, poses: np.ndarray, markers: np.ndarray, best_poses: np.ndarray) -> None:
