@@ -293,18 +293,25 @@ def cmd_show(args: argparse.Namespace) -> int:
     seq.check_frame(args.frame)
     if args.frame >= len(poses):
         raise InputError(f"no pose for frame {args.frame}: {len(poses)} pose(s) available", args.poses or seq.root)
+    truth = seq.groundtruth.poses if args.poses and seq.groundtruth is not None else None
+    name = Path(args.poses).stem if args.poses else None
+
+    def picture(k: int) -> np.ndarray:
+        if args.poses:  # the estimate over the ground truth, where the sequence has one
+            gt = truth[k] if truth is not None and k < len(truth) else None
+            return overlay_grid(seq, poses[k], k, views, f"frame {k}", 2, truth=gt, estimate_name=name)
+        return overlay_grid(seq, poses[k], k, views, f"frame {k}")
+
     if args.out:
         out = Path(args.out)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        if not cv2.imwrite(str(out), cv2.cvtColor(overlay_grid(seq, poses[args.frame], args.frame, views, f"frame {args.frame}"),
-                                               cv2.COLOR_RGB2BGR)):
-            raise InputError("cannot write image", out)
+        with atomic_path(out) as tmp:
+            if not cv2.imwrite(str(tmp), cv2.cvtColor(picture(args.frame), cv2.COLOR_RGB2BGR)):
+                raise InputError("cannot write image", out)
         print(f"frame {args.frame}, {seq.n_views} views -> {out}")
     if args.video:
         n = min(seq.n_frames, len(poses))
-        frames = (overlay_grid(seq, poses[k], k, views, f"frame {k}") for k in tqdm(range(n), desc="video",
-                                                                                    unit="frame"))
-        write_video(Path(args.video), frames, seq.fps or 25.0)
+        write_video(Path(args.video), (picture(k) for k in tqdm(range(n), desc="video", unit="frame")),
+                    seq.fps or 25.0)
         print(f"{n} frames -> {args.video}")
     return 0
 
@@ -415,8 +422,8 @@ def cmd_track(args: argparse.Namespace) -> int:
     print(f"{result['frames']} frames tracked with {args.particles} particles, {len(views)} view(s), "
           f"{args.prior}{err}, {run.seconds_per_frame:.3f} s per frame -> {out}")
     if args.video:
-        write_video(Path(args.video), overlay_frames(seq, run.poses, views, run.errors, run.first_tracked),
-                    seq.fps or 25.0)
+        write_video(Path(args.video), overlay_frames(seq, run.poses, views, run.errors, run.first_tracked,
+                                                     estimate_name=args.prior), seq.fps or 25.0)
         print(f"overlay video -> {args.video}")
     return 0
 

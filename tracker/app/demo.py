@@ -40,7 +40,7 @@ def run_demo(out: Path, frames: int = 90) -> int:
     error_plot(out / "error_per_frame.png", curves, f"Tracking CMU {test_walk.stem}, 4 views, 1000 particles")
     best = runs["crbm"]
     write_video(out / "overlay.mp4", overlay_frames(seq, best.poses, list(range(seq.n_views)), best.errors,
-                                                    best.first_tracked), seq.fps)
+                                                    best.first_tracked, estimate_name="CRBM"), seq.fps)
     print(f"   {out / 'error_per_frame.png'}, {out / 'overlay.mp4'}")
     print(CMU_ATTRIBUTION)
     return 0

@@ -81,11 +81,43 @@ def draw_model(image: np.ndarray, model: BodyModel, polygons: list[np.ndarray | 
     return out
 
 
-def label(image: np.ndarray, text: str) -> np.ndarray:
+#: Colour (RGB) of the ground-truth outline.
+TRUTH_COLOUR = (80, 255, 80)
+_FONT = cv2.FONT_HERSHEY_SIMPLEX
+
+
+def label(image: np.ndarray, text: str, origin: tuple[int, int] = (6, 6), scale: float = 0.5) -> np.ndarray:
+    """``text`` in white on a dark box whose top-left corner is ``origin`` (pixels). The box is sized from
+    ``cv2.getTextSize``, so text and background agree with whatever OpenCV version draws them."""
     out = image.copy()
-    cv2.putText(out, text, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 3, cv2.LINE_AA)
-    cv2.putText(out, text, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 255), 1, cv2.LINE_AA)
+    (w, h), base = cv2.getTextSize(text, _FONT, scale, 1)
+    x, y = origin
+    cv2.rectangle(out, (x, y), (x + w + 8, y + h + base + 6), (0, 0, 0), thickness=-1)
+    cv2.putText(out, text, (x + 4, y + h + 3), _FONT, scale, (255, 255, 255), 1, cv2.LINE_AA)
     return out
+
+
+def legend_strip(width: int, estimate: str | None, truth: bool, text: str = "") -> np.ndarray:
+    """A dark ``32 x width`` strip naming the colours: the estimate's left, right and centre segments (and
+    whose estimate it is), the ground truth, and ``text``."""
+    strip = np.zeros((32, width, 3), np.uint8)
+    x = 8
+    items = []
+    if estimate is not None:
+        items += [(f"{estimate}:", None), ("left", LEFT_COLOUR), ("right", RIGHT_COLOUR), ("centre", CENTRE_COLOUR)]
+    elif not truth:
+        items += [("model:", None), ("left", LEFT_COLOUR), ("right", RIGHT_COLOUR), ("centre", CENTRE_COLOUR)]
+    if truth:
+        items.append(("ground truth", TRUTH_COLOUR))
+    if text:
+        items.append((text, None))
+    for name, colour in items:
+        if colour is not None:
+            cv2.line(strip, (x, 16), (x + 18, 16), colour, 3, cv2.LINE_AA)
+            x += 24
+        cv2.putText(strip, name, (x, 21), _FONT, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
+        x += cv2.getTextSize(name, _FONT, 0.5, 1)[0][0] + 16
+    return strip
 
 
 def grid(images: list[np.ndarray], columns: int | None = None) -> np.ndarray:
@@ -102,48 +134,79 @@ def grid(images: list[np.ndarray], columns: int | None = None) -> np.ndarray:
     return canvas
 
 
-def overlay_grid(seq, pose: np.ndarray, frame: int, views: list[int], text: str = "",
-                 thickness: int = 1) -> np.ndarray:
-    """One RGB grid image: the model at ``pose`` drawn over frame ``frame`` of the chosen views of ``seq``
-    (a :class:`data_tools.sequence.Sequence`), each view labelled with its camera name and ``text``."""
+def overlay_grid(seq, pose: np.ndarray | None, frame: int, views: list[int], text: str = "",
+                 thickness: int = 1, truth: np.ndarray | None = None, estimate_name: str | None = None
+                 ) -> np.ndarray:
+    """One RGB grid image of frame ``frame`` in the chosen views of ``seq`` (a
+    :class:`data_tools.sequence.Sequence`): the model at ``pose`` in left/right/centre colours and, when
+    given, the ground-truth pose ``truth`` as a thin outline beneath it; each view is labelled with its
+    camera, and a legend strip under the grid names the colours, ``estimate_name`` and ``text``."""
     rig = seq.rig.subset(views)
-    polys = segment_polygons(seq.model, pose, rig)
-    return grid([label(draw_model(seq.image(frame, v), seq.model, polys[i], thickness), f"{rig[i].name}  {text}")
-                 for i, v in enumerate(views)])
+    est = None if pose is None else segment_polygons(seq.model, pose, rig)
+    gt = None if truth is None else segment_polygons(seq.model, truth, rig)
+    tiles = []
+    for i, v in enumerate(views):
+        img = seq.image(frame, v)
+        if gt is not None:
+            img = draw_model(img, seq.model, gt[i], 1, colour=TRUTH_COLOUR)
+        if est is not None:
+            img = draw_model(img, seq.model, est[i], thickness)
+        tiles.append(label(img, rig[i].name))
+    canvas = grid(tiles)
+    strip = legend_strip(canvas.shape[1], estimate_name if est is not None else None, gt is not None, text)
+    return np.concatenate([canvas, strip])
 
 
-def overlay_frames(seq, poses: np.ndarray, views: list[int], errors: np.ndarray | None = None, first: int = 0):
-    """Grid images frame by frame of ``poses`` ``T x D`` over the chosen views; ``errors`` (mm) of frames
-    ``first ..`` are printed on them."""
+def overlay_frames(seq, poses: np.ndarray, views: list[int], errors: np.ndarray | None = None, first: int = 0,
+                   estimate_name: str = "estimate"):
+    """Grid images frame by frame of ``poses`` ``T x D`` over the chosen views, with the ground truth where
+    the sequence has it; ``errors`` (mm) of frames ``first ..`` are printed in the legend."""
+    gt = seq.groundtruth
     for k in range(len(poses)):
         text = f"frame {k}"
         if errors is not None and k >= first:
-            text += f"  error {errors[k - first]:.0f} mm"
-        yield overlay_grid(seq, poses[k], k, views, text, thickness=2)
+            text += f", error {errors[k - first]:.0f} mm"
+        truth = gt.poses[k] if gt is not None and k < len(gt.poses) else None
+        yield overlay_grid(seq, poses[k], k, views, text, thickness=2, truth=truth, estimate_name=estimate_name)
 
 
 def write_video(path, frames, fps: float) -> None:
-    """Write RGB frames (an iterable of equal-sized ``H x W x 3`` uint8) to an .mp4 (MPEG-4 part 2)."""
+    """Write RGB frames (an iterable of equal-sized ``H x W x 3`` uint8) to an H.264 .mp4 (yuv420p, which
+    browsers and slide software play) with PyAV; odd sizes are padded by a pixel. Written atomically: a
+    failure part-way leaves no truncated video behind."""
     from pathlib import Path
 
-    from tracker.core.errors import InputError
+    import av
 
     from data_tools.files import atomic_path
+    from tracker.core.errors import InputError
 
     path = Path(path)
-    writer = None
-    with atomic_path(path) as tmp:  # a failure part-way leaves no truncated video behind
+    with atomic_path(path) as tmp:
+        container = av.open(str(tmp), mode="w")
         try:
+            stream = None
             for img in frames:
-                if writer is None:
-                    writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), float(fps),
-                                             (img.shape[1], img.shape[0]))
-                    if not writer.isOpened():
-                        raise InputError("cannot open the video for writing", path)
-                writer.write(cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
+                h, w = img.shape[:2]
+                if stream is None:
+                    stream = container.add_stream("libx264", rate=round(float(fps)))
+                    stream.width, stream.height = w + w % 2, h + h % 2
+                    stream.pix_fmt = "yuv420p"
+                    stream.options = {"crf": "20", "preset": "veryfast"}
+                if (h + h % 2, w + w % 2) != (stream.height, stream.width):
+                    raise InputError(f"video frames must share one size: {w}x{h} after "
+                                     f"{stream.width}x{stream.height}", path)
+                if w % 2 or h % 2:
+                    img = np.pad(img, ((0, h % 2), (0, w % 2), (0, 0)))
+                frame = av.VideoFrame.from_ndarray(np.ascontiguousarray(img), format="rgb24")
+                for packet in stream.encode(frame):
+                    container.mux(packet)
+            if stream is None:
+                raise InputError("no frames to write", path)
+            for packet in stream.encode():
+                container.mux(packet)
         finally:
-            if writer is not None:
-                writer.release()
+            container.close()
 
 
 def error_plot(path, curves: dict[str, tuple[np.ndarray, np.ndarray]], title: str) -> None:
