@@ -95,7 +95,7 @@ def test_show_and_synth_cli(mocap_dir, tmp_path):
     assert seq.n_views == 2 and seq.n_frames == 2 and seq.image(0, 0).shape == (240, 320, 3)
     png = tmp_path / "grid.png"
     assert main(["show", str(out), "--frame", "1", "--out", str(png), "--video", str(tmp_path / "v.mp4")]) == 0
-    assert cv2.imread(str(png)).shape == (240, 640, 3) and (tmp_path / "v.mp4").stat().st_size > 1000
+    assert cv2.imread(str(png)).shape == (240 + 32, 640, 3) and (tmp_path / "v.mp4").stat().st_size > 1000
     np.savez(tmp_path / "est.npz", poses=seq.groundtruth.poses)
     assert main(["show", str(out), "--poses", str(tmp_path / "est.npz"), "--out", str(png)]) == 0
 
@@ -103,7 +103,7 @@ def test_show_and_synth_cli(mocap_dir, tmp_path):
 def test_show_bodytrack(bodytrack_dir, tmp_path):
     png = tmp_path / "bt.png"
     assert main(["show", str(bodytrack_dir), "--out", str(png)]) == 0
-    assert cv2.imread(str(png)).shape == (960, 1280, 3)
+    assert cv2.imread(str(png)).shape == (960 + 32, 1280, 3)  # the views and the legend strip
 
 
 def test_bad_sequences_exit_2(synthetic_walk, bodytrack_dir, tmp_path):
