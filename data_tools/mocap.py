@@ -44,10 +44,6 @@ class MocapClip:
     def n_frames(self) -> int:
         return self.positions.shape[0]
 
-    def point(self, name: str) -> np.ndarray:
-        """Positions ``T x 3`` of a named point (case-insensitive)."""
-        idx = _name_index(self.point_names)
-        return self.positions[:, idx[name.lower()], :]
 
 
 def _name_index(names: list[str]) -> dict[str, int]:

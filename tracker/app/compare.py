@@ -25,7 +25,7 @@ import numpy as np
 
 from data_tools.files import atomic_path, write_text_atomic
 from tracker.app.experiment import (
-    Experiment, RunSpec, config_hash, expand_runs, file_hash, load_experiment,
+    Experiment, RunSpec, config_hash, expand_runs, file_hash, load_experiment, run_seed,
 )
 from tracker.core.errors import InputError
 
@@ -167,7 +167,7 @@ def execute_run(spec: RunSpec) -> dict:
                 log.write(f"frame {step.frame}: ess {step.ess:.0f}"
                           + ("" if err is None else f", marker error {err:.1f} mm") + "\n")
 
-            seed = np.random.SeedSequence(spec.seed_entropy, spawn_key=(spec.seed_index,))
+            seed = run_seed(spec.seed_entropy, spec.seed_index)
             run = track(spec.sequence_path, spec.prior, models=spec.models, prior_options=spec.prior_options,
                         likelihood=spec.likelihood, likelihood_options=spec.likelihood_options,
                         particles=spec.particles, views=spec.views, frames=spec.frames, seed=seed,

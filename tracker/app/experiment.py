@@ -146,10 +146,11 @@ class Experiment:
     priors: list[PriorSpec]
     likelihoods: list[LikelihoodSpec]
 
-    def seed_sequence(self, index: int) -> np.random.SeedSequence:
-        """The generator seed of seed index ``index``: the same for every prior and sequence (paired runs), and
-        independent of which worker runs it or when (``SeedSequence(seed).spawn(n)[index]``)."""
-        return np.random.SeedSequence(self.seed, spawn_key=(index,))
+
+def run_seed(master_seed: int, index: int) -> np.random.SeedSequence:
+    """The generator seed of seed index ``index``: the same for every prior and sequence (paired runs), and
+    independent of which worker runs it or when (it equals ``SeedSequence(master_seed).spawn(n)[index]``)."""
+    return np.random.SeedSequence(master_seed, spawn_key=(index,))
 
 
 class _Where:

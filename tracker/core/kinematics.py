@@ -34,11 +34,6 @@ class Kinematics:
         """The marker set ``B x 15 x 3`` (mm), in the model's marker order."""
         return self.points[..., self.model.marker_indices, :]
 
-    @property
-    def joint_centres(self) -> np.ndarray:
-        """Joint centres ``B x L x 3`` (mm): the origin of every link, in link order."""
-        return self.origins
-
     def segment_frames(self) -> np.ndarray:
         """Segment frames ``B x S x 4 x 4``, world from segment.
 

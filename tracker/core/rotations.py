@@ -130,13 +130,6 @@ def continuous_exp_maps(v: np.ndarray, time_axis: int = -2) -> np.ndarray:
     return np.moveaxis(out, 0, time_axis)
 
 
-def axis_angle_matrix(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """Rotations about a fixed unit ``axis`` (3,) by ``angle`` ``(...)`` -> ``(..., 3, 3)``."""
-    axis = np.asarray(axis, dtype=float)
-    angle = np.asarray(angle, dtype=float)
-    return exp_map_to_matrix(angle[..., None] * axis)
-
-
 _AXES = {"x": np.array([1.0, 0.0, 0.0]), "y": np.array([0.0, 1.0, 0.0]), "z": np.array([0.0, 0.0, 1.0])}
 
 
@@ -188,8 +181,3 @@ def matrix_to_yaw_pitch_roll(R: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.
     pitch = np.arcsin(np.clip(-R[..., 2, 0], -1.0, 1.0))
     roll = np.arctan2(R[..., 2, 1], R[..., 2, 2])
     return yaw, pitch, roll
-
-
-def wrap_angle(a: np.ndarray) -> np.ndarray:
-    """Angles wrapped to ``[-pi, pi)``."""
-    return (np.asarray(a, dtype=float) + np.pi) % (2.0 * np.pi) - np.pi
