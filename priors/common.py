@@ -36,8 +36,17 @@ def normaliser_to_tensors(n: FeatureNormaliser) -> dict:
             "names": list(n.names)}
 
 
-def normaliser_from_tensors(d: dict) -> FeatureNormaliser:
-    return FeatureNormaliser(d["mean"].numpy(), d["std"].numpy(), d["keep"].numpy().astype(bool), list(d["names"]))
+def normaliser_from_tensors(d: dict, source=None) -> FeatureNormaliser:
+    """The normaliser saved by :func:`normaliser_to_tensors`, checked (finite, positive scales, one name per
+    feature) by :meth:`FeatureNormaliser.from_arrays`."""
+    if not isinstance(d, dict):
+        raise InputError("the model file's normaliser is not a dictionary", source)
+    try:
+        arrays = {"normaliser_mean": d["mean"].numpy(), "normaliser_std": d["std"].numpy(),
+                  "normaliser_keep": d["keep"].numpy(), "normaliser_names": list(d["names"])}
+    except (KeyError, AttributeError, TypeError) as exc:
+        raise InputError(f"the model file's normaliser is malformed ({exc})", source) from None
+    return FeatureNormaliser.from_arrays(arrays, source=None if source is None else str(source))
 
 
 def check_model_fits(kind: str, trained: tuple[str, Sequence[str], float], body_model: str,

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -211,6 +211,9 @@ class CRBMModel:
     pose_step_rms: np.ndarray
     reconstruction_errors: list[float] = field(default_factory=list)
     training_seconds: float = 0.0
+    #: Lower-order CRBMs trained with this one on the same data, that grow the history from the known
+    #: frames until this model's order is reached (Taylor 2009, Sec. 6.4); saved in the same file.
+    growth: list["CRBMModel"] = field(default_factory=list)
 
     @property
     def order(self) -> int:
@@ -220,19 +223,25 @@ class CRBMModel:
         """One line on how training went."""
         errs = self.reconstruction_errors
         fit = f"reconstruction error {errs[0]:.4f} (epoch 1) -> {errs[-1]:.4f} (epoch {len(errs)}), " if errs else ""
-        return f"CRBM order {self.order}, {self.crbm.n_hidden} hidden units: {fit}{self.training_seconds:.1f} s"
+        grow = f" (grows from order {', '.join(str(g.order) for g in self.growth)})" if self.growth else ""
+        return (f"CRBM order {self.order}{grow}, {self.crbm.n_hidden} hidden units: {fit}"
+                f"{self.training_seconds:.1f} s")
 
     def save(self, path: str | Path) -> None:
-        doc = {
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        torch.save(self.to_document(), path)
+
+    def to_document(self) -> dict:
+        """The model file's dictionary (tensors and plain values; ``torch.load(weights_only=True)`` reads it)."""
+        return {
             "format": FORMAT, "params": self.crbm.state_dict(), "config": asdict(self.config), "fps": float(self.fps),
             "body_model": self.body_model, "dof_names": list(self.dof_names), "sources": list(self.sources),
             "pose_step_rms": torch.tensor(self.pose_step_rms, dtype=torch.float64),
             "normaliser": normaliser_to_tensors(self.normaliser),
             "reconstruction_errors": [float(e) for e in self.reconstruction_errors],
             "training_seconds": float(self.training_seconds),
+            "growth": [g.to_document() for g in self.growth],
         }
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        torch.save(doc, path)
 
     def check_compatible(self, body_model: str, dof_names: Sequence[str], fps: float | None,
                          source: str | Path | None = None) -> None:
@@ -241,21 +250,61 @@ class CRBMModel:
 
 
 def load_crbm(path: str | Path, device: str = "cpu") -> CRBMModel:
+    """A CRBM model file (with the lower-order models it grows from), every part checked: a missing key, a
+    weight of the wrong shape, a non-finite weight or normaliser, or an unknown setting is an InputError
+    naming the file."""
     path = Path(path)
-    doc = read_model_file(path, FORMAT, "CRBM")
-    config = dict(doc["config"])
-    config.pop("seed", None)  # files written before the generator came from the caller
-    cfg = CRBMConfig(**config)
-    params = doc["params"]
-    n_vis, n_hid = params["W"].shape
-    crbm = CRBM(n_vis, n_hid, cfg.order, device=device)
-    crbm.load_state_dict(params)
-    normaliser = normaliser_from_tensors(doc["normaliser"])
-    if normaliser.n_kept != n_vis:
-        raise InputError(f"model has {n_vis} visible units but its normaliser keeps {normaliser.n_kept}", path)
-    return CRBMModel(crbm, normaliser, cfg, float(doc["fps"]), doc["body_model"], list(doc["dof_names"]),
-                     list(doc["sources"]), doc["pose_step_rms"].numpy(), list(doc["reconstruction_errors"]),
-                     float(doc["training_seconds"]))
+    return _model_from_document(read_model_file(path, FORMAT, "CRBM"), path, device)
+
+
+def _model_from_document(doc: dict, path: Path, device: str) -> CRBMModel:
+    try:
+        config = dict(doc["config"])
+        config.pop("seed", None)  # files written before the generator came from the caller
+        unknown = sorted(set(config) - set(CRBMConfig.__dataclass_fields__))
+        if unknown:
+            raise InputError(f"CRBM model file has unknown settings {', '.join(unknown)}", path)
+        try:
+            cfg = CRBMConfig(**config).check()
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"CRBM model file has bad settings ({exc})", path) from None
+        params = doc["params"]
+        if not isinstance(params, dict) or any(not isinstance(params.get(k), torch.Tensor) for k in CRBM.PARAMS):
+            raise InputError(f"CRBM model file lacks weights {', '.join(CRBM.PARAMS)}", path)
+        if params["W"].ndim != 2:
+            raise InputError(f"CRBM weight W must be 2-D, got shape {tuple(params['W'].shape)}", path)
+        K, H = params["W"].shape
+        N = cfg.order
+        expected = {"W": (K, H), "A": (N * K, K), "B": (N * K, H), "a": (K,), "b": (H,)}
+        for k, shape in expected.items():
+            if tuple(params[k].shape) != shape:
+                raise InputError(f"CRBM weight {k} has shape {tuple(params[k].shape)}; order {N} with {K} "
+                                 f"visible and {H} hidden units needs {shape}", path)
+            if not torch.all(torch.isfinite(params[k])):
+                raise InputError(f"CRBM weight {k} contains NaN or infinite values", path)
+        crbm = CRBM(K, H, N, device=device)
+        crbm.load_state_dict(params)
+        normaliser = normaliser_from_tensors(doc["normaliser"], path)
+        if normaliser.n_kept != K:
+            raise InputError(f"model has {K} visible units but its normaliser keeps {normaliser.n_kept}", path)
+        fps = doc["fps"]
+        if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 0 < fps <= 1e5:
+            raise InputError(f"CRBM model file's fps must be a number in (0, 1e5] Hz, got {fps!r}", path)
+        step = doc["pose_step_rms"]
+        if not isinstance(step, torch.Tensor) or step.shape != (len(doc["dof_names"]),) \
+                or not torch.all(torch.isfinite(step)) or torch.any(step < 0):
+            raise InputError("CRBM model file's pose_step_rms must be finite, non-negative, one per pose number",
+                             path)
+        growth = [_model_from_document(g, path, device) for g in doc.get("growth", [])]
+        return CRBMModel(crbm, normaliser, cfg, float(fps), str(doc["body_model"]), [str(n) for n in doc["dof_names"]],
+                         [str(n) for n in doc["sources"]], step.numpy(), [float(e) for e in doc["reconstruction_errors"]],
+                         float(doc["training_seconds"]), growth)
+    except InputError:
+        raise
+    except KeyError as exc:
+        raise InputError(f"CRBM model file lacks {exc.args[0]!r}", path) from None
+    except (TypeError, ValueError, AttributeError, RuntimeError) as exc:
+        raise InputError(f"CRBM model file is malformed ({type(exc).__name__}: {str(exc)[:100]})", path) from None
 
 
 # ---------------------------------------------------------------------------
@@ -360,7 +409,11 @@ class CRBMPrior(MotionPrior):
                  device: str = "cpu", mode: str = "gibbs", root_noise_mm: float = ROOT_NOISE_MM):
         if not models:
             raise InputError("the CRBM prior needs at least one model")
-        self.models = sorted(models, key=lambda m: m.order)
+        by_order = {m.order: m for m in models}
+        for m in models:  # the lower orders a model file carries, unless given explicitly
+            for g in m.growth:
+                by_order.setdefault(g.order, g)
+        self.models = [by_order[o] for o in sorted(by_order)]
         first = self.models[0]
         for m in self.models[1:]:
             if m.dof_names != first.dof_names or abs(m.fps - first.fps) > 1e-6 or m.body_model != first.body_model:
@@ -386,11 +439,21 @@ class CRBMPrior(MotionPrior):
                 "root_noise_mm": self.root_noise_mm, "mode": self.mode}
 
     def model_for(self, available: int) -> CRBMModel:
+        """The highest-order model whose history is all real poses (never a padded history)."""
         usable = [m for m in self.models if m.order <= available]
-        return usable[-1] if usable else self.models[0]
+        if not usable:
+            raise InputError(f"the CRBM of order {self.models[0].order} needs {self.models[0].order} known "
+                             f"frame(s), {available} given: give more known frames or a lower-order model to "
+                             "grow from (train embeds one; or pass --model crbm1.pt crbmN.pt)")
+        return usable[-1]
+
+    def label_for(self, available: int) -> str:
+        return f"crbm order {self.model_for(available).order}"
 
     def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
-        """The pending step of the last known frame (see :func:`~tracker.core.representation.pending_step`)."""
+        """The pending step of the last known frame (see :func:`~tracker.core.representation.pending_step`).
+        Refuses known frames too few for every model (a higher order never runs on a padded history)."""
+        self.model_for(min(len(np.atleast_2d(known)), self.order))
         return np.repeat(pending_step(known)[None], n_particles, axis=0)
 
     def sample(self, history: np.ndarray, available: int, state: PriorState,
@@ -436,11 +499,34 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
     config = CRBMConfig(order=options["order"], hidden=options["hidden"], epochs=options["epochs"],
                         cd_k=options["cd_k"], batch_size=options["batch_size"], history_noise=noise,
                         sparsity_target=options["sparsity"]).check()
+    grow = _growth_orders(options["grow_from"], config.order)
     every = options["checkpoint_every"]
+    total = config.epochs * (1 + len(grow))
+    growth = []
+    for i, order in enumerate(grow):  # the lower orders first, on the same clips, each with its own draws
+        report = None if progress is None else (
+            lambda epoch, err, done=i * config.epochs: progress(done + epoch, total, {"reconstruction": err}))
+        growth.append(train_crbm(list(data.clips), replace(config, order=order), data.fps,
+                                 data.body_model.dof_names, data.body_model.name, list(data.sources), report, rng=rng))
     report = None if progress is None else (
-        lambda epoch, err: progress(epoch, config.epochs, {"reconstruction": err}))
-    return train_crbm(list(data.clips), config, data.fps, data.body_model.dof_names, data.body_model.name,
-                      list(data.sources), report, (checkpoint, every) if checkpoint and every else None, rng=rng)
+        lambda epoch, err: progress(len(grow) * config.epochs + epoch, total, {"reconstruction": err}))
+    model = train_crbm(list(data.clips), config, data.fps, data.body_model.dof_names, data.body_model.name,
+                       list(data.sources), report, (checkpoint, every) if checkpoint and every else None, rng=rng)
+    model.growth = growth
+    return model
+
+
+def _growth_orders(text: str, order: int) -> list[int]:
+    """The lower orders named by ``grow_from`` ("1", "1,3" or "none") that are below ``order``."""
+    if str(text).strip().lower() == "none":
+        return []
+    try:
+        orders = sorted({int(t) for t in str(text).split(",") if t.strip()})
+    except ValueError:
+        raise InputError(f"grow_from must be 'none' or comma-separated orders like '1,3', got {text!r}") from None
+    if any(o < 1 for o in orders):
+        raise InputError(f"grow_from orders must be at least 1, got {text!r}")
+    return [o for o in orders if o < order]
 
 
 CRBM_TRAIN_OPTIONS = (
@@ -453,6 +539,8 @@ CRBM_TRAIN_OPTIONS = (
            "std of the noise added to the history in training (normalised units), or 'auto' (default)"),
     Option("sparsity", float, None, "target mean activation of the hidden units (default: no sparsity term)"),
     Option("checkpoint_every", int, None, "also save the model every this many epochs", minimum=1),
+    Option("grow_from", str, "1", "lower orders trained alongside and saved in the same file, which grow the "
+                                  "history from the known frames (Taylor 2009, Sec. 6.4); 'none' to skip (default 1)"),
 )
 
 

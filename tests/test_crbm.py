@@ -144,3 +144,42 @@ def test_train_and_track_cli(mocap_dir, walk_32_frames, tmp_path):
         r = subprocess.run([sys.executable, "-m", "tracker", *args], capture_output=True, text=True)
         last = r.stderr.strip().splitlines()[-1]
         assert r.returncode == 2 and expected in last and "Traceback" not in r.stderr, (args, r.stderr[-300:])
+
+
+def test_a_higher_order_model_file_grows_from_its_own_lower_order(walk_32_frames, tmp_path):
+    import tracker
+    from data_tools.samples import sample_walks
+
+    asf, walks = sample_walks()
+    model = tracker.train("crbm", [walks[0]], skeletons=[asf], order=3, epochs=3, hidden=16, rng=0)
+    assert [g.order for g in model.growth] == [1]
+    model.save(tmp_path / "c3.pt")
+    loaded = load_crbm(tmp_path / "c3.pt")
+    assert [g.order for g in loaded.growth] == [1]
+    res = tracker.track(walk_32_frames, "crbm", models=[tmp_path / "c3.pt"], particles=40, frames=6, seed=0)
+    assert res.prior_per_frame == [{"first": 2, "last": 2, "model": "crbm order 1"},
+                                   {"first": 3, "last": 5, "model": "crbm order 3"}]
+    bare = tracker.train("crbm", [walks[0]], skeletons=[asf], order=3, epochs=2, hidden=16, grow_from="none")
+    bare.save(tmp_path / "bare.pt")
+    with pytest.raises(InputError, match="needs 3 known frame"):  # never a padded history
+        tracker.track(walk_32_frames, "crbm", models=[tmp_path / "bare.pt"], particles=40, frames=6)
+    ok = tracker.track(walk_32_frames, "crbm", models=[tmp_path / "bare.pt"], particles=40, frames=6,
+                       known_frames=3)
+    assert ok.prior_per_frame == [{"first": 3, "last": 5, "model": "crbm order 3"}]
+
+
+@pytest.mark.parametrize("damage, expected", [
+    (lambda d: d["params"].__setitem__("W", d["params"]["W"] * float("nan")), "W contains NaN"),
+    (lambda d: d["params"].__setitem__("A", d["params"]["A"][:5]), "weight A has shape"),
+    (lambda d: d["normaliser"].__setitem__("std", d["normaliser"]["std"] * 0), "positive scales"),
+    (lambda d: d["normaliser"].__setitem__("std", d["normaliser"]["std"] * float("inf")), "finite"),
+    (lambda d: d.pop("pose_step_rms"), "lacks 'pose_step_rms'"),
+    (lambda d: d["config"].__setitem__("learning_rat", 1.0), "unknown settings learning_rat"),
+    (lambda d: d.__setitem__("fps", "sixty"), "fps must be a number"),
+])
+def test_broken_model_files_are_refused(crbm3, tmp_path, damage, expected):
+    doc = crbm3.to_document()
+    damage(doc)
+    torch.save(doc, tmp_path / "bad.pt")
+    with pytest.raises(InputError, match=expected):
+        load_crbm(tmp_path / "bad.pt")

@@ -71,6 +71,19 @@ class TrackingResult:
         rec = self.records.get("recovered")
         return [] if rec is None else [self.first_tracked + int(k) for k in np.flatnonzero(rec)]
 
+    @property
+    def prior_per_frame(self) -> list[dict]:
+        """Which model drew the poses, as spans ``{"first": frame, "last": frame, "model": label}``."""
+        labels = self.records.get("prior_labels")
+        spans: list[dict] = []
+        for k, lab in enumerate([] if labels is None else labels):
+            frame = self.first_tracked + k
+            if spans and spans[-1]["model"] == lab:
+                spans[-1]["last"] = frame
+            else:
+                spans.append({"first": frame, "last": frame, "model": str(lab)})
+        return spans
+
     def to_dict(self) -> dict[str, Any]:
         """The content of ``result.json``."""
         errors = self.errors
@@ -84,6 +97,7 @@ class TrackingResult:
             "tracked_frames": self.tracked_frames, "first_tracked_frame": self.first_tracked,
             "mean_effective_sample_size": float(np.mean(self.ess)) if "ess" in self.records else None,
             "recovered_frames": self.recovered_frames,
+            "prior_per_frame": self.prior_per_frame,
         }
 
     def save(self, out: str | Path) -> dict[str, Any]:

@@ -149,6 +149,7 @@ class ParticleFilter:
         t0 = time.perf_counter()
         frame_lik = self.likelihood.prepare(frame)
         t1 = time.perf_counter()
+        label = self.prior.label_for(state.available)
         x, prior_state = self.prior.sample(state.history, state.available, state.prior_state, self.rng)
         history = state.history
         ll = frame_lik(x)
@@ -178,7 +179,7 @@ class ParticleFilter:
                                 state.tracked + 1)
         step = FrameStep(index=state.tracked, frame=frame.index, particles=x, weights=weights, mean=mean, best=best,
                          ess=ess, resampled=bool(resampled), recovered=recovered,
-                         seconds={"load": load_seconds, "observe": t1 - t0, "filter": t2 - t1})
+                         seconds={"load": load_seconds, "observe": t1 - t0, "filter": t2 - t1}, prior_label=label)
         return new_state, step
 
     def _anneal(self, x: np.ndarray, history: np.ndarray, prior_state: PriorState, ll: np.ndarray,

@@ -71,3 +71,8 @@ class MotionPrior(ABC):
     def settings(self) -> dict:
         """The prior's settings as plain JSON values, recorded in ``result.json`` (none by default)."""
         return {}
+
+    def label_for(self, available: int) -> str:
+        """Which model draws the next poses when ``available`` history slots are real (a prior that grows its
+        history through lower orders names the one in use); recorded per frame."""
+        return self.name

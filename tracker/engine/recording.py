@@ -27,7 +27,7 @@ class FrameStep:
     the filter re-diffused around its last estimate. ``seconds`` splits the
     frame's wall time into ``load`` (reading the frame), ``observe`` (the
     likelihood's per-frame preparation) and ``filter`` (prior, likelihood,
-    resampling).
+    resampling). ``prior_label`` names the model that drew the frame's poses.
     """
 
     index: int
@@ -40,6 +40,7 @@ class FrameStep:
     resampled: bool
     recovered: bool
     seconds: Mapping[str, float]
+    prior_label: str = ""
 
 
 #: Named per-frame quantities.
@@ -52,13 +53,14 @@ RECORDERS: dict[str, Callable[[FrameStep], Any]] = {
     "load_seconds": lambda s: s.seconds["load"],
     "observe_seconds": lambda s: s.seconds["observe"],
     "filter_seconds": lambda s: s.seconds["filter"],
+    "prior_labels": lambda s: s.prior_label,
     "particles": lambda s: s.particles,
     "weights": lambda s: s.weights.normalised,
 }
 
 #: What :func:`tracker.track` records unless told otherwise (particles and weights are large: ask for them).
 DEFAULT_RECORD = ("mean_poses", "best_poses", "ess", "resampled", "recovered", "load_seconds", "observe_seconds",
-                  "filter_seconds")
+                  "filter_seconds", "prior_labels")
 
 
 class Recording:
