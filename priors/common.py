@@ -9,7 +9,7 @@ from typing import Sequence
 import numpy as np
 
 from tracker.core.errors import InputError
-from tracker.core.representation import FeatureNormaliser
+from tracker.core.representation import STEP_FEATURES, FeatureNormaliser, poses_to_invariant
 
 
 def read_model_file(path, fmt: str, kind: str) -> dict:
@@ -82,6 +82,29 @@ def add_ground_diffusion(poses: np.ndarray, std_mm: float, rng: np.random.Genera
     if std_mm > 0:
         poses[:, :2] += std_mm * rng.standard_normal((len(poses), 2))
     return poses
+
+
+def mix_in_random_walk(poses: np.ndarray, last: np.ndarray, std: np.ndarray, fraction: float,
+                       rng: np.random.Generator) -> np.ndarray:
+    """The robust option of the learned priors: each particle's sample ``P x D`` is replaced, with probability
+    ``fraction``, by a zero-velocity random-walk step from its last pose (``last`` ``P x D``, per-dof ``std``),
+    in place. Returns the mask ``(P,)`` of replaced particles, whose pending step the prior must then take
+    from the move they actually made (:func:`steps_taken`). With ``fraction`` 0 nothing is drawn."""
+    if fraction <= 0:
+        return np.zeros(len(poses), bool)
+    mask = rng.random(len(poses)) < fraction
+    n = int(mask.sum())
+    if n:
+        poses[mask] = last[mask] + rng.standard_normal((n, poses.shape[1])) * std
+    return mask
+
+
+def steps_taken(last: np.ndarray, poses: np.ndarray) -> np.ndarray:
+    """The root steps ``n x 3`` (:data:`~tracker.core.representation.STEP_FEATURES`) from ``last`` to ``poses``
+    (each ``n x D``)."""
+    if len(poses) == 0:
+        return np.zeros((0, len(STEP_FEATURES)))
+    return poses_to_invariant(np.stack([last, poses], axis=1))[:, 0, list(STEP_FEATURES)]
 
 
 def torch_generator(rng: np.random.Generator, device) -> "torch.Generator":
