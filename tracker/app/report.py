@@ -82,12 +82,18 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
                                      f"{(v.std(ddof=1) if v.size > 1 else 0.0):.4f}", len(v),
                                      f"{np.mean([r['seconds_per_frame'] for r in group]):.4f}"])
             md.write(f"| {row} | " + " | ".join(cells) + f" | {np.mean(secs):.3f} |\n")
-    baseline_rows = [row for row in rows if row.split(", ")[0] == exp.baseline]
-    if len(rows) > 1 and baseline_rows:
+    labels = sorted((p.label for p in exp.priors), key=len, reverse=True)
+
+    def split_row(row: str) -> tuple[str, str]:
+        """(prior label, the rest: likelihood variant, view set, ...) of a row label."""
+        label = next((lab for lab in labels if row == lab or row.startswith(lab + ", ")), row)
+        return label, row[len(label):]
+
+    if len(rows) > 1 and any(split_row(row)[0] == exp.baseline for row in rows):
         md.write(f"\n## Paired difference to {exp.baseline} (marker error, mm; 95% bootstrap interval over seeds)\n\n")
         md.write("| prior | " + " | ".join(seqs) + " |\n" + "|---" * (len(seqs) + 1) + "|\n")
         for row in rows:
-            base_row = exp.baseline + row[len(row.split(", ")[0]):]
+            base_row = exp.baseline + split_row(row)[1]
             if row == base_row or base_row not in rows:
                 continue
             cells = []
@@ -102,8 +108,10 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
                 lo, hi = bootstrap_interval(d)
                 cells.append(f"{d.mean():+.1f} [{lo:+.1f}, {hi:+.1f}]" if d.size > 1 else f"{d.mean():+.1f}")
             md.write(f"| {row} | " + " | ".join(cells) + " |\n")
-    md.write(f"\n{meta['runs']} runs ({meta['ran_now']} run now with {meta['jobs']} {meta['backend']} job(s) "
-             f"in {meta['wall_seconds_now']:.0f} s); package version {meta['version']}.\n")
+    cpu = sum(r.get("wall_seconds", 0.0) for r in results)
+    md.write(f"\n{meta['runs']} runs, {cpu:.0f} s of run time in all; this invocation ran {meta['ran_now']} of them "
+             f"with {meta['jobs']} {meta['backend']} job(s) in {meta['wall_seconds_now']:.0f} s; package version "
+             f"{meta['version']}.\n")
     write_text_atomic(out / "table.md", md.getvalue())
     buf = io.StringIO()
     csv.writer(buf).writerows(csv_rows)
