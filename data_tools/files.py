@@ -34,3 +34,43 @@ def write_text_atomic(path: str | Path, text: str) -> None:
     """``path`` holds ``text`` (UTF-8) in full or is left as it was."""
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
+
+
+def _writable_ancestor(path: Path, what: str) -> None:
+    """Refuse ``path`` when the nearest existing ancestor is a file or not writable (checked up front, before
+    any long work)."""
+    parent = path.parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        raise InputError(f"cannot write {what} here: {parent} is a file, not a folder", path)
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError(f"cannot write {what} here: {parent} is not writable", path)
+
+
+def check_output_file(path: str | Path, what: str = "the output file", suffixes: tuple[str, ...] = ()) -> Path:
+    """``path`` as a place a file can be written: not a folder, under a writable folder, with one of
+    ``suffixes`` (lower case, with the dot) when given."""
+    path = Path(path)
+    if suffixes and path.suffix.lower() not in suffixes:
+        raise InputError(f"{what} must end in {' or '.join(suffixes)}", path)
+    if path.is_dir():
+        raise InputError(f"{what} is a folder, not a file", path)
+    _writable_ancestor(path, what)
+    return path
+
+
+def check_output_folder(path: str | Path, what: str = "the output folder", empty: bool = False) -> Path:
+    """``path`` as a folder to write into: not a file, under a writable folder, and (``empty``) without
+    contents."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise InputError(f"{what} is a file, not a folder", path)
+    if empty and path.is_dir() and any(path.iterdir()):
+        raise InputError(f"{what} is not empty (pass --overwrite to replace it)", path)
+    if path.is_dir():
+        if not os.access(path, os.W_OK | os.X_OK):
+            raise InputError(f"cannot write in {what}: not writable", path)
+    else:
+        _writable_ancestor(path, what)
+    return path

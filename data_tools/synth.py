@@ -9,6 +9,10 @@ project's layout (:mod:`data_tools.sequence`).
 """
 from __future__ import annotations
 
+import os
+import shutil
+import tempfile
+
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable
@@ -17,6 +21,7 @@ import numpy as np
 
 from data_tools.render import compose, make_room, person_mesh, render_background, render_person
 from data_tools.retarget import RetargetResult
+from data_tools.files import check_output_folder
 from data_tools.sequence import frame_path, write_groundtruth, write_image, write_sequence_header
 from tracker.core.kinematics import standing_height
 from tracker.core.cameras import CameraRig, default_rig
@@ -74,13 +79,35 @@ class SynthOutput:
 
 def synthesize(result: RetargetResult, out: str | Path, settings: SynthConfig, source: str = "",
                rig: CameraRig | None = None, keep_masks: bool = False,
-               progress: Callable | None = None) -> SynthOutput:
+               progress: Callable | None = None, overwrite: bool = False) -> SynthOutput:
     """Render ``result`` (a retargeted clip) into a sequence folder ``out``.
 
-    ``progress``, if given, wraps the frame iterator (e.g. ``tqdm``).
-    ``keep_masks`` returns the renderer's exact person masks (``[frame][view]``)
-    for testing the observation pipeline.
+    The folder is rendered under a temporary name beside ``out`` and renamed when complete, so a failure or
+    Ctrl-C leaves nothing half-written. A non-empty ``out`` is refused unless ``overwrite`` (then it is
+    replaced whole once the new sequence is complete). ``progress``, if given, wraps the frame iterator
+    (e.g. ``tqdm``). ``keep_masks`` returns the renderer's exact person masks (``[frame][view]``) for testing
+    the observation pipeline.
     """
+    final = check_output_folder(out, empty=not overwrite)
+    try:
+        final.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".tmp", dir=final.parent))
+    except OSError as exc:
+        raise InputError(f"cannot write the output folder ({exc.strerror})", final) from None
+    try:
+        output = _render(result, tmp, settings, source, rig, keep_masks, progress)
+        if final.exists():
+            shutil.rmtree(final)
+        os.replace(tmp, final)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    output.root = final
+    return output
+
+
+def _render(result: RetargetResult, out: Path, settings: SynthConfig, source: str, rig: CameraRig | None,
+            keep_masks: bool, progress: Callable | None) -> SynthOutput:
     import time
 
     s = settings

@@ -594,3 +594,48 @@ def test_skeleton_of_another_subject_is_refused(tmp_path):
     lines = [s.replace(" lfemur", " lthigh") if s.split()[:1] in (["lhipjoint"], ["lfemur"]) else s for s in lines]
     lines = [s.replace("lfemur ", "lthigh ") if s.split()[:1] == ["lfemur"] else s for s in lines]
     refused(lambda: asf_amc_clip(write_lines(tmp_path / "07.asf", lines), amc), "'lfemur' is not in the skeleton")
+
+
+# -- output paths (checked before any work) and nothing half-written -------------------------------------------
+
+def test_output_paths_are_refused_before_any_work(tmp_path):
+    import subprocess
+    import sys
+
+    from data_tools.samples import sample_walks
+
+    asf, walks = sample_walks()
+    a_file = tmp_path / "a_file"
+    a_file.write_text("x")
+    full = tmp_path / "full"
+    full.mkdir()
+    (full / "something").write_text("x")
+    cases = [
+        (["convert", "--mocap", str(walks[0]), "--out", str(a_file / "c.npz")], "is a file, not a folder"),
+        (["convert", "--mocap", str(walks[0]), "--out", str(tmp_path)], "must end in .npz"),
+        (["synth", "--mocap", str(walks[0]), "--out", str(full), "--frames", "2"], "not empty"),
+        (["synth", "--mocap", str(walks[0]), "--out", str(a_file), "--frames", "2"], "is a file"),
+        (["train", "--prior", "crbm", "--mocap", str(walks[0]), "--out", str(full)], "is a folder"),
+        (["track", str(full), "--prior", "zero-velocity", "--out", str(a_file)], "is a file, not a folder"),
+    ]
+    for args, expected in cases:
+        r = subprocess.run([sys.executable, "-m", "tracker", *args], capture_output=True, text=True)
+        err = r.stderr.strip()
+        assert r.returncode == 2 and expected in err and "\n" not in err and "Traceback" not in err, (args, err)
+    assert sorted(p.name for p in full.iterdir()) == ["something"] and a_file.read_text() == "x"
+
+
+def test_synth_replaces_a_folder_only_with_overwrite_and_whole(tmp_path):
+    from data_tools.retarget import retarget
+    from data_tools.load import load_mocap
+    from data_tools.samples import sample_walks
+    from data_tools.synth import SynthConfig, synthesize
+
+    asf, walks = sample_walks()
+    clip = retarget(load_mocap(walks[0], asf), fps=60.0)
+    synthesize(clip, tmp_path / "s", SynthConfig(frames=3, views=1, width=160, height=120))
+    with pytest.raises(InputError, match="not empty"):
+        synthesize(clip, tmp_path / "s", SynthConfig(frames=2, views=1, width=160, height=120))
+    synthesize(clip, tmp_path / "s", SynthConfig(frames=2, views=1, width=160, height=120), overwrite=True)
+    assert len(list((tmp_path / "s" / "images" / "cam0").iterdir())) == 2  # the old 3 frames are gone
+    assert [p.name for p in tmp_path.iterdir()] == ["s"]  # no temporary folder left behind

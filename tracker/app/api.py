@@ -90,14 +90,18 @@ def load_clip(mocap: str | Path, skeleton: str | Path | None = None, fps: float 
 
 
 def synthesize(mocap: str | Path | RetargetResult, out: str | Path, *, skeleton: str | Path | None = None,
-               config: SynthConfig | None = None, progress: Callable | None = None, **settings) -> Sequence:
+               config: SynthConfig | None = None, progress: Callable | None = None, overwrite: bool = False,
+               length_unit: float | None = None, **settings) -> Sequence:
     """Render a mocap clip (a file, or a clip from :func:`load_clip`) into a synthetic multi-view sequence
     folder ``out`` and return it. ``settings`` are :class:`~data_tools.synth.SynthConfig` fields (``frames``,
-    ``views``, ``seed``, ``noise``, ...)."""
-    config = config or SynthConfig(**settings)
-    clip = mocap if isinstance(mocap, RetargetResult) else load_clip(mocap, skeleton, config.fps)
-    source = str(mocap) if not isinstance(mocap, RetargetResult) else ""
-    render_sequence(clip, out, config, source=source, progress=progress)
+    ``views``, ``seed``, ``noise``, ...). A non-empty ``out`` is refused unless ``overwrite``."""
+    try:
+        config = config or SynthConfig(**settings)
+    except TypeError as exc:
+        raise InputError(f"unknown synth setting ({exc})") from None
+    clip = mocap if isinstance(mocap, RetargetResult) else load_clip(mocap, skeleton, config.fps, length_unit)
+    source = str(mocap) if not isinstance(mocap, RetargetResult) else clip.source
+    render_sequence(clip, out, config, source=source, progress=progress, overwrite=overwrite)
     return read_sequence(out)
 
 

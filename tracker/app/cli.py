@@ -14,7 +14,7 @@ from typing import Sequence
 
 import numpy as np
 
-from data_tools.files import atomic_path
+from data_tools.files import atomic_path, check_output_file, check_output_folder
 from tracker.app.api import (
     available_likelihoods, available_priors, build_likelihood, build_prior, likelihood_entry, load_sequence,
     prior_entry, track, train,
@@ -99,6 +99,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="this camera delivers only black frames")
     s.add_argument("--length-unit", type=_positive_float, default=None, metavar="MM",
                    help="BVH only: millimetres per file unit (default: inferred)")
+    s.add_argument("--overwrite", action="store_true", help="replace a non-empty output folder")
 
     w = sub.add_parser("show", help="draw the projected body model over every view of a sequence frame",
                        description="Draw the projected cones (ground truth, the initial pose, or --poses) over "
@@ -226,15 +227,13 @@ def _convert_one(mocap: str | Path, skeleton, fps: float, length_unit, out: Path
 
     clip = load_mocap(mocap, skeleton, length_unit)
     result = retarget(clip, fps=fps)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    save_converted_clip(result, out)
+    with atomic_path(out) as tmp:
+        save_converted_clip(result, tmp)
     return clip, result
 
 
 def cmd_convert(args: argparse.Namespace) -> int:
-    out = Path(args.out)
-    if out.suffix != ".npz":
-        raise InputError("output must be a .npz file", out)
+    out = check_output_file(args.out, "the output", (".npz",))
     clip, result = _convert_one(args.mocap, args.skeleton, args.fps, args.length_unit, out)
     for note in clip.notes:
         print(f"note: {Path(args.mocap).name}: {note}", file=sys.stderr)
@@ -250,15 +249,16 @@ def cmd_synth(args: argparse.Namespace) -> int:
     from data_tools.retarget import retarget
     from data_tools.synth import SynthConfig, synthesize
 
+    check_output_folder(args.out, empty=not args.overwrite)
     settings = SynthConfig(views=args.views, fps=args.fps, start=args.start, frames=args.frames, seed=args.seed,
-                             width=args.width, height=args.height, noise=args.noise,
-                             lighting_change=args.lighting_change, occluder=args.occluder,
-                             missing_camera=args.missing_camera)
+                           width=args.width, height=args.height, noise=args.noise,
+                           lighting_change=args.lighting_change, occluder=args.occluder,
+                           missing_camera=args.missing_camera)
     clip = load_mocap(args.mocap, args.skeleton, args.length_unit)
     for note in clip.notes:
         print(f"note: {Path(args.mocap).name}: {note}", file=sys.stderr)
     result = retarget(clip, fps=args.fps)
-    out = synthesize(result, args.out, settings, source=str(args.mocap),
+    out = synthesize(result, args.out, settings, source=str(args.mocap), overwrite=args.overwrite,
                      progress=lambda it: tqdm(it, desc="rendering", unit="frame"))
     print(f"{Path(args.mocap).name}: {out.n_frames} frames x {args.views} views at "
           f"{result.fps:g} fps -> {out.root} ({out.render_seconds / out.n_frames * 1000:.0f} ms per frame "
@@ -276,10 +276,10 @@ def cmd_show(args: argparse.Namespace) -> int:
 
     if not args.out and not args.video:
         raise InputError("nothing to write: give --out FILE.png and/or --video FILE.mp4")
-    if args.out and Path(args.out).suffix.lower() != ".png":
-        raise InputError("--out must be a .png file", args.out)
-    if args.video and Path(args.video).suffix.lower() != ".mp4":
-        raise InputError("--video must be an .mp4 file", args.video)
+    if args.out:
+        check_output_file(args.out, "--out", (".png",))
+    if args.video:
+        check_output_file(args.video, "--video", (".mp4",))
     seq = read_sequence(args.sequence)
     if args.poses:
         poses = read_poses_file(args.poses, "poses", seq.model)
@@ -366,7 +366,7 @@ def _progress_bar(desc: str):
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-    out = Path(args.out)
+    out = check_output_file(args.out, "the model file")
     trainable = {n: prior_entry(n).train_options for n in available_priors() if prior_entry(n).train is not None}
     options = _given_options(args, "prior", args.prior, trainable[args.prior], trainable)
     print(f"training a {args.prior} prior on {len(args.mocap)} clip(s) at {args.fps:g} fps", flush=True)
@@ -384,8 +384,9 @@ def cmd_track(args: argparse.Namespace) -> int:
     from data_tools.estimates import read_poses_file
     from tracker.app.visualize import overlay_frames, write_video
 
-    if args.video and Path(args.video).suffix.lower() != ".mp4":
-        raise InputError("--video must be an .mp4 file", args.video)
+    check_output_folder(args.out)  # before any tracking, so a bad output path loses no work
+    if args.video:
+        check_output_file(args.video, "--video", (".mp4",))
     seq = load_sequence(args.sequence)
     views = _parse_views(args.views, seq.n_views)
     if args.frames is not None and args.frames > seq.n_frames:

@@ -60,12 +60,9 @@ def prepare_sequences(exp: Experiment, out: Path, version: str, say: Callable[[s
                  "synth": s.synth, "fps": exp.fps, "version": version}
         h = config_hash(ident)
         folder = out / "sequences" / h
-        if not (folder / "meta.json").exists():
+        if not (folder / "meta.json").exists():  # synthesize renders under a temporary name, then renames
             say(f"rendering sequence {s.name!r} from {s.mocap.name}")
-            tmp = out / "sequences" / f".{h}.tmp-{os.getpid()}"
-            shutil.rmtree(tmp, ignore_errors=True)
-            synthesize(s.mocap, tmp, skeleton=s.skeleton, fps=exp.fps, **s.synth)
-            os.replace(tmp, folder)
+            synthesize(s.mocap, folder, skeleton=s.skeleton, fps=exp.fps, overwrite=True, **s.synth)
         paths[s.name], hashes[s.name] = folder, h
     return paths, hashes
 
@@ -265,7 +262,9 @@ def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str
     if backend not in BACKENDS:
         raise InputError(f"unknown backend {backend!r}; choose from {', '.join(BACKENDS)}")
     exp = load_experiment(experiment)
-    out = Path(out)
+    from data_tools.files import check_output_folder
+
+    out = check_output_folder(out)
     runs_dir = out / "runs"
     try:
         runs_dir.mkdir(parents=True, exist_ok=True)
