@@ -112,3 +112,37 @@ def test_track_bad_inputs_exit_2(walk_32_frames, tmp_path):
         r = subprocess.run([sys.executable, "-m", "tracker", *args, *extra], capture_output=True, text=True)
         err = r.stderr.strip().splitlines()[-1] if r.stderr.strip() else ""
         assert r.returncode == 2 and expected in err and "Traceback" not in r.stderr, (extra, r.stderr[-300:])
+
+
+def test_ctrl_c_saves_a_checkpoint_and_resume_gives_the_uninterrupted_result(walk_32_frames, tmp_path):
+    import signal
+    import time
+
+    args = ["track", str(walk_32_frames.root), "--prior", "constant-velocity", "--particles", "150",
+            "--frames", "24", "--seed", "5", "--checkpoint-every", "2"]
+    assert main([*args, "--out", str(tmp_path / "whole")]) == 0
+    out = tmp_path / "cut"
+    proc = subprocess.Popen([sys.executable, "-m", "tracker", *args, "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while not (out / "checkpoint.npz").exists() and time.time() < deadline:
+        time.sleep(0.05)
+    time.sleep(0.3)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130 and "resume with: python -m tracker track --resume" in err, err[-500:]
+    assert "Traceback" not in err
+    partial = json.loads((out / "result.json").read_text())
+    assert partial["complete"] is False and 0 < partial["frames"] < 22
+    r = subprocess.run([sys.executable, "-m", "tracker", "track", "--resume", str(out)], capture_output=True,
+                       text=True)
+    assert r.returncode == 0, r.stderr[-500:]
+    with np.load(out / "estimates.npz") as a, np.load(tmp_path / "whole" / "estimates.npz") as b:
+        assert np.array_equal(a["poses"], b["poses"]) and np.array_equal(a["best_poses"], b["best_poses"])
+    resumed = json.loads((out / "result.json").read_text())
+    assert resumed["per_frame_error_mm"] == json.loads((tmp_path / "whole" / "result.json").read_text())[
+        "per_frame_error_mm"] and "complete" not in resumed
+    assert not (out / "checkpoint.npz").exists()
+    r = subprocess.run([sys.executable, "-m", "tracker", "track", "--resume", str(out)], capture_output=True,
+                       text=True)
+    assert r.returncode == 2 and "no interrupted run to resume" in r.stderr

@@ -28,7 +28,9 @@ from data_tools.samples import sample_walks
 from data_tools.sequence import Sequence, read_sequence
 from data_tools.synth import SynthConfig, SynthOutput, synthesize as render_sequence
 from tracker.app.plugins import load_plugins
-from tracker.app.tracking import TrackingResult, check_views, run_tracking, seed_description
+from tracker.app.tracking import (
+    TrackingInterrupted, TrackingResult, check_views, run_tracking, seed_description,
+)
 from tracker.core.errors import InputError
 from tracker.core.representation import step_rms
 from tracker.engine.filter import FilterConfig
@@ -191,7 +193,8 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
           init: np.ndarray | None = None, train_mocap: Iterable[str | Path] | None = None,
           step_std: np.ndarray | None = None, device: str = "cpu",
           record: Iterable[str] | Mapping[str, Callable[[FrameStep], Any]] = DEFAULT_RECORD,
-          on_frame: Callable[[FrameStep, float | None], None] | None = None) -> TrackingResult:
+          on_frame: Callable[[FrameStep, float | None], None] | None = None,
+          checkpoint: str | Path | None = None, checkpoint_every: int = 0, resume: bool = False) -> TrackingResult:
     """Track a person through ``sequence`` with a particle filter and return a :class:`TrackingResult`.
 
     ``prior`` and ``likelihood`` are registered names (built from ``models`` and the option dicts) or ready
@@ -202,6 +205,10 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     (:mod:`tracker.engine.recording`; add ``"particles"`` and ``"weights"`` to keep those); ``on_frame(step,
     error_mm)`` sees every frame as it is tracked. ``result.save(dir)`` writes ``result.json`` and
     ``estimates.npz`` exactly as ``python -m tracker track`` does.
+
+    With ``checkpoint`` (a file path) the filter's state is saved every ``checkpoint_every`` frames and on
+    Ctrl-C, which raises :class:`~tracker.app.tracking.TrackingInterrupted` carrying the partial result;
+    ``resume=True`` continues from the checkpoint to the result an uninterrupted run gives.
     """
     seq = sequence if isinstance(sequence, Sequence) else load_sequence(sequence)
     views = check_views(views, seq.n_views, seq.root)
@@ -220,9 +227,7 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
         lik_obj = build_likelihood(likelihood, seq, views, **dict(likelihood_options or {}))
     else:
         lik_obj = likelihood
-    result = run_tracking(seq, prior_obj, lik_obj, config, rng, views, frames, known_frames, init, record,
-                          on_frame)
-    result.settings = {
+    settings = {
         "prior": prior if isinstance(prior, str) else prior_obj.name,
         "particles": config.n_particles, "views": views, "seed": seed_description(seed),
         "sequence": str(seq.root), "model": seq.model.name,
@@ -231,4 +236,13 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
         "likelihood": likelihood if isinstance(likelihood, str) else lik_obj.name,
         **lik_obj.settings(),
     }
+    try:
+        result = run_tracking(seq, prior_obj, lik_obj, config, rng, views, frames, known_frames, init, record,
+                              on_frame, None if checkpoint is None else Path(checkpoint), checkpoint_every, resume,
+                              fingerprint=settings)
+    except TrackingInterrupted as stop:
+        if stop.partial is not None:
+            stop.partial.settings = {**settings, "complete": False}
+        raise
+    result.settings = settings
     return result

@@ -8,6 +8,7 @@ one-line reason on stderr and exit status 2.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 from typing import Sequence
@@ -128,8 +129,8 @@ def build_parser() -> argparse.ArgumentParser:
     t = sub.add_parser("track", help="track a person through a sequence with a particle filter",
                        description="Track a sequence (our layout or PARSEC bodytrack) with an SIR particle filter "
                                    "and an image likelihood; writes OUTDIR/result.json and OUTDIR/estimates.npz.")
-    t.add_argument("sequence", metavar="DIR", help="sequence folder")
-    t.add_argument("--prior", required=True, choices=available_priors(), help="motion prior")
+    t.add_argument("sequence", metavar="DIR", nargs="?", help="sequence folder")
+    t.add_argument("--prior", choices=available_priors(), help="motion prior (required)")
     t.add_argument("--model", nargs="+", metavar="MODEL",
                    help="trained prior model(s); for crbm several orders (e.g. 1 and 3) grow the history")
     t.add_argument("--likelihood", default="edge-silhouette", choices=available_likelihoods(),
@@ -152,8 +153,14 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--train-mocap", nargs="+", default=None, metavar="FILE",
                    help="mocap clips whose frame-to-frame changes set the random-walk scale (default: the shipped "
                         "subject-7 walks 07_01 and 07_02); bodytrack folders use PoseParameters.txt")
-    t.add_argument("--out", required=True, help="output folder")
+    t.add_argument("--out", help="output folder (required)")
     t.add_argument("--video", help="also write an overlay video of the estimates (.mp4)")
+    t.add_argument("--checkpoint-every", type=_non_negative_int, default=25, metavar="K",
+                   help="save the filter's state to OUTDIR/checkpoint.npz every K frames (default 25; 0: only "
+                        "on Ctrl-C); removed when the run completes")
+    t.add_argument("--resume", metavar="OUTDIR",
+                   help="continue an interrupted run from OUTDIR/checkpoint.npz with its original settings "
+                        "(give no other arguments)")
 
     e = sub.add_parser("compare", help="run an experiment: priors x sequences x settings x seeds, with tables",
                        description="Run every configuration of an experiment file (TOML; see "
@@ -378,12 +385,43 @@ def cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
+TRACK_ARGS = "track_arguments.json"
+
+
+def _track_arguments(args: argparse.Namespace) -> argparse.Namespace:
+    """The arguments of a run: as given (paths made absolute, kept in OUTDIR for --resume), or with --resume
+    those saved by the interrupted run."""
+    if args.resume:
+        given = [k for k, v in vars(args).items() if k not in ("resume", "command", "plugin", "threads")
+                 and v not in (None, False, [], build_parser().parse_args(["track"]).__dict__.get(k))]
+        if given:
+            raise InputError(f"--resume takes no other arguments (got {', '.join('--' + g for g in given)})")
+        path = Path(args.resume) / TRACK_ARGS
+        if not path.is_file():
+            raise InputError(f"no interrupted run to resume here (no {TRACK_ARGS})", args.resume)
+        from data_tools.textfiles import read_json
+
+        saved = read_json(path, "saved track arguments")
+        return argparse.Namespace(**{**vars(args), **saved, "resume": args.resume})
+    if not args.sequence or not args.prior or not args.out:
+        raise InputError("track needs DIR, --prior and --out (or --resume OUTDIR)")
+    for key in ("sequence", "out", "video", "init"):
+        if getattr(args, key):
+            setattr(args, key, str(Path(getattr(args, key)).resolve()))
+    for key in ("model", "train_mocap"):
+        if getattr(args, key):
+            setattr(args, key, [str(Path(m).resolve()) for m in getattr(args, key)])
+    return args
+
+
 def cmd_track(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from data_tools.estimates import read_poses_file
+    from tracker.app.tracking import TrackingInterrupted
     from tracker.app.visualize import overlay_frames, write_video
 
+    args = _track_arguments(args)
     check_output_folder(args.out)  # before any tracking, so a bad output path loses no work
     if args.video:
         check_output_file(args.video, "--video", (".mp4",))
@@ -398,6 +436,12 @@ def cmd_track(args: argparse.Namespace) -> int:
     prior = build_prior(args.prior, seq, args.model or (), train_mocap=args.train_mocap, **prior_options)
     likelihood = build_likelihood(args.likelihood, seq, views, **lik_options)
     init = read_poses_file(args.init, "initial poses") if args.init else None
+    out = Path(args.out)
+    if not args.resume:
+        from data_tools.files import write_text_atomic
+
+        saved = {k: v for k, v in vars(args).items() if k not in ("resume", "command", "plugin", "threads")}
+        write_text_atomic(out / TRACK_ARGS, json.dumps(saved, indent=1))
     T = args.frames or seq.n_frames
     errors: list[float] = []
     with tqdm(total=T, desc=f"tracking ({args.prior})", unit="frame") as bar:
@@ -407,14 +451,26 @@ def cmd_track(args: argparse.Namespace) -> int:
                 errors.append(err)
                 bar.set_postfix(error_mm=f"{err:.0f}", mean_mm=f"{np.mean(errors):.0f}")
 
-        run = track(seq, prior, likelihood=likelihood, particles=args.particles, views=views, frames=args.frames,
-                    seed=args.seed, annealing_layers=args.annealing_layers, resampling=args.resampling,
-                    known_frames=args.known_frames, init=init, on_frame=on_frame)
+        try:
+            run = track(seq, prior, likelihood=likelihood, particles=args.particles, views=views,
+                        frames=args.frames, seed=args.seed, annealing_layers=args.annealing_layers,
+                        resampling=args.resampling, known_frames=args.known_frames, init=init, on_frame=on_frame,
+                        checkpoint=out / "checkpoint.npz", checkpoint_every=args.checkpoint_every,
+                        resume=bool(args.resume))
+        except TrackingInterrupted as stop:
+            bar.close()
+            if stop.partial is not None:
+                stop.partial.settings.update(prior=args.prior, prior_models=list(args.model or ()))
+                stop.partial.save(out)
+            done = "" if stop.partial is None else f" after {len(stop.partial.tracked_frames)} frame(s)"
+            again = f"; resume with: python -m tracker track --resume {out}" if stop.checkpoint else ""
+            print(f"interrupted{done}: partial result in {out}{again}", file=sys.stderr)
+            return 130
         bar.update(T - bar.n)
     run.settings["prior"] = args.prior
     run.settings["prior_models"] = [str(m) for m in (args.model or ())]
-    out = Path(args.out)
     result = run.save(out)
+    (out / TRACK_ARGS).unlink(missing_ok=True)
     if run.recovered_frames:
         print(f"warning: no particle explained frame(s) {result['recovered_frames']}; the filter re-diffused "
               f"around its last estimate", file=sys.stderr)

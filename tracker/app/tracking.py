@@ -159,16 +159,34 @@ def seed_description(seed: int | np.random.SeedSequence | np.random.Generator) -
     return int(seed)
 
 
+class TrackingInterrupted(Exception):
+    """Ctrl-C during tracking: carries the partial result (the frames tracked so far) and where the checkpoint
+    to resume from was written (None without a checkpoint path)."""
+
+    def __init__(self, partial: TrackingResult, checkpoint: Path | None):
+        super().__init__("tracking interrupted")
+        self.partial = partial
+        self.checkpoint = checkpoint
+
+
 def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, config: FilterConfig,
                  rng: np.random.Generator, views: Seq[int], n_frames: int | None = None, n_known: int = 2,
                  init: np.ndarray | None = None,
                  record: Iterable[str] | Mapping[str, Callable[[FrameStep], Any]] = DEFAULT_RECORD,
-                 on_frame: Callable[[FrameStep, float | None], None] | None = None) -> TrackingResult:
+                 on_frame: Callable[[FrameStep, float | None], None] | None = None,
+                 checkpoint: Path | None = None, checkpoint_every: int = 0, resume: bool = False,
+                 fingerprint: dict | None = None) -> TrackingResult:
     """Track ``seq`` (frames ``0 .. n_frames-1``, default all) in ``views`` from its known first poses.
 
     ``on_frame(step, error_mm)`` is called after every tracked frame with the filter's
     :class:`~tracker.engine.recording.FrameStep` and that frame's marker error (None without ground truth).
+    With ``checkpoint`` the filter's state is written there every ``checkpoint_every`` frames and on Ctrl-C
+    (which raises :class:`TrackingInterrupted` with the partial result); ``resume`` continues from it to the
+    result an uninterrupted run gives (its settings must match ``fingerprint``).
     """
+    from tracker.app.checkpoint import load_checkpoint, save_checkpoint
+    from tracker.engine.recording import Recording
+
     T = seq.n_frames if n_frames is None else int(n_frames)
     if not 1 <= T <= seq.n_frames:
         raise InputError(f"frames {n_frames} is outside 1..{seq.n_frames} (the sequence's length)", seq.root)
@@ -176,9 +194,17 @@ def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, conf
     if n0 >= T:
         raise InputError(f"nothing to track: {n0} known frame(s) and only {T} frame(s) requested", seq.root)
     gt = seq.groundtruth
-    record = dict(record) if isinstance(record, Mapping) else list(record)
-    if isinstance(record, list):  # the result needs these whatever else the caller records
-        record += [k for k in ("mean_poses", "best_poses") if k not in record]
+    if isinstance(record, Mapping):
+        record = {"mean_poses": lambda s: s.mean, "best_poses": lambda s: s.best, **dict(record)}
+    else:  # the result needs these whatever else the caller records
+        record = list(record) + [k for k in ("mean_poses", "best_poses") if k not in record]
+    recording = Recording(record)
+    fingerprint = {**(fingerprint or {}), "frames": T, "known_frames": n_known}
+    state = None
+    if resume:
+        if checkpoint is None or not Path(checkpoint).exists():
+            raise InputError("no checkpoint to resume from", checkpoint)
+        state, _ = load_checkpoint(checkpoint, fingerprint, recording, rng)
 
     def report(step: FrameStep) -> None:
         if on_frame is not None:
@@ -186,15 +212,35 @@ def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, conf
                                                              gt.markers[step.frame]))
             on_frame(step, err)
 
-    if isinstance(record, dict):
-        record.setdefault("mean_poses", lambda s: s.mean)
-        record.setdefault("best_poses", lambda s: s.best)
+    last = {"state": state, "rng": rng.bit_generator.state}
+
+    def keep(st, rec) -> None:  # the state after a frame, with the generator's state at that moment
+        last["state"], last["rng"] = st, rng.bit_generator.state
+        if checkpoint is not None and checkpoint_every and st.tracked % checkpoint_every == 0:
+            save_checkpoint(checkpoint, st, rec, last["rng"], fingerprint)
+
+    first = n0 + (0 if state is None else state.tracked)
     pf = ParticleFilter(prior, likelihood, config, rng)
-    records = pf.run(known, (seq.frame(k, views) for k in range(n0, T)), record, report)
+    try:
+        records = pf.run(known, (seq.frame(k, views) for k in range(first, T)), recording, report, state, keep)
+    except KeyboardInterrupt:
+        done = 0 if last["state"] is None else last["state"].tracked
+        for name in recording.values:  # drop a frame recorded after the last complete state
+            recording.values[name] = recording.values[name][:done]
+        if checkpoint is not None and last["state"] is not None:
+            save_checkpoint(checkpoint, last["state"], recording, last["rng"], fingerprint)
+        partial = _result(seq, known, n0, recording.result(), gt, T) if done else None
+        raise TrackingInterrupted(partial, checkpoint if last["state"] is not None else None) from None
+    if checkpoint is not None:
+        Path(checkpoint).unlink(missing_ok=True)  # complete: nothing to resume
+    return _result(seq, known, n0, records, gt, T)
+
+
+def _result(seq: Sequence, known: np.ndarray, n0: int, records: dict, gt, T: int) -> TrackingResult:
     D = seq.model.n_dofs
     poses = np.concatenate([known[:n0], records["mean_poses"].reshape(-1, D)])
     best = np.concatenate([known[:n0], records["best_poses"].reshape(-1, D)])
     est_markers = model_markers(seq.model, poses)
-    errors = None if gt is None else marker_error(est_markers[n0:], gt.markers[n0:T])
+    errors = None if gt is None else marker_error(est_markers[n0:], gt.markers[n0:len(poses)])
     return TrackingResult(poses=poses, markers=est_markers, best_poses=best, first_tracked=n0, errors=errors,
                           records=records)

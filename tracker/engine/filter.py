@@ -210,13 +210,19 @@ class ParticleFilter:
     # -- a whole sequence ----------------------------------------------------------------------------------
 
     def run(self, known: np.ndarray, frames: Iterable[Frame],
-            record: Iterable[str] | Mapping[str, Callable[[FrameStep], Any]] = DEFAULT_RECORD,
-            on_frame: Callable[[FrameStep], None] | None = None) -> dict[str, np.ndarray]:
+            record: Iterable[str] | Mapping[str, Callable[[FrameStep], Any]] | Recording = DEFAULT_RECORD,
+            on_frame: Callable[[FrameStep], None] | None = None, state: FilterState | None = None,
+            on_state: Callable[[FilterState, Recording], None] | None = None) -> dict[str, np.ndarray]:
         """Track from the known poses ``n0 x D`` through ``frames``; returns the recorded quantities, one array
         each with tracked frames on the leading axis (see :mod:`tracker.engine.recording`).
-        ``on_frame(step)`` sees every :class:`FrameStep` (particles and weights included)."""
-        recording = Recording(record)
-        state = self.start(known)
+
+        ``on_frame(step)`` sees every :class:`FrameStep` (particles and weights included); ``on_state(state,
+        recording)`` sees the filter's whole state after every frame (for checkpoints). To continue an earlier
+        run, pass its ``state`` and its :class:`Recording` as ``record``, restore the generator's state, and
+        give only the frames not yet tracked.
+        """
+        recording = record if isinstance(record, Recording) else Recording(record)
+        state = self.start(known) if state is None else state
         iterator: Iterator[Frame] = iter(frames)
         while True:
             t0 = time.perf_counter()
@@ -227,4 +233,6 @@ class ParticleFilter:
             recording.add(step)
             if on_frame is not None:
                 on_frame(step)
+            if on_state is not None:
+                on_state(state, recording)
         return recording.result()
