@@ -314,12 +314,13 @@ def _model_from_document(doc: dict, path: Path, device: str) -> CRBMModel:
 def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_names: Sequence[str],
                body_model: str = "15-cone", sources: Sequence[str] = (),
                progress: Callable[[int, float], None] | None = None,
-               checkpoint: tuple[Path, int] | None = None, device: str = "cpu", *,
-               rng: np.random.Generator) -> CRBMModel:
+               checkpoint: tuple[Callable[[CRBMModel, dict], None], int] | None = None, device: str = "cpu", *,
+               rng: np.random.Generator, resume: dict | None = None) -> CRBMModel:
     """Train a CRBM on pose clips (each ``T x D`` at ``fps``) with CD-k; every random draw comes from ``rng``.
 
-    ``progress(epoch, reconstruction_error)`` is called after every epoch;
-    ``checkpoint = (path, every)`` saves the model every ``every`` epochs.
+    ``progress(epoch, reconstruction_error)`` is called after every epoch; ``checkpoint = (save, every)``
+    calls ``save(model, training_state)`` every ``every`` epochs, and ``resume`` (such a ``training_state``,
+    with the model's weights in it) continues from there to the model an uninterrupted run gives.
     """
     cfg = config.check()
     t0 = time.perf_counter()
@@ -339,7 +340,16 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
     model = CRBMModel(crbm, data.normaliser, cfg, fps, body_model, list(dof_names), list(sources),
                       step_rms(clips))
     starts = data.starts.to(device)
-    for epoch in range(cfg.epochs):
+    first_epoch, seconds_before = 0, 0.0
+    if resume is not None:
+        crbm.load_state_dict(resume["params"])
+        velocity = {k: resume["velocity"][k].to(device) for k in CRBM.PARAMS}
+        activity = resume["activity"].to(device)
+        g.set_state(resume["generator"])
+        first_epoch = int(resume["epoch"])
+        model.reconstruction_errors = [float(e) for e in resume["reconstruction_errors"]]
+        seconds_before = float(resume["seconds"])
+    for epoch in range(first_epoch, cfg.epochs):
         order = starts[torch.randperm(len(starts), generator=g, device=device)]
         err_sum, count = 0.0, 0
         for i in range(0, len(order), cfg.batch_size):
@@ -380,10 +390,14 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
                              "lower the learning rate")
         if progress is not None:
             progress(epoch + 1, model.reconstruction_errors[-1])
-        if checkpoint is not None and (epoch + 1) % checkpoint[1] == 0:
-            model.training_seconds = time.perf_counter() - t0
-            model.save(checkpoint[0])
-    model.training_seconds = time.perf_counter() - t0
+        if checkpoint is not None and (epoch + 1) % checkpoint[1] == 0 and epoch + 1 < cfg.epochs:
+            model.training_seconds = seconds_before + time.perf_counter() - t0
+            checkpoint[0](model, {"params": crbm.state_dict(), "epoch": epoch + 1,
+                                  "velocity": {k: v.detach().cpu().clone() for k, v in velocity.items()},
+                                  "activity": activity.detach().cpu().clone(), "generator": g.get_state(),
+                                  "reconstruction_errors": list(model.reconstruction_errors),
+                                  "seconds": model.training_seconds})
+    model.training_seconds = seconds_before + time.perf_counter() - t0
     return model
 
 
@@ -495,7 +509,7 @@ class CRBMPrior(MotionPrior):
 
 def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator,
                      progress: Callable[[int, int, dict], None] | None = None,
-                     checkpoint: Path | None = None) -> CRBMModel:
+                     checkpoint: Path | None = None, resume: bool = False) -> CRBMModel:
     """``train --prior crbm``: a CRBM of ``options['order']`` on the clips of ``data``."""
     noise = options["history_noise"]
     if noise != "auto":
@@ -507,19 +521,44 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
                         cd_k=options["cd_k"], batch_size=options["batch_size"], history_noise=noise,
                         sparsity_target=options["sparsity"]).check()
     grow = _growth_orders(options["grow_from"], config.order)
-    every = options["checkpoint_every"]
-    total = config.epochs * (1 + len(grow))
-    growth = []
-    for i, order in enumerate(grow):  # the lower orders first, on the same clips, each with its own draws
+    every = options["checkpoint_every"] or 0
+    orders = grow + [config.order]
+    total = config.epochs * len(orders)
+    done: list[CRBMModel] = []
+    state = None
+    if resume:  # the growth models finished before, and the training state of the one in progress
+        if checkpoint is None or not checkpoint.exists():
+            raise InputError("no training checkpoint to resume from", checkpoint)
+        doc = read_model_file(checkpoint, FORMAT, "CRBM checkpoint")
+        if "training_state" not in doc or doc.get("stage_orders") != orders:
+            raise InputError("the checkpoint is not of this training (other orders or a finished model)", checkpoint)
+        done = [_model_from_document(g, checkpoint, "cpu") for g in doc["growth"]]
+        state = doc["training_state"]
+        for _ in done:  # the draws the finished stages took from rng
+            rng.integers(2 ** 62)
+
+    def save(stage_model: CRBMModel, training_state: dict) -> None:
+        from copy import copy
+
+        snapshot = copy(stage_model)
+        snapshot.growth = list(done)
+        doc = {**snapshot.to_document(), "training_state": training_state, "stage_orders": orders}
+        tmp = checkpoint.with_name(checkpoint.name + ".tmp")
+        torch.save(doc, tmp)
+        tmp.replace(checkpoint)
+
+    for i in range(len(done), len(orders)):  # the lower orders first, on the same clips, each with its own draws
         report = None if progress is None else (
-            lambda epoch, err, done=i * config.epochs: progress(done + epoch, total, {"reconstruction": err}))
-        growth.append(train_crbm(list(data.clips), replace(config, order=order), data.fps,
-                                 data.body_model.dof_names, data.body_model.name, list(data.sources), report, rng=rng))
-    report = None if progress is None else (
-        lambda epoch, err: progress(len(grow) * config.epochs + epoch, total, {"reconstruction": err}))
-    model = train_crbm(list(data.clips), config, data.fps, data.body_model.dof_names, data.body_model.name,
-                       list(data.sources), report, (checkpoint, every) if checkpoint and every else None, rng=rng)
-    model.growth = growth
+            lambda epoch, err, before=i * config.epochs: progress(before + epoch, total, {"reconstruction": err}))
+        model = train_crbm(list(data.clips), replace(config, order=orders[i]), data.fps,
+                           data.body_model.dof_names, data.body_model.name, list(data.sources), report,
+                           (save, every) if checkpoint is not None and every else None, rng=rng,
+                           resume=state if i == len(done) else None)
+        if i < len(grow):
+            done.append(model)
+    model.growth = done
+    if checkpoint is not None:
+        checkpoint.unlink(missing_ok=True)
     return model
 
 

@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 import torch
 
-from priors.crbm import CRBMConfig, CRBMPrior, load_crbm, make_windows, train_crbm
+from priors.crbm import CRBM, CRBMConfig, CRBMPrior, load_crbm, make_windows, train_crbm
+
+CRBM_PARAMS = CRBM.PARAMS
 from tracker.core.body import DOF_NAMES
 from tracker.core.errors import InputError
 from tracker.core.representation import poses_to_invariant
@@ -183,3 +185,28 @@ def test_broken_model_files_are_refused(crbm3, tmp_path, damage, expected):
     torch.save(doc, tmp_path / "bad.pt")
     with pytest.raises(InputError, match=expected):
         load_crbm(tmp_path / "bad.pt")
+
+
+def test_interrupted_training_resumes_to_the_same_model(tmp_path):
+    import tracker
+    from data_tools.samples import sample_walks
+
+    asf, walks = sample_walks()
+    settings = dict(skeletons=[asf], order=3, epochs=6, hidden=16, rng=0, checkpoint_every=2)
+    whole = tracker.train("crbm", [walks[0]], **settings)
+    calls = []
+
+    def interrupt(done, total, metrics):  # Ctrl-C in the order-3 stage, after its checkpoint at epoch 4
+        calls.append(done)
+        if len(calls) == 11:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        tracker.train("crbm", [walks[0]], checkpoint=tmp_path / "c.pt", progress=interrupt, **settings)
+    assert (tmp_path / "c.pt").exists()
+    resumed = tracker.train("crbm", [walks[0]], checkpoint=tmp_path / "c.pt", resume=True, **settings)
+    for a, b in [(whole, resumed), (whole.growth[0], resumed.growth[0])]:
+        assert all(torch.equal(a.crbm.state_dict()[k], b.crbm.state_dict()[k]) for k in CRBM_PARAMS)
+    assert resumed.reconstruction_errors == whole.reconstruction_errors and not (tmp_path / "c.pt").exists()
+    with pytest.raises(InputError, match="no training checkpoint"):
+        tracker.train("crbm", [walks[0]], checkpoint=tmp_path / "c.pt", resume=True, **settings)

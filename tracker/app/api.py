@@ -162,12 +162,14 @@ def build_likelihood(name: str, sequence: Sequence, views: Iterable[int] | None 
 def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
           skeletons: Iterable[str | Path] | None = None, fps: float = 60.0, rng: SeedLike = 0,
           progress: Callable[[int, int, dict], None] | None = None, checkpoint: str | Path | None = None,
-          **options) -> Any:
+          resume: bool = False, **options) -> Any:
     """Train the learned prior ``prior`` on mocap files (or retargeted clips) of any subjects and lengths.
 
     Each AMC pairs with its own skeleton (``skeletons``: one for all or one per file; default
     ``<subject>.asf`` beside it). ``options`` are the prior's training options (see
     ``python -m tracker train --help``). Returns the trained model; ``model.save(path)`` writes its file.
+    With ``checkpoint`` (a file path) and the prior's ``checkpoint_every`` option, training state is saved as
+    it goes; ``resume=True`` continues from it to the model an uninterrupted run gives.
     """
     entry = prior_entry(prior)
     if entry.train is None:
@@ -180,7 +182,15 @@ def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
     else:
         clips, sources = load_training_clips(items, skeletons, fps), [str(f) for f in items]
     data = TrainingData(tuple(c.poses for c in clips), fps, clips[0].model, tuple(sources))
-    return entry.train(data, resolved, make_rng(rng), progress, None if checkpoint is None else Path(checkpoint))
+    import inspect
+
+    extra = {}
+    if resume:
+        if "resume" not in inspect.signature(entry.train).parameters:
+            raise InputError(f"training of prior {prior} cannot be resumed")
+        extra["resume"] = True
+    return entry.train(data, resolved, make_rng(rng), progress, None if checkpoint is None else Path(checkpoint),
+                       **extra)
 
 
 # -- tracking -------------------------------------------------------------------------------------------------

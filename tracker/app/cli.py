@@ -123,6 +123,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="ASF skeleton(s): one for all .amc clips or one per clip (default: <subject>.asf beside each)")
     r.add_argument("--fps", type=_positive_float, default=60.0, help="frame rate of the training data (default 60)")
     r.add_argument("--seed", type=_non_negative_int, default=0, help="random seed (default 0)")
+    r.add_argument("--resume", action="store_true",
+                   help="continue an interrupted training from OUT.checkpoint (same arguments as before)")
     _add_plugin_options(r, {n: prior_entry(n).train_options for n in trainable})
     r.add_argument("--out", required=True, help="output model file (.pt)")
 
@@ -377,8 +379,10 @@ def cmd_train(args: argparse.Namespace) -> int:
     trainable = {n: prior_entry(n).train_options for n in available_priors() if prior_entry(n).train is not None}
     options = _given_options(args, "prior", args.prior, trainable[args.prior], trainable)
     print(f"training a {args.prior} prior on {len(args.mocap)} clip(s) at {args.fps:g} fps", flush=True)
+    checkpoint = out.with_name(out.name + ".checkpoint")
     model = train(args.prior, args.mocap, skeletons=args.skeleton, fps=args.fps, rng=args.seed,
-                  progress=_progress_bar(f"training {args.prior}"), checkpoint=out, **options)
+                  progress=_progress_bar(f"training {args.prior}"), checkpoint=checkpoint, resume=args.resume,
+                  **options)
     with atomic_path(out) as tmp:
         model.save(tmp)
     print(f"{model.summary()} -> {out}")
