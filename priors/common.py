@@ -10,6 +10,7 @@ import numpy as np
 
 from tracker.core.errors import InputError
 from tracker.core.representation import STEP_FEATURES, FeatureNormaliser, poses_to_invariant
+from tracker.core.rotations import continuous_exp_maps, elementary_rotation, exp_map_to_matrix, matrix_to_exp_map
 
 
 def read_model_file(path, fmt: str, kind: str) -> dict:
@@ -81,6 +82,19 @@ def add_ground_diffusion(poses: np.ndarray, std_mm: float, rng: np.random.Genera
     lets the likelihood correct the drift of integrated velocities."""
     if std_mm > 0:
         poses[:, :2] += std_mm * rng.standard_normal((len(poses), 2))
+    return poses
+
+
+def add_heading_diffusion(poses: np.ndarray, previous: np.ndarray, std_rad: float,
+                          rng: np.random.Generator) -> np.ndarray:
+    """``poses`` ``P x D`` with each root turned about the vertical by Gaussian noise of ``std_rad``, in place
+    (the root's exp map stays on the branch nearest ``previous``'s). A learned prior integrates its heading
+    from predicted yaw rates; without noise on the heading the likelihood cannot correct a heading that has
+    drifted (the ground-plane diffusion only moves the position)."""
+    if std_rad > 0:
+        turn = elementary_rotation("z", std_rad * rng.standard_normal(len(poses)))
+        turned = matrix_to_exp_map(turn @ exp_map_to_matrix(poses[:, 3:6]))
+        poses[:, 3:6] = continuous_exp_maps(np.stack([previous[:, 3:6], turned], axis=-2), time_axis=-2)[:, 1]
     return poses
 
 

@@ -42,8 +42,8 @@ import numpy as np
 import torch
 
 from priors.common import (
-    ROOT_NOISE_MM, add_ground_diffusion, check_model_fits, mix_in_random_walk, normaliser_from_tensors,
-    normaliser_to_tensors, read_model_file, steps_taken, torch_generator,
+    ROOT_NOISE_MM, add_ground_diffusion, add_heading_diffusion, check_model_fits, mix_in_random_walk,
+    normaliser_from_tensors, normaliser_to_tensors, read_model_file, steps_taken, torch_generator,
 )
 from tracker.core.errors import InputError
 from tracker.core.representation import (
@@ -421,7 +421,7 @@ class CRBMPrior(MotionPrior):
 
     def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = 30, noise: float = 0.0,
                  device: str = "cpu", mode: str = "gibbs", root_noise_mm: float = ROOT_NOISE_MM,
-                 robust_fraction: float = 0.0):
+                 robust_fraction: float = 0.0, heading_noise: float = 0.0):
         if not models:
             raise InputError("the CRBM prior needs at least one model")
         by_order = {m.order: m for m in models}
@@ -444,6 +444,9 @@ class CRBMPrior(MotionPrior):
         if not 0.0 <= robust_fraction <= 1.0:
             raise InputError(f"robust fraction must lie in [0, 1], got {robust_fraction}")
         self.robust_fraction = float(robust_fraction)
+        if not heading_noise >= 0:
+            raise InputError(f"heading noise must be a non-negative number of radians, got {heading_noise}")
+        self.heading_noise = float(heading_noise)
         self.order = self.models[-1].order
         self.gibbs_steps = gibbs_steps
         self.noise = float(noise)
@@ -454,7 +457,8 @@ class CRBMPrior(MotionPrior):
 
     def settings(self) -> dict:
         return {"orders": [m.order for m in self.models], "gibbs_steps": self.gibbs_steps,
-                "root_noise_mm": self.root_noise_mm, "mode": self.mode, "robust_fraction": self.robust_fraction}
+                "root_noise_mm": self.root_noise_mm, "mode": self.mode, "robust_fraction": self.robust_fraction,
+                "heading_noise_rad": self.heading_noise}
 
     def model_for(self, available: int) -> CRBMModel:
         """The highest-order model whose history is all real poses (never a padded history)."""
@@ -494,6 +498,7 @@ class CRBMPrior(MotionPrior):
                 v = v + self.noise * torch.randn(v.shape, generator=generator, device=self.device)
         f_next = model.normaliser.inverse(v.cpu().double().numpy())
         poses = add_ground_diffusion(next_poses(history[:, -1], feats[:, -1], f_next), self.root_noise_mm, rng)
+        add_heading_diffusion(poses, history[:, -1], self.heading_noise, rng)
         pending = f_next[:, step]
         walked = mix_in_random_walk(poses, history[:, -1], model.pose_step_rms, self.robust_fraction, rng)
         pending[walked] = steps_taken(history[walked, -1], poses[walked])
@@ -598,10 +603,14 @@ CRBM_TRAIN_OPTIONS = (
                     minimum=0.0),
              Option("robust_fraction", float, 0.0,
                     "fraction of each frame's samples drawn from the zero-velocity random walk instead, so motion "
-                    "the model did not learn (a start, a stop, a run) stays trackable (default 0)", minimum=0.0)))
+                    "the model did not learn (a start, a stop, a run) stays trackable (default 0)", minimum=0.0),
+             Option("heading_noise", float, 0.0, "diffusion of each sample's heading in rad per frame, so that the "
+                                                 "likelihood can correct an integrated heading (default 0)",
+                    minimum=0.0)))
 def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> CRBMPrior:
     models = [load_crbm(m, device=context.device) for m in model_files]
     for path, m in zip(model_files, models):
         m.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, path)
     return CRBMPrior(models, gibbs_steps=options["gibbs_steps"], root_noise_mm=options["root_noise"],
-                     device=context.device, robust_fraction=options["robust_fraction"])
+                     device=context.device, robust_fraction=options["robust_fraction"],
+                     heading_noise=options["heading_noise"])
