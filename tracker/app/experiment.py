@@ -8,6 +8,7 @@ File layout (paths are relative to the experiment file; every key is checked, un
     seeds = 5                                # runs per configuration
     fps = 60                                 # rate of rendered sequences and trained models (default 60)
     baseline = "zero-velocity"               # the row others are compared with (default: the first prior)
+    paired = "baseline"                      # paired differences against the baseline, or "all" pairs
 
     [tracking]                               # grid axes; each a value or a list of values
     particles = 1000
@@ -64,7 +65,8 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-TOP_KEYS = {"description", "seed", "seeds", "fps", "baseline", "tracking", "sequence", "prior", "likelihood"}
+TOP_KEYS = {"description", "seed", "seeds", "fps", "baseline", "paired", "tracking", "sequence", "prior",
+            "likelihood"}
 TRACKING_KEYS = {"particles", "views", "annealing_layers", "frames", "known_frames", "resampling"}
 SEQUENCE_KEYS = {"name", "path", "mocap", "skeleton", "start", "frames", "views", "seed", "noise", "width",
                  "height", "lighting_change", "occluder", "missing_camera"}
@@ -141,6 +143,7 @@ class Experiment:
     seeds: int
     fps: float
     baseline: str
+    paired: str
     tracking: dict[str, list]
     sequences: list[SequenceSpec]
     priors: list[PriorSpec]
@@ -320,8 +323,11 @@ def load_experiment(path: str | Path) -> Experiment:
     baseline = doc.get("baseline", priors[0].label)
     if baseline not in {p.label for p in priors}:
         raise w.error("baseline", f"{baseline!r} is not a prior label")
-    return Experiment(path, str(doc.get("description", "")), seed, seeds, float(fps), baseline, grid, sequences,
-                      priors, likelihoods)
+    paired = doc.get("paired", "baseline")
+    if paired not in ("baseline", "all"):
+        raise w.error("paired", f"expected 'baseline' or 'all', got {paired!r}")
+    return Experiment(path, str(doc.get("description", "")), seed, seeds, float(fps), baseline, paired, grid,
+                      sequences, priors, likelihoods)
 
 
 # -- runs ------------------------------------------------------------------------------------------------------

@@ -89,13 +89,19 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
         label = next((lab for lab in labels if row == lab or row.startswith(lab + ", ")), row)
         return label, row[len(label):]
 
-    if len(rows) > 1 and any(split_row(row)[0] == exp.baseline for row in rows):
-        md.write(f"\n## Paired difference to {exp.baseline} (marker error, mm; 95% bootstrap interval over seeds)\n\n")
-        md.write("| prior | " + " | ".join(seqs) + " |\n" + "|---" * (len(seqs) + 1) + "|\n")
-        for row in rows:
-            base_row = exp.baseline + split_row(row)[1]
-            if row == base_row or base_row not in rows:
-                continue
+    pairs = []  # (row, the row it is compared with)
+    for row in rows:
+        label, variant = split_row(row)
+        if exp.paired == "all":
+            pairs += [(row, other) for other in rows if other != row and split_row(other)[1] == variant
+                      and rows.index(other) < rows.index(row)]
+        elif label != exp.baseline and exp.baseline + variant in rows:
+            pairs.append((row, exp.baseline + variant))
+    if pairs:
+        title = exp.baseline if exp.paired == "baseline" else "each other (row minus compared row)"
+        md.write(f"\n## Paired difference to {title} (marker error, mm; 95% bootstrap interval over seeds)\n\n")
+        md.write("| prior | compared with | " + " | ".join(seqs) + " |\n" + "|---" * (len(seqs) + 2) + "|\n")
+        for row, base_row in pairs:
             cells = []
             for s in seqs:
                 a = {r["run"]["seed_index"]: per_run(r, "per_frame_error_mm") for r in by.get((row, s), [])}
@@ -107,7 +113,7 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
                     continue
                 lo, hi = bootstrap_interval(d)
                 cells.append(f"{d.mean():+.1f} [{lo:+.1f}, {hi:+.1f}]" if d.size > 1 else f"{d.mean():+.1f}")
-            md.write(f"| {row} | " + " | ".join(cells) + " |\n")
+            md.write(f"| {row} | {base_row} | " + " | ".join(cells) + " |\n")
     cpu = sum(r.get("wall_seconds", 0.0) for r in results)
     md.write(f"\n{meta['runs']} runs, {cpu:.0f} s of run time in all; this invocation ran {meta['ran_now']} of them "
              f"with {meta['jobs']} {meta['backend']} job(s) in {meta['wall_seconds_now']:.0f} s; package version "
