@@ -60,14 +60,20 @@ def check_output_file(path: str | Path, what: str = "the output file", suffixes:
     return path
 
 
-def check_output_folder(path: str | Path, what: str = "the output folder", empty: bool = False) -> Path:
+def check_output_folder(path: str | Path, what: str = "the output folder", empty: bool = False,
+                        replaceable: tuple[str, ...] = ()) -> Path:
     """``path`` as a folder to write into: not a file, under a writable folder, and (``empty``) without
-    contents."""
+    contents. With ``replaceable`` (file names), a non-empty folder may be replaced only if it holds one of
+    them (it is one of ours, e.g. a sequence with its ``cameras.json``), never any other folder."""
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise InputError(f"{what} is a file, not a folder", path)
-    if empty and path.is_dir() and any(path.iterdir()):
-        raise InputError(f"{what} is not empty (pass --overwrite to replace it)", path)
+    if path.is_dir() and any(path.iterdir()):
+        if empty:
+            raise InputError(f"{what} is not empty (pass --overwrite to replace it)", path)
+        if replaceable and not any((path / name).exists() for name in replaceable):
+            raise InputError(f"{what} is not empty and holds no {' or '.join(replaceable)}: refusing to replace "
+                             "a folder this program did not write", path)
     if path.is_dir():
         if not os.access(path, os.W_OK | os.X_OK):
             raise InputError(f"cannot write in {what}: not writable", path)

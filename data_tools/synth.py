@@ -88,7 +88,7 @@ def synthesize(result: RetargetResult, out: str | Path, settings: SynthConfig, s
     (e.g. ``tqdm``). ``keep_masks`` returns the renderer's exact person masks (``[frame][view]``) for testing
     the observation pipeline.
     """
-    final = check_output_folder(out, empty=not overwrite)
+    final = check_output_folder(out, empty=not overwrite, replaceable=("cameras.json", "meta.json"))
     try:
         final.parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".tmp", dir=final.parent))

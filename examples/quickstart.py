@@ -23,7 +23,8 @@ out = Path(args.out)
 
 # 1. Data: render one shipped walk into four cameras; the other walk trains the learned prior.
 skeleton, (train_walk, test_walk) = sample_walks()
-sequence = tracker.synthesize(test_walk, out / "sequence", skeleton=skeleton, frames=args.frames, seed=0)
+sequence = tracker.synthesize(test_walk, out / "sequence", skeleton=skeleton, frames=args.frames, seed=0,
+                              overwrite=True)
 
 # 2. A first-order CRBM trained on the other walk (the generator comes from the seed we pass).
 crbm = tracker.train("crbm", [train_walk], skeletons=[skeleton], order=1, epochs=args.epochs, rng=0)

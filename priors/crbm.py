@@ -53,13 +53,15 @@ from tracker.engine.prior import MotionPrior, PriorState
 from tracker.engine.registry import Option, PriorContext, TrainingData, register_prior
 
 FORMAT = "pose-tracker crbm v1"
+#: Training checkpoints have their own format, so a half-trained model is never taken for a model file.
+CHECKPOINT_FORMAT = "pose-tracker crbm training checkpoint v1"
 @dataclass
 class CRBMConfig:
     """Training settings (learning rates per mini-batch of averaged statistics)."""
 
     order: int = 3
     hidden: int = 150
-    epochs: int = 300
+    epochs: int = 500
     cd_k: int = 10
     batch_size: int = 100
     learning_rate: float = 1e-3
@@ -534,7 +536,7 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
     if resume:  # the growth models finished before, and the training state of the one in progress
         if checkpoint is None or not checkpoint.exists():
             raise InputError("no training checkpoint to resume from", checkpoint)
-        doc = read_model_file(checkpoint, FORMAT, "CRBM checkpoint")
+        doc = read_model_file(checkpoint, CHECKPOINT_FORMAT, "CRBM training checkpoint")
         if "training_state" not in doc or doc.get("stage_orders") != orders:
             raise InputError("the checkpoint is not of this training (other orders or a finished model)", checkpoint)
         done = [_model_from_document(g, checkpoint, "cpu") for g in doc["growth"]]
@@ -547,10 +549,15 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
 
         snapshot = copy(stage_model)
         snapshot.growth = list(done)
-        doc = {**snapshot.to_document(), "training_state": training_state, "stage_orders": orders}
-        tmp = checkpoint.with_name(checkpoint.name + ".tmp")
-        torch.save(doc, tmp)
-        tmp.replace(checkpoint)
+        doc = {**snapshot.to_document(), "format": CHECKPOINT_FORMAT, "training_state": training_state,
+               "stage_orders": orders}
+        checkpoint.parent.mkdir(parents=True, exist_ok=True)
+        tmp = checkpoint.with_name(f".{checkpoint.name}.tmp")
+        try:
+            torch.save(doc, tmp)
+            tmp.replace(checkpoint)  # a model is never half-written: the rename is atomic
+        finally:
+            tmp.unlink(missing_ok=True)
 
     for i in range(len(done), len(orders)):  # the lower orders first, on the same clips, each with its own draws
         report = None if progress is None else (
@@ -583,7 +590,7 @@ def _growth_orders(text: str, order: int) -> list[int]:
 CRBM_TRAIN_OPTIONS = (
     Option("order", int, CRBMConfig.order, "CRBM order N (default 3)", minimum=1),
     Option("hidden", int, CRBMConfig.hidden, "hidden units (default 150)", minimum=1),
-    Option("epochs", int, 500, "passes through the data (default 500)", minimum=1),
+    Option("epochs", int, CRBMConfig.epochs, "passes through the data (default 500)", minimum=1),
     Option("cd_k", int, CRBMConfig.cd_k, "Gibbs steps of contrastive divergence (default 10)", minimum=1),
     Option("batch_size", int, CRBMConfig.batch_size, "windows per mini-batch (default 100)", minimum=1),
     Option("history_noise", str, "auto",
@@ -597,7 +604,7 @@ CRBM_TRAIN_OPTIONS = (
 
 @register_prior(
     "crbm", summary="Conditional RBM (Taylor 2009); several model files of increasing order grow the history",
-    model_files="several", train=train_crbm_prior, train_options=CRBM_TRAIN_OPTIONS,
+    model_files="several", train=train_crbm_prior, train_options=CRBM_TRAIN_OPTIONS, resumable=True,
     options=(Option("gibbs_steps", int, 30, "alternating Gibbs steps per sample (default 30)", minimum=1),
              Option("root_noise", float, ROOT_NOISE_MM, "ground-plane diffusion of each sample in mm (default 5)",
                     minimum=0.0),

@@ -177,16 +177,23 @@ def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
         raise InputError(f"prior {prior} is not learned; trainable priors: {', '.join(trainable)}")
     resolved = resolve_options(f"training {prior}", entry.train_options, options)
     items = list(mocap)
-    if items and all(isinstance(c, RetargetResult) for c in items):
-        clips, sources = items, [c.source for c in items]
+    if not items:
+        raise InputError("no training clips given")
+    in_memory = [isinstance(c, RetargetResult) for c in items]
+    if any(in_memory) and not all(in_memory):
+        raise InputError("give training clips either all as files or all as retargeted clips, not mixed")
+    if all(in_memory):  # retargeted clips carry their own frame rate
+        rates = sorted({float(c.fps) for c in items})
+        if len(rates) > 1:
+            raise InputError(f"training clips have different frame rates ({', '.join(f'{r:g}' for r in rates)} "
+                             "Hz); retarget them at one rate")
+        clips, sources, fps = items, [c.source for c in items], rates[0]
     else:
         clips, sources = load_training_clips(items, skeletons, fps), [str(f) for f in items]
     data = TrainingData(tuple(c.poses for c in clips), fps, clips[0].model, tuple(sources))
-    import inspect
-
     extra = {}
     if resume:
-        if "resume" not in inspect.signature(entry.train).parameters:
+        if not entry.resumable:
             raise InputError(f"training of prior {prior} cannot be resumed")
         extra["resume"] = True
     return entry.train(data, resolved, make_rng(rng), progress, None if checkpoint is None else Path(checkpoint),
@@ -222,6 +229,8 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     """
     seq = sequence if isinstance(sequence, Sequence) else load_sequence(sequence)
     views = check_views(views, seq.n_views, seq.root)
+    if isinstance(known_frames, bool) or not isinstance(known_frames, (int, np.integer)) or known_frames < 1:
+        raise InputError(f"known_frames must be an integer of at least 1, got {known_frames!r}")
     config = FilterConfig(n_particles=particles, resampling=resampling, annealing_layers=annealing_layers).check()
     if frames is not None and not 1 <= int(frames) <= seq.n_frames:
         raise InputError(f"frames {frames} is outside 1..{seq.n_frames} (the sequence's length)", seq.root)
@@ -244,7 +253,7 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
         "annealing_layers": config.annealing_layers, "resampling": config.resampling,
         "prior_settings": prior_obj.settings(), "prior_models": [str(m) for m in models],
         "likelihood": likelihood if isinstance(likelihood, str) else lik_obj.name,
-        **lik_obj.settings(),
+        "likelihood_settings": lik_obj.settings(),
     }
     try:
         result = run_tracking(seq, prior_obj, lik_obj, config, rng, views, frames, known_frames, init, record,

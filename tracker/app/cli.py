@@ -22,6 +22,7 @@ from tracker.app.api import (
 )
 from tracker.app.plugins import import_plugin
 from tracker.app.threads import set_threads
+from tracker.engine.resampling import SCHEMES
 from tracker.core.errors import InputError
 from tracker.engine.registry import Option
 
@@ -64,9 +65,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--threads", type=_positive_int, default=None,
                    help="threads for numpy/BLAS, OpenCV and torch (default: the cores available to the process)")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    plugin_flag = argparse.ArgumentParser(add_help=False)  # --plugin is read before parsing; accepted anywhere
+    plugin_flag.add_argument("--plugin", action="append", default=argparse.SUPPRESS, metavar="MODULE_OR_FILE",
+                             help=argparse.SUPPRESS)
     sub.required = True
 
-    c = sub.add_parser("convert", help="convert a mocap clip (AMC+ASF or BVH) to body-model poses and markers",
+    c = sub.add_parser("convert", parents=[plugin_flag], help="convert a mocap clip (AMC+ASF or BVH) to body-model poses and markers",
                        description="Retarget a mocap clip to the 15-cone body model and write CLIP.npz with "
                                    "poses, markers (ground truth), model_markers, fps and the body shape.")
     c.add_argument("--mocap", required=True, help="motion file: .amc (CMU ASF/AMC) or .bvh")
@@ -76,7 +80,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="BVH only: millimetres per file unit (default: inferred from the skeleton's height)")
     c.add_argument("--out", required=True, help="output .npz")
 
-    s = sub.add_parser("synth", help="render a mocap clip into a synthetic multi-view sequence",
+    s = sub.add_parser("synth", parents=[plugin_flag], help="render a mocap clip into a synthetic multi-view sequence",
                        description="Retarget a mocap clip, render it into a calibrated rig over a cluttered room "
                                    "and write the sequence folder (cameras.json, images/, background/, "
                                    "groundtruth.npz, meta.json).")
@@ -102,7 +106,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="BVH only: millimetres per file unit (default: inferred)")
     s.add_argument("--overwrite", action="store_true", help="replace a non-empty output folder")
 
-    w = sub.add_parser("show", help="draw the projected body model over every view of a sequence frame",
+    w = sub.add_parser("show", parents=[plugin_flag], help="draw the projected body model over every view of a sequence frame",
                        description="Draw the projected cones (ground truth, the initial pose, or --poses) over "
                                    "every camera view in one grid image, or a whole sequence as a video.")
     w.add_argument("sequence", metavar="DIR", help="sequence folder (own layout or PARSEC bodytrack)")
@@ -111,7 +115,7 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--out", help="output image (.png)")
     w.add_argument("--video", help="also write every frame to this video (.mp4)")
 
-    r = sub.add_parser("train", help="train a learned motion prior on mocap clips",
+    r = sub.add_parser("train", parents=[plugin_flag], help="train a learned motion prior on mocap clips",
                        description="Retarget the clips (any subjects, each with its own skeleton) to the 15-cone "
                                    "model at --fps, convert them to the invariant representation and train the "
                                    "prior; the model file keeps its normalisation statistics and the data settings "
@@ -125,10 +129,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--seed", type=_non_negative_int, default=0, help="random seed (default 0)")
     r.add_argument("--resume", action="store_true",
                    help="continue an interrupted training from OUT.checkpoint (same arguments as before)")
-    _add_plugin_options(r, {n: prior_entry(n).train_options for n in trainable})
     r.add_argument("--out", required=True, help="output model file (.pt)")
+    _add_plugin_options(r, {n: prior_entry(n).train_options for n in trainable})
 
-    t = sub.add_parser("track", help="track a person through a sequence with a particle filter",
+    t = sub.add_parser("track", parents=[plugin_flag], help="track a person through a sequence with a particle filter",
                        description="Track a sequence (our layout or PARSEC bodytrack) with an SIR particle filter "
                                    "and an image likelihood; writes OUTDIR/result.json and OUTDIR/estimates.npz.")
     t.add_argument("sequence", metavar="DIR", nargs="?", help="sequence folder")
@@ -137,8 +141,6 @@ def build_parser() -> argparse.ArgumentParser:
                    help="trained prior model(s); for crbm several orders (e.g. 1 and 3) grow the history")
     t.add_argument("--likelihood", default="edge-silhouette", choices=available_likelihoods(),
                    help="image likelihood (default edge-silhouette)")
-    _add_plugin_options(t, {n: prior_entry(n).options for n in available_priors()})
-    _add_plugin_options(t, {n: likelihood_entry(n).options for n in available_likelihoods()})
     t.add_argument("--particles", type=_positive_int, default=1000, help="number of particles (default 1000)")
     t.add_argument("--views", default=None, help="comma-separated camera indices (default: all)")
     t.add_argument("--frames", type=_positive_int, default=None,
@@ -146,8 +148,8 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--seed", type=_non_negative_int, default=0, help="random seed (default 0)")
     t.add_argument("--annealing-layers", type=_positive_int, default=1,
                    help="annealed layers per frame (default 1: plain SIR)")
-    t.add_argument("--resampling", default="systematic",
-                   choices=["systematic", "stratified", "multinomial", "residual"])
+    t.add_argument("--resampling", default="systematic", choices=list(SCHEMES),
+                   help="resampling scheme (default systematic)")
     t.add_argument("--init", help="POSES.npz whose 'poses' are the known first frames (default: ground truth, or "
                                   "the bodytrack InitialPose.txt)")
     t.add_argument("--known-frames", type=_positive_int, default=2,
@@ -163,8 +165,15 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--resume", metavar="OUTDIR",
                    help="continue an interrupted run from OUTDIR/checkpoint.npz with its original settings "
                         "(give no other arguments)")
+    priors = {f"prior {n}": prior_entry(n).options for n in available_priors()}
+    likelihoods = {f"likelihood {n}": likelihood_entry(n).options for n in available_likelihoods()}
+    shared = {o.name for opts in priors.values() for o in opts} & {o.name for opts in likelihoods.values() for o in opts}
+    if shared:
+        raise InputError(f"a prior and a likelihood both declare the option(s) {', '.join(sorted(shared))}; "
+                         "rename one of them")
+    _add_plugin_options(t, {**priors, **likelihoods})
 
-    e = sub.add_parser("compare", help="run an experiment: priors x sequences x settings x seeds, with tables",
+    e = sub.add_parser("compare", parents=[plugin_flag], help="run an experiment: priors x sequences x settings x seeds, with tables",
                        description="Run every configuration of an experiment file (TOML; see "
                                    "tracker/app/experiment.py and benchmarks/experiments/) in parallel, skipping "
                                    "runs finished before, and write table.md, table.csv and per_frame.png.")
@@ -175,7 +184,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="joblib (this machine, default), dask or ray (a local cluster, or --address)")
     e.add_argument("--address", default=None, help="scheduler address of an existing Dask or Ray cluster")
 
-    d = sub.add_parser("demo", help="render, track and score a shipped walk (the built-in default job)",
+    d = sub.add_parser("demo", parents=[plugin_flag], help="render, track and score a shipped walk (the built-in default job)",
                        description="Render 1.5 s of the shipped CMU walk 07_02 into 4 cameras, train a CRBM on "
                                    "the other shipped walk, track with the zero-velocity and the CRBM prior (1000 "
                                    "particles), print both errors and write the error-per-frame plot and an "
@@ -197,15 +206,20 @@ def _option_type(option: Option):
 
 
 def _add_plugin_options(parser: argparse.ArgumentParser, declared: dict[str, tuple[Option, ...]]) -> None:
-    """One flag per option name over all plugins (default None: "not given"), its help naming the plugins."""
+    """One flag per option name over all plugins (default None: "not given"), its help naming each plugin's
+    meaning. A plugin option whose flag the command already has is refused."""
     users: dict[str, list[str]] = {}
     first: dict[str, Option] = {}
     for plugin, options in declared.items():
         for o in options:
-            users.setdefault(o.name, []).append(plugin)
+            users.setdefault(o.name, []).append(f"{plugin.split()[-1]}: {o.help}")
             first.setdefault(o.name, o)
+    taken = set(parser._option_string_actions)  # the command's own flags
     for name, o in first.items():
-        text = f"{', '.join(users[name])}: {o.help}"
+        if o.flag in taken:
+            raise InputError(f"plugin option {o.flag} clashes with a flag of the {parser.prog.split()[-1]} command; "
+                             "rename the option")
+        text = "; ".join(users[name])
         if o.type is bool:
             parser.add_argument(o.flag, dest=name, action="store_true", default=None, help=text)
         else:
@@ -258,7 +272,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
     from data_tools.retarget import retarget
     from data_tools.synth import SynthConfig, synthesize
 
-    check_output_folder(args.out, empty=not args.overwrite)
+    check_output_folder(args.out, empty=not args.overwrite, replaceable=("cameras.json", "meta.json"))
     settings = SynthConfig(views=args.views, fps=args.fps, start=args.start, frames=args.frames, seed=args.seed,
                            width=args.width, height=args.height, noise=args.noise,
                            lighting_change=args.lighting_change, occluder=args.occluder,
@@ -406,6 +420,8 @@ def _track_arguments(args: argparse.Namespace) -> argparse.Namespace:
         from data_tools.textfiles import read_json
 
         saved = read_json(path, "saved track arguments")
+        for spec in saved.get("plugin", []):
+            import_plugin(spec)
         return argparse.Namespace(**{**vars(args), **saved, "resume": args.resume})
     if not args.sequence or not args.prior or not args.out:
         raise InputError("track needs DIR, --prior and --out (or --resume OUTDIR)")
@@ -435,8 +451,9 @@ def cmd_track(args: argparse.Namespace) -> int:
         raise InputError(f"--frames {args.frames} is past the end of the sequence ({seq.n_frames} frames)", seq.root)
     priors = {n: prior_entry(n).options for n in available_priors()}
     likelihoods = {n: likelihood_entry(n).options for n in available_likelihoods()}
-    prior_options = _given_options(args, "prior", args.prior, priors[args.prior], priors)
-    lik_options = _given_options(args, "likelihood", args.likelihood, likelihoods[args.likelihood], likelihoods)
+    prior_options = _given_options(args, "prior", args.prior, prior_entry(args.prior).options, priors)
+    lik_options = _given_options(args, "likelihood", args.likelihood, likelihood_entry(args.likelihood).options,
+                                 likelihoods)
     prior = build_prior(args.prior, seq, args.model or (), train_mocap=args.train_mocap, **prior_options)
     likelihood = build_likelihood(args.likelihood, seq, views, **lik_options)
     init = read_poses_file(args.init, "initial poses") if args.init else None
@@ -444,7 +461,8 @@ def cmd_track(args: argparse.Namespace) -> int:
     if not args.resume:
         from data_tools.files import write_text_atomic
 
-        saved = {k: v for k, v in vars(args).items() if k not in ("resume", "command", "plugin", "threads")}
+        saved = {k: v for k, v in vars(args).items() if k not in ("resume", "command", "threads")}
+        saved["plugin"] = [str(Path(p).resolve()) if p.endswith(".py") else p for p in args.plugin]
         write_text_atomic(out / TRACK_ARGS, json.dumps(saved, indent=1))
     T = args.frames or seq.n_frames
     errors: list[float] = []

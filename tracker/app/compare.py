@@ -83,7 +83,7 @@ def prepare_models(exp: Experiment, out: Path, version: str, say: Callable[[str]
             if not path.exists():
                 say(f"training {p.name} for {p.label!r} on {len(t.mocap)} clip(s)")
                 try:
-                    clips = load_clips(t.mocap, exp.fps)
+                    clips = load_clips(t.mocap, exp.fps, t.skeletons)
                 except InputError as exc:
                     raise InputError(f"prior {p.label!r}: {exc}", exp.path) from None
                 model = train(p.name, clips, fps=exp.fps, rng=t.seed, **t.options)
@@ -94,11 +94,12 @@ def prepare_models(exp: Experiment, out: Path, version: str, say: Callable[[str]
     return models
 
 
-def load_clips(clips, fps: float) -> list:
-    """Retargeted training clips of :class:`~tracker.app.experiment.ClipSpec` entries, each cut to its range."""
+def load_clips(clips, fps: float, skeletons=None) -> list:
+    """Retargeted training clips of :class:`~tracker.app.experiment.ClipSpec` entries, each cut to its range
+    (``skeletons``: one ASF for all AMC clips or one per clip; default the one beside each)."""
     from data_tools.load import load_training_clips
 
-    loaded = load_training_clips([m.path for m in clips], None, fps)
+    loaded = load_training_clips([m.path for m in clips], skeletons, fps)
     cut = [slice(m.start, None if m.frames is None else m.start + m.frames) for m in clips]
     out = [replace(c, poses=c.poses[k], markers=c.markers[k], model_markers=c.model_markers[k])
            for c, k in zip(loaded, cut)]
@@ -280,8 +281,9 @@ def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str
     specs = expand_runs(exp, sequence_paths, sequence_hashes, models, scales, runs_dir, version)
     per_worker = threads or share_of_cores(jobs if backend == "joblib" or not address else 1)
     specs = [replace(s, threads=per_worker) for s in specs]
-    todo = [s for s in specs if not (runs_dir / s.key / "result.json").exists()]
-    say(f"{len(specs)} runs: {len(specs) - len(todo)} finished before (skipped), {len(todo)} to run "
+    unique = list({s.key: s for s in specs}.values())  # two rows that differ only in label run once
+    todo = [s for s in unique if not (runs_dir / s.key / "result.json").exists()]
+    say(f"{len(unique)} runs: {len(unique) - len(todo)} finished before (skipped), {len(todo)} to run "
         f"({backend}, {jobs} job(s), {per_worker} thread(s) each)")
     summaries = {}
     t0 = time.perf_counter()
@@ -300,8 +302,12 @@ def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str
         if bar is not None:
             bar.close()
     wall = time.perf_counter() - t0
-    results = [json.loads((runs_dir / s.key / "result.json").read_text()) for s in specs]
-    meta = {"experiment": str(exp.path), "description": exp.description, "runs": len(specs),
+    results = []
+    for s in specs:  # each run under the labels of this experiment file, whatever it was labelled when it ran
+        r = json.loads((runs_dir / s.key / "result.json").read_text())
+        r["run"] = s.as_dict()
+        results.append(r)
+    meta = {"experiment": str(exp.path), "description": exp.description, "runs": len(unique),
             "ran_now": len(todo), "wall_seconds_now": wall,
             "run_seconds_now": sum(r.get("wall_seconds", 0.0) for r in summaries.values()),
             "jobs": jobs, "backend": backend, "threads_per_worker": per_worker, "version": version}

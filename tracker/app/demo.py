@@ -19,7 +19,7 @@ def run_demo(out: Path, frames: int = 90) -> int:
     asf, walks = sample_walks()
     train_walk, test_walk = walks  # 07_01 trains the priors, 07_02 is rendered and tracked
     print(f"1/4 Rendering {frames} frames of CMU walk {test_walk.stem} into 4 cameras (60 Hz, 640x480)")
-    seq = synthesize(load_clip(test_walk, asf, fps=60.0), out / "sequence", frames=frames,
+    seq = synthesize(load_clip(test_walk, asf, fps=60.0), out / "sequence", frames=frames, overwrite=True,
                      progress=lambda it: tqdm(it, desc="rendering", unit="frame"))
     clip = load_clip(train_walk, asf, fps=60.0)
     print(f"2/4 Training a first-order CRBM (150 hidden units, CD-10, 300 epochs) on {train_walk.stem}")

@@ -235,14 +235,23 @@ def load_experiment(path: str | Path) -> Experiment:
         "resampling": tracking.get("resampling", "systematic"),
     }
     views = tracking.get("views")
+    if views is not None and not isinstance(views, list):
+        raise w.error("[tracking] views", f"expected a list of camera indices or a list of such lists, got {views!r}")
     view_sets = [None] if views is None else (views if views and isinstance(views[0], list) else [views])
     for vs in view_sets:
-        if vs is not None and (not vs or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 0
-                                                 for v in vs) or len(set(vs)) != len(vs)):
+        if vs is not None and (not isinstance(vs, list) or not vs or not all(
+                isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in vs) or len(set(vs)) != len(vs)):
             raise w.error("[tracking] views", f"each view set must list distinct camera indices, got {vs!r}")
     grid["views"] = view_sets
     if grid["frames"] is not None:
         grid["frames"] = w.int_(grid["frames"], "[tracking] frames", 2)
+        if grid["known_frames"] >= grid["frames"]:
+            raise w.error("[tracking] frames", f"must exceed known_frames ({grid['known_frames']}), got "
+                                               f"{grid['frames']}")
+    from tracker.engine.resampling import SCHEMES
+
+    if grid["resampling"] not in SCHEMES:
+        raise w.error("[tracking] resampling", f"expected one of {', '.join(SCHEMES)}, got {grid['resampling']!r}")
 
     sequences = []
     for i, s in enumerate(doc.get("sequence", [])):
@@ -368,7 +377,7 @@ def row_label(prior: PriorSpec, likelihood: LikelihoodSpec, views, particles: in
     if len(exp.likelihoods) > 1:
         parts.append(likelihood.label)
     if len(exp.tracking["views"]) > 1:
-        parts.append(f"{len(views)} view{'s' if len(views) != 1 else ''}" if views else "all views")
+        parts.append(f"views {','.join(map(str, views))}" if views else "all views")
     if len(exp.tracking["particles"]) > 1:
         parts.append(f"{particles} particles")
     if len(exp.tracking["annealing_layers"]) > 1:

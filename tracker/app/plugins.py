@@ -26,13 +26,17 @@ def load_plugins() -> None:
     global _loaded
     if _loaded:
         return
-    _loaded = True
     for package in _BUILTIN_PACKAGES:
         pkg = importlib.import_module(package)
         for info in pkgutil.iter_modules(pkg.__path__):
             importlib.import_module(f"{package}.{info.name}")
     for ep in entry_points(group=ENTRY_POINT_GROUP):
-        ep.load()
+        try:
+            ep.load()
+        except Exception as exc:  # noqa: BLE001 -- a broken third-party plugin must not take the tool down
+            raise InputError(f"plugin entry point {ep.name} ({ep.value}) failed to load: "
+                             f"{type(exc).__name__}: {exc}") from None
+    _loaded = True
 
 
 def import_plugin(spec: str) -> None:

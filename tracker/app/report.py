@@ -114,7 +114,7 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
                 lo, hi = bootstrap_interval(d)
                 cells.append(f"{d.mean():+.1f} [{lo:+.1f}, {hi:+.1f}]" if d.size > 1 else f"{d.mean():+.1f}")
             md.write(f"| {row} | {base_row} | " + " | ".join(cells) + " |\n")
-    cpu = sum(r.get("wall_seconds", 0.0) for r in results)
+    cpu = sum({r["run"]["key"]: r.get("wall_seconds", 0.0) for r in results}.values())
     md.write(f"\n{meta['runs']} runs, {cpu:.0f} s of run time in all; this invocation ran {meta['ran_now']} of them "
              f"with {meta['jobs']} {meta['backend']} job(s) in {meta['wall_seconds_now']:.0f} s; package version "
              f"{meta['version']}.\n")

@@ -160,6 +160,7 @@ class ParticleFilter:
         recovered = not weights.any_finite
         if recovered:
             x, history, weights = self._recover(state, frame_lik)
+            prior_state = self.prior.start(state.recent_estimates, cfg.n_particles, self.rng)
         W = weights.normalised
         mean = W @ x
         best = x[int(np.argmax(W))]
@@ -200,7 +201,8 @@ class ParticleFilter:
 
     def _recover(self, state: FilterState, frame_lik: FrameLikelihood
                  ) -> tuple[np.ndarray, np.ndarray, LogWeights]:
-        """No particle explains the frame: re-diffuse around the last estimate, restart the histories there."""
+        """No particle explains the frame: re-diffuse around the last estimate, restart the histories there (and
+        the prior's own state from them, in :meth:`step`)."""
         P, D = state.history.shape[0], state.history.shape[2]
         x = state.recent_estimates[-1] + self.rng.standard_normal((P, D)) * self.prior.diffusion_std()
         history = np.repeat(state.recent_estimates[None], P, axis=0)

@@ -12,8 +12,8 @@ tables: the engine never imports a plugin.
 
 A prior builder is called as ``build(context, model_files, options)`` and
 returns a :class:`~tracker.engine.prior.MotionPrior`; a learned prior also
-registers ``train(data, options, rng, progress)`` returning an object with
-``save(path)``. A likelihood builder is called as ``build(context, options)``
+registers ``train(data, options, rng, progress, checkpoint)`` returning an
+object with ``save(path)`` and ``summary()``. A likelihood builder is called as ``build(context, options)``
 and returns a :class:`~tracker.engine.likelihood.Likelihood`. ``options`` is a
 dict holding every declared :class:`Option`, checked and defaulted.
 """
@@ -153,6 +153,7 @@ class PriorEntry:
     model_files: str = "none"  # "none", "one" or "several"
     train: Callable[..., Any] | None = None
     train_options: tuple[Option, ...] = ()
+    resumable: bool = False
 
 
 @dataclass(frozen=True)
@@ -166,6 +167,11 @@ class LikelihoodEntry:
 E = TypeVar("E")
 
 
+def _origin(build: Callable) -> str:
+    """Where a builder is defined (module and name): re-importing the same module registers the same one."""
+    return f"{getattr(build, '__module__', '?')}.{getattr(build, '__qualname__', '?')}"
+
+
 @dataclass
 class Registry(Generic[E]):
     """Entries by name; a name registers once (re-registering the same builder, as a re-import does, is fine)."""
@@ -175,8 +181,9 @@ class Registry(Generic[E]):
 
     def add(self, entry: E) -> E:
         old = self.entries.get(entry.name)  # type: ignore[attr-defined]
-        if old is not None and getattr(old.build, "__qualname__", None) != getattr(entry.build, "__qualname__", 0):
-            raise ValueError(f"a {self.kind} named {entry.name!r} is already registered")  # type: ignore
+        if old is not None and _origin(old.build) != _origin(entry.build):  # type: ignore[attr-defined]
+            raise InputError(f"a {self.kind} named {entry.name!r} is already registered by "  # type: ignore
+                             f"{_origin(old.build)}; {_origin(entry.build)} cannot take the name")  # type: ignore
         self.entries[entry.name] = entry  # type: ignore[attr-defined]
         return entry
 
@@ -194,18 +201,21 @@ LIKELIHOODS: Registry[LikelihoodEntry] = Registry("likelihood")
 
 
 def register_prior(name: str, *, summary: str = "", options: Sequence[Option] = (), model_files: str = "none",
-                   train: Callable[..., Any] | None = None, train_options: Sequence[Option] = ()):
+                   train: Callable[..., Any] | None = None, train_options: Sequence[Option] = (),
+                   resumable: bool = False):
     """Decorator registering ``build(context, model_files, options) -> MotionPrior`` under ``name``.
 
     ``model_files`` says whether the prior takes none, ``"one"`` or ``"several"`` model files; ``train``
     (learned priors) is ``train(data: TrainingData, options, rng, progress, checkpoint) -> model`` with
-    ``model.save(path)``, configured by ``train_options``.
+    ``model.save(path)`` and ``model.summary()``, configured by ``train_options``; a ``resumable`` one also
+    takes ``resume=True`` to continue from ``checkpoint``.
     """
     if model_files not in ("none", "one", "several"):
         raise ValueError(f"model_files must be 'none', 'one' or 'several', got {model_files!r}")
 
     def decorate(build):
-        PRIORS.add(PriorEntry(name, build, summary, tuple(options), model_files, train, tuple(train_options)))
+        PRIORS.add(PriorEntry(name, build, summary, tuple(options), model_files, train, tuple(train_options),
+                              resumable))
         return build
     return decorate
 

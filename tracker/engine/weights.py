@@ -17,6 +17,10 @@ class LogWeights:
 
     log_w: np.ndarray
 
+    def __post_init__(self) -> None:  # a NaN log-weight (a broken likelihood value) is a particle with no weight
+        log_w = np.asarray(self.log_w, float)
+        object.__setattr__(self, "log_w", np.where(np.isnan(log_w), -np.inf, log_w))
+
     @classmethod
     def uniform(cls, n_particles: int) -> "LogWeights":
         return cls(np.zeros(n_particles))
