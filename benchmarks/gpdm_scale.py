@@ -125,8 +125,8 @@ def main() -> None:
                "iterations": args.iterations, "training_s": model.training_seconds,
                "objective_first_last": [h[0], h[-1]], "step_ms_1000_particles": step_ms(model, norm, clips),
                "forecast": {k: forecast(model, v, joints, joint_std) for k, v in tests.items()},
-               "noise_precision": {"dynamics": float(model.log_alpha[-1].exp()),
-                                   "observation": float(model.log_beta[2].exp())}}
+               "noise_precision": {"dynamics": float(model.log_alpha.detach()[-1].exp()),
+                                   "observation": float(model.log_beta.detach()[2].exp())}}
         rows[name] = row
         print(f"{name:18s} {row['frames']:5d} frames, {row['inducing']:3d} inducing: trained in "
               f"{row['training_s']:6.1f} s ({args.iterations} it.), step {row['step_ms_1000_particles']:5.1f} ms; "

@@ -62,7 +62,8 @@ FORMAT = "pose-tracker gpdm v1"
 DYNAMICS = ("linear", "rbf", "linear+rbf")
 #: Sparse approximations (:class:`_Sparse`): ``dtc`` (the default; deterministic training conditional, or
 #: projected process, Seeger et al. 2003), ``vfe`` (DTC plus Titsias' 2009 trace term: a lower bound on the
-#: evidence), ``fitc`` (Snelson & Ghahramani 2006). docs/gpdm.md compares them; DTC forecast best.
+#: evidence), ``fitc`` (Snelson & Ghahramani 2006). docs/gpdm.md compares them: DTC forecast best overall, VFE
+#: worst, and FITC learned a near-zero dynamics noise.
 SPARSE_METHODS = ("dtc", "vfe", "fitc")
 
 #: Largest training set (frames) on which ``inducing=None`` (auto) keeps the exact model; above it the GPs are
@@ -572,7 +573,7 @@ class GPDMSampler:
     the dynamics GP, and the observation GP's mean pose there.
 
     Kernels and means are float64: the weights ``K^-1 T`` are large (hundreds to thousands, of both signs), and
-    a float32 kernel's rounding (5e-7) times them moved latent means by 5e-4 to 8e-4, about 2% of the latent
+    a float32 kernel's rounding (5e-7) times them moved latent means by 5e-4 to 8e-4, 2-3% of the latent
     noise. The latent variance's product ``k P^T`` (``B x n x n``, the step's main cost) is in ``PT``'s dtype,
     float32 by default: its error was 3% of the variance at worst, 1.5% of the noise's standard deviation.
     """
