@@ -14,13 +14,26 @@ space) and observations ``Y`` (``N x D``, normalised invariant features):
 Learning minimises the negative log-posterior (eq. 4.2, with the balanced
 prior ``M sum ln b`` of eq. 5.2) over ``X`` and the log hyperparameters by
 L-BFGS with autograd; ``W`` is set in closed form every few iterations. Every
-log-determinant and solve goes through a Cholesky factor (no explicit
-inverse); a kernel matrix that is not positive definite raises an
+log-determinant and solve in the objective goes through a Cholesky factor (no
+explicit inverse); a kernel matrix that is not positive definite raises an
 :class:`InputError` that says which one and why.
+
+Sparse model, for thousands of frames (``GPDMConfig.inducing``; exact up to
+:data:`EXACT_MAX_FRAMES` frames by default): both GPs use inducing points that
+are the latent points of ``m`` frames chosen by farthest-point sampling of the
+poses (:func:`inducing_frames`), so they move with ``X``; the dynamics GP's
+inducing inputs are the dynamics inputs of those frames. Each GP's ``ln p(T)``
+is replaced by the DTC (projected process) approximation
+``ln N(T; 0, K_fu K_uu^-1 K_uf + s2 I)`` (Seeger et al. 2003; the DTC of
+Lawrence 2007's sparse GP-LVM), computed in O(N m^2) by the matrix inversion
+lemma. Every frame keeps its latent point, its observation term and its
+dynamics term; only the kernel's rank is limited to ``m``.
 
 Prediction (eqs. 4.4-4.5): ``mu_X(x) = X_out^T K_X^-1 k_X(x)``,
 ``sigma_X^2(x) = k_X(x, x) - k_X(x)^T K_X^-1 k_X(x)``, and the same for the
-pose through the observation GP.
+pose through the observation GP; a sparse model predicts through its inducing
+points (the DTC predictive mean and variance). :meth:`GPDM.prepare` computes
+every factor once; :class:`GPDMSampler` is the tracking prior's batched step.
 
 Registered as the ``gpdm`` prior (``train`` and ``track --prior gpdm``).
 """
@@ -36,8 +49,7 @@ import numpy as np
 import torch
 
 from priors.common import (
-    ROOT_NOISE_MM, add_ground_diffusion, check_model_fits, normaliser_from_tensors, normaliser_to_tensors,
-    read_model_file, torch_generator,
+    ROOT_NOISE_MM, check_model_fits, normaliser_from_tensors, normaliser_to_tensors, read_model_file,
 )
 from tracker.core.errors import InputError
 from tracker.core.representation import (
@@ -48,6 +60,23 @@ from tracker.engine.registry import Option, PriorContext, TrainingData, register
 
 FORMAT = "pose-tracker gpdm v1"
 DYNAMICS = ("linear", "rbf", "linear+rbf")
+#: Sparse approximations (:class:`_Sparse`): ``dtc`` (the default; deterministic training conditional, or
+#: projected process, Seeger et al. 2003), ``vfe`` (DTC plus Titsias' 2009 trace term: a lower bound on the
+#: evidence), ``fitc`` (Snelson & Ghahramani 2006). docs/gpdm.md compares them: DTC forecast best overall, VFE
+#: worst, and FITC learned a near-zero dynamics noise.
+SPARSE_METHODS = ("dtc", "vfe", "fitc")
+
+#: Largest training set (frames) on which ``inducing=None`` (auto) keeps the exact model; above it the GPs are
+#: sparse with :data:`AUTO_INDUCING` inducing frames. An exact objective evaluation costs O(N^3) (600 frames: 0.09 s
+#: on one core; 1786 frames took 3 s per L-BFGS iteration), a sparse one O(N m^2) (2000 frames, m = 200: 0.1 s);
+#: the exact prior's step costs O(P N^2) for P particles (1000 particles, 500 frames: about 16 ms; 600: 23 ms).
+EXACT_MAX_FRAMES = 500
+#: Inducing frames of the auto setting (see docs/gpdm.md for the measurements behind it).
+AUTO_INDUCING = 200
+#: Fewest inducing frames a sparse model may have.
+MIN_INDUCING = 10
+#: Jitter added to the inducing kernel matrix ``K_uu``, relative to its mean diagonal.
+JITTER = 1e-6
 
 
 @dataclass
@@ -58,6 +87,10 @@ class GPDMConfig:
     balance: float = 1.0
     iterations: int = 300
     w_update_every: int = 10
+    #: ``None``: exact up to :data:`EXACT_MAX_FRAMES` frames, else :data:`AUTO_INDUCING` inducing frames;
+    #: ``0``: always exact; ``m > 0``: sparse with ``min(m, N)`` inducing frames (see :func:`inducing_frames`).
+    inducing: int | None = None
+    sparse_method: str = "dtc"
 
     def check(self) -> "GPDMConfig":
         if self.latent_dim < 1:
@@ -70,7 +103,17 @@ class GPDMConfig:
             raise InputError(f"the balance M must be positive, got {self.balance}")
         if self.iterations < 1 or self.w_update_every < 1:
             raise InputError("iterations and the W update interval must be at least 1")
+        if self.inducing is not None and self.inducing != 0 and self.inducing < MIN_INDUCING:
+            raise InputError(f"inducing frames must be 0 (exact) or at least {MIN_INDUCING}, got {self.inducing}")
+        if self.sparse_method not in SPARSE_METHODS:
+            raise InputError(f"sparse method must be one of {', '.join(SPARSE_METHODS)}, got {self.sparse_method!r}")
         return self
+
+    def inducing_count(self, n_frames: int) -> int:
+        """Inducing frames for a training set of ``n_frames`` frames (0: the exact model)."""
+        if self.inducing is None:
+            return 0 if n_frames <= EXACT_MAX_FRAMES else AUTO_INDUCING
+        return min(self.inducing, n_frames)
 
 
 def n_dynamics_params(cfg: GPDMConfig) -> int:
@@ -84,7 +127,9 @@ def n_dynamics_params(cfg: GPDMConfig) -> int:
 
 
 def _sqdist(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    return ((a[:, None, :] - b[None, :, :]) ** 2).sum(-1)
+    """Squared distances ``n x m`` between the rows of ``a`` and ``b``, as ``|a|^2 + |b|^2 - 2 a b^T`` (one
+    matrix product; float64 keeps its rounding near 1e-16 |x|^2)."""
+    return ((a * a).sum(1)[:, None] + (b * b).sum(1)[None, :] - 2 * a @ b.T).clamp_min(0)
 
 
 def _cholesky(K: torch.Tensor, what: str) -> torch.Tensor:
@@ -114,10 +159,85 @@ def sequence_starts(lengths: Sequence[int], order: int) -> np.ndarray:
     return np.concatenate([o + np.arange(min(order, n)) for o, n in zip(offs, lengths)])
 
 
-class GPDM:
-    """A GPDM's parameters (torch float64) and its objective and predictions."""
+def inducing_frames(Y: np.ndarray, m: int) -> np.ndarray:
+    """``m`` frames of ``Y`` (``N x D``) by farthest-point sampling, sorted: the frame nearest the mean first,
+    then repeatedly the frame farthest (Euclidean, in the normalised features) from all chosen so far.
 
-    def __init__(self, Y: np.ndarray, lengths: Sequence[int], config: GPDMConfig, X: np.ndarray | None = None):
+    Deterministic (ties go to the lowest index). The chosen frames cover the poses evenly, however many frames
+    each subject or motion contributes: a rare pose (a start from standing) gets an inducing frame as soon as it
+    is farther from the chosen ones than the spacing elsewhere, while hundreds of near-identical frames of a
+    long steady walk share a few.
+    """
+    Y = np.asarray(Y, float)
+    N = len(Y)
+    if m >= N:
+        return np.arange(N)
+    chosen = [int(((Y - Y.mean(0)) ** 2).sum(1).argmin())]
+    dist = ((Y - Y[chosen[0]]) ** 2).sum(1)
+    for _ in range(m - 1):
+        i = int(dist.argmax())
+        chosen.append(i)
+        dist = np.minimum(dist, ((Y - Y[i]) ** 2).sum(1))
+    return np.sort(np.array(chosen))
+
+
+@dataclass
+class _Sparse:
+    """Factors of a sparse (inducing-point) GP (see :data:`SPARSE_METHODS`) with inducing matrix ``K_uu``,
+    cross-covariance ``K_uf`` (``m x n``), prior variances ``k_diag`` (``n``) and noise variance ``s2``:
+    ``L L^T = K_uu + jitter``, ``Q = K_fu K_uu^-1 K_uf``, per-point noise ``lam`` (``s2``; FITC:
+    ``s2 + diag(K - Q)``), ``A = L^-1 K_uf diag(lam)^-1/2``, ``L_B L_B^T = I + A A^T``. Everything costs
+    O(n m^2); with every frame inducing, DTC and VFE equal the exact GP up to the jitter."""
+
+    L: torch.Tensor
+    A: torch.Tensor
+    LB: torch.Tensor
+    lam: torch.Tensor
+    trace: torch.Tensor  # tr(K - Q) / s2 (VFE), else 0
+
+    @classmethod
+    def of(cls, Kuu: torch.Tensor, Kuf: torch.Tensor, k_diag: torch.Tensor, s2: torch.Tensor, what: str,
+           method: str) -> "_Sparse":
+        m = Kuu.shape[0]
+        eye = torch.eye(m, dtype=Kuu.dtype)
+        L = _cholesky(Kuu + JITTER * torch.diagonal(Kuu).mean() * eye, f"{what} inducing")
+        A0 = torch.linalg.solve_triangular(L, Kuf, upper=False)
+        q = (A0 ** 2).sum(0)
+        lam = s2 + (k_diag - q).clamp_min(0) if method == "fitc" else s2.expand(len(q))
+        trace = (k_diag - q).sum() / s2 if method == "vfe" else torch.zeros((), dtype=Kuu.dtype)
+        A = A0 / lam.sqrt()
+        LB = _cholesky(eye + A @ A.T, what)
+        return cls(L, A, LB, lam, trace)
+
+    def c(self, T: torch.Tensor) -> torch.Tensor:
+        """``L_B^-1 A diag(lam)^-1/2 T`` (``m x k``) for targets ``T`` (``n x k``)."""
+        return torch.linalg.solve_triangular(self.LB, self.A @ (T / self.lam.sqrt()[:, None]), upper=False)
+
+    def quad(self, T: torch.Tensor) -> torch.Tensor:
+        """``diag(T^T (Q + diag(lam))^-1 T)`` (``k``) by the matrix inversion lemma."""
+        return (T ** 2 / self.lam[:, None]).sum(0) - (self.c(T) ** 2).sum(0)
+
+    def nll(self, T: torch.Tensor) -> torch.Tensor:
+        """``k/2 ln|Q + diag(lam)| + 1/2 tr(T^T (Q + diag(lam))^-1 T) [+ k/(2 s2) tr(K - Q)]`` for ``k``
+        independent outputs, up to a constant: with the trace term the negative of Titsias' (2009)
+        variational lower bound on ``ln p(T)``."""
+        k = T.shape[1]
+        logdet = torch.log(self.lam).sum() + 2 * torch.log(torch.diagonal(self.LB)).sum()
+        return 0.5 * k * logdet + 0.5 * self.quad(T).sum() + 0.5 * k * self.trace
+
+
+_AUTO = object()
+
+
+class GPDM:
+    """A GPDM's parameters (torch float64) and its objective and predictions.
+
+    ``active`` holds the inducing frames (sorted indices into ``Y``) of a sparse model, ``None`` for the exact
+    one; by default it follows ``config.inducing`` (:meth:`GPDMConfig.inducing_count`, :func:`inducing_frames`).
+    """
+
+    def __init__(self, Y: np.ndarray, lengths: Sequence[int], config: GPDMConfig, X: np.ndarray | None = None,
+                 active: np.ndarray | None = _AUTO):
         self.config = cfg = config.check()
         Y = np.asarray(Y, float)
         if Y.ndim != 2 or sum(lengths) != len(Y):
@@ -130,6 +250,10 @@ class GPDM:
         out_idx, in_idx = dynamics_pairs(self.lengths, cfg.order)
         self.out_idx, self.in_idx = torch.tensor(out_idx), torch.tensor(in_idx)
         self.start_idx = torch.tensor(sequence_starts(self.lengths, cfg.order))
+        if active is _AUTO:
+            m = cfg.inducing_count(len(Y))
+            active = inducing_frames(Y, m) if m else None
+        self.set_active(active)
         d = cfg.latent_dim
         if X is None:
             X = pca_init(Y, d)
@@ -142,6 +266,31 @@ class GPDM:
         self.W = torch.ones(Y.shape[1], dtype=torch.float64)
         self.objective_history: list[float] = []
         self.training_seconds = 0.0
+
+    def set_active(self, active: np.ndarray | None) -> None:
+        """Make the model sparse with inducing frames ``active`` (indices into ``Y``), or exact (``None``).
+
+        The observation GP's inducing inputs are the latent points of those frames, ``X[active]``; the dynamics
+        GP's are the dynamics inputs whose newest lag is one of them. Both move with ``X`` during learning.
+        """
+        if active is None:
+            self.active = self.dyn_active = None
+            return
+        active = np.unique(np.asarray(active, dtype=np.int64).ravel())
+        N = len(self.Y)
+        if len(active) < min(MIN_INDUCING, N) or active[0] < 0 or active[-1] >= N:
+            where = f" in {active[0]}..{active[-1]}" if len(active) else ""
+            raise InputError(f"inducing frames must be at least {min(MIN_INDUCING, N)} distinct indices in "
+                             f"0..{N - 1}, got {len(active)}{where}")
+        self.active = torch.tensor(active)
+        dyn = np.flatnonzero(np.isin(self.in_idx[:, 0].numpy(), active))
+        if len(dyn) == 0:
+            raise InputError("no inducing frame is the input of a dynamics pair (each is its sequence's last)")
+        self.dyn_active = torch.tensor(dyn)
+
+    @property
+    def sparse(self) -> bool:
+        return self.active is not None
 
     # --- kernels -----------------------------------------------------------
     def _k_y(self, A: torch.Tensor, B: torch.Tensor) -> torch.Tensor:
@@ -156,17 +305,15 @@ class GPDM:
         """
         a = self.log_alpha.exp()
         o, d = self.config.order, self.config.latent_dim
-        K = torch.zeros(A.shape[0], B.shape[0], dtype=A.dtype)
-        i = 0
-        if "rbf" in self.config.dynamics:
-            expo = torch.zeros_like(K)
-            for k in range(o):
-                expo = expo + a[1 + k] * _sqdist(A[:, k * d:(k + 1) * d], B[:, k * d:(k + 1) * d])
-            K = K + a[0] * torch.exp(-0.5 * expo)
+        K, i = None, 0
+        if "rbf" in self.config.dynamics:  # each lag's inverse width scales its coordinates
+            s = a[1:1 + o].sqrt().repeat_interleave(d)
+            K = a[0] * torch.exp(-0.5 * _sqdist(A * s, B * s))
             i = 1 + o
         if "linear" in self.config.dynamics:
-            for k in range(o):
-                K = K + a[i + k] * (A[:, k * d:(k + 1) * d] @ B[:, k * d:(k + 1) * d].T)
+            s = a[i:i + o].sqrt().repeat_interleave(d)
+            lin = (A * s) @ (B * s).T
+            K = lin if K is None else K + lin
         return K
 
     def _k_x_diag(self, A: torch.Tensor) -> torch.Tensor:
@@ -198,6 +345,17 @@ class GPDM:
         b = self.log_beta.exp()
         Xin = self.dynamics_inputs()
         Xout = X[self.out_idx]
+        start = 0.5 * (X[self.start_idx] ** 2).sum()
+        if self.sparse:
+            Zin = Xin[self.dyn_active]
+            dyn = _Sparse.of(self._k_x(Zin, Zin), self._k_x(Zin, Xin), self._k_x_diag(Xin), 1 / a[-1],
+                             "dynamics", cfg.sparse_method).nll(Xout) + self.log_alpha.sum()
+            Xu = X[self.active]
+            sy = _Sparse.of(self._k_y(Xu, Xu), self._k_y(Xu, X), b[0].expand(N), 1 / b[2], "observation",
+                            cfg.sparse_method)
+            rec = (-N * torch.log(self.W).sum() + sy.nll(Y * self.W)
+                   + cfg.balance * self.log_beta.sum())
+            return dyn + rec + start
         KX = self._k_x(Xin, Xin) + torch.eye(len(Xin), dtype=X.dtype) / a[-1]
         LX = _cholesky(KX, "dynamics")
         KY = self._k_y(X, X) + torch.eye(N, dtype=X.dtype) / b[2]
@@ -208,13 +366,19 @@ class GPDM:
         dyn = d * half_logdet(LX) + 0.5 * (sx ** 2).sum() + self.log_alpha.sum()
         rec = (-N * torch.log(self.W).sum() + D * half_logdet(LY) + 0.5 * (sy ** 2).sum()
                + cfg.balance * self.log_beta.sum())
-        start = 0.5 * (X[self.start_idx] ** 2).sum()
         return dyn + rec + start
 
     def update_W(self) -> None:
         """Closed-form scales (eq. 4.3): ``w_k = sqrt(N / (y_k^T K_Y^-1 y_k))``."""
         with torch.no_grad():
             N = self.Y.shape[0]
+            if self.sparse:  # the same with (Q + Lam)^-1 (VFE's trace term does not depend on W)
+                Xu = self.X[self.active]
+                b = self.log_beta.exp()
+                sp = _Sparse.of(self._k_y(Xu, Xu), self._k_y(Xu, self.X), b[0].expand(N), 1 / b[2], "observation",
+                                self.config.sparse_method)
+                self.W = torch.sqrt(N / sp.quad(self.Y).clamp_min(1e-12))
+                return
             KY = self._k_y(self.X, self.X) + torch.eye(N, dtype=torch.float64) / self.log_beta.exp()[2]
             LY = _cholesky(KY, "observation")
             s = torch.linalg.solve_triangular(LY, self.Y, upper=False)
@@ -229,8 +393,53 @@ class GPDM:
 
 
 @dataclass
+class _Head:
+    """One GP's predictions at new inputs ``x`` from precomputed factors: mean ``k(x, Z) @ w`` and variance
+    ``k(x, x) + s2 - |k(x, Z) P_-^T|^2 + |k(x, Z) P_+^T|^2`` (``P_+`` only for a sparse GP).
+
+    Exact (``Z`` all training inputs, ``L L^T = K + s2 I``): ``w = K^-1 T``, ``P_- = L^-1``. Sparse (``Z`` the
+    inducing inputs; the predictive distribution of DTC, the same for VFE, and of FITC with its per-frame
+    noise): ``w = L^-T L_B^-T c``, ``P_- = L^-1``, ``P_+ = L_B^-1 L^-1``, i.e. mean
+    ``k_*u (K_uu + K_uf Lam^-1 K_fu)^-1 K_uf Lam^-1 T`` (see :class:`_Sparse`)."""
+
+    Z: torch.Tensor
+    w: torch.Tensor
+    PT: torch.Tensor  # [P_-^T, P_+^T] side by side (n_Z x n_Z or n_Z x 2 n_Z)
+    s2: torch.Tensor
+
+    @classmethod
+    def exact(cls, K: torch.Tensor, Z: torch.Tensor, T: torch.Tensor, s2: torch.Tensor, what: str) -> "_Head":
+        L = _cholesky(K + s2 * torch.eye(len(K), dtype=K.dtype), what)
+        Linv = torch.linalg.solve_triangular(L, torch.eye(len(K), dtype=K.dtype), upper=False)
+        return cls(Z, torch.cholesky_solve(T, L), Linv.T.contiguous(), s2)
+
+    @classmethod
+    def sparse(cls, Kuu: torch.Tensor, Kuf: torch.Tensor, k_diag: torch.Tensor, Z: torch.Tensor, T: torch.Tensor,
+               s2: torch.Tensor, what: str, method: str) -> "_Head":
+        sp = _Sparse.of(Kuu, Kuf, k_diag, s2, what, method)
+        eye = torch.eye(len(Kuu), dtype=Kuu.dtype)
+        Linv = torch.linalg.solve_triangular(sp.L, eye, upper=False)
+        P2 = torch.linalg.solve_triangular(sp.LB, Linv, upper=False)
+        return cls(Z, P2.T @ sp.c(T), torch.cat([Linv.T, P2.T], dim=1).contiguous(), s2)
+
+    def mean(self, k: torch.Tensor) -> torch.Tensor:
+        return k @ self.w
+
+    def var(self, k: torch.Tensor, k_diag: torch.Tensor, PT: torch.Tensor | None = None) -> torch.Tensor:
+        """The variance; the product with ``P`` in ``PT``'s dtype when given (``PT``: this head's, cast)."""
+        PT = self.PT if PT is None else PT
+        v = (k.to(PT.dtype) @ PT) ** 2
+        n = len(self.Z)
+        var = k_diag + self.s2 - v[:, :n].sum(1).to(k_diag.dtype)
+        if v.shape[1] > n:
+            var = var + v[:, n:].sum(1).to(k_diag.dtype)
+        return var.clamp_min(1e-12)
+
+
+@dataclass
 class GPDMPredictor:
-    """Everything mean prediction needs, as plain tensors (no autograd)."""
+    """Everything prediction needs, as plain tensors (no autograd), with the factors of both GPs computed once
+    (:meth:`GPDM.prepare`); a sparse model predicts through its inducing points only."""
 
     config: GPDMConfig
     X: torch.Tensor
@@ -240,51 +449,68 @@ class GPDMPredictor:
     log_beta: torch.Tensor
     in_idx: torch.Tensor
     out_idx: torch.Tensor
-    _cache: dict = field(default_factory=dict, repr=False)
+    active: torch.Tensor | None = None
+    dyn_active: torch.Tensor | None = None
+    _heads: dict = field(default_factory=dict, repr=False)
 
     @classmethod
     def of(cls, m: GPDM) -> "GPDMPredictor":
-        return cls(m.config, m.X.detach().clone(), m.Y.clone(), m.W.clone(), m.log_alpha.detach().clone(),
-                   m.log_beta.detach().clone(), m.in_idx.clone(), m.out_idx.clone())
+        p = cls(m.config, m.X.detach().clone(), m.Y.clone(), m.W.clone(), m.log_alpha.detach().clone(),
+                m.log_beta.detach().clone(), m.in_idx.clone(), m.out_idx.clone(), m.active, m.dyn_active)
+        p._factors()
+        return p
+
+    @property
+    def sparse(self) -> bool:
+        return self.active is not None
 
     def _model(self) -> GPDM:
+        """A parameter shell for the kernels."""
         g = GPDM.__new__(GPDM)
         g.config, g.X, g.Y, g.W = self.config, self.X, self.Y, self.W
-        g.log_alpha, g.log_beta, g.in_idx, g.out_idx = self.log_alpha, self.log_beta, self.in_idx, self.out_idx
+        g.log_alpha, g.log_beta = self.log_alpha, self.log_beta
+        g.in_idx, g.out_idx, g.active, g.dyn_active = self.in_idx, self.out_idx, self.active, self.dyn_active
         return g
 
     def _factors(self) -> dict:
-        if not self._cache:
+        """``g`` (kernel shell), ``latent`` and ``pose`` (:class:`_Head`), computed on first use."""
+        if not self._heads:
             g = self._model()
             a, b = self.log_alpha.exp(), self.log_beta.exp()
-            Xin = g.dynamics_inputs()
-            KX = g._k_x(Xin, Xin) + torch.eye(len(Xin), dtype=torch.float64) / a[-1]
-            LX = _cholesky(KX, "dynamics")
-            KY = g._k_y(self.X, self.X) + torch.eye(len(self.X), dtype=torch.float64) / b[2]
-            LY = _cholesky(KY, "observation")
-            self._cache.update(g=g, Xin=Xin, LX=LX, LY=LY,
-                               alpha_X=torch.cholesky_solve(self.X[self.out_idx], LX),
-                               alpha_Y=torch.cholesky_solve(self.Y, LY))
-        return self._cache
+            Xin, Xout = g.dynamics_inputs(), self.X[self.out_idx]
+            if self.sparse:
+                Zin, Xu = Xin[self.dyn_active], self.X[self.active]
+                method = self.config.sparse_method
+                latent = _Head.sparse(g._k_x(Zin, Zin), g._k_x(Zin, Xin), g._k_x_diag(Xin), Zin, Xout, 1 / a[-1],
+                                      "dynamics", method)
+                pose = _Head.sparse(g._k_y(Xu, Xu), g._k_y(Xu, self.X), b[0].expand(len(self.X)), Xu, self.Y,
+                                    1 / b[2], "observation", method)
+            else:
+                latent = _Head.exact(g._k_x(Xin, Xin), Xin, Xout, 1 / a[-1], "dynamics")
+                pose = _Head.exact(g._k_y(self.X, self.X), self.X, self.Y, 1 / b[2], "observation")
+            self._heads.update(g=g, latent=latent, pose=pose)
+        return self._heads
 
     def predict_latent(self, inputs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Mean ``B x d`` and variance ``(B,)`` of the next latent point for dynamics inputs ``B x (order d)``."""
         f = self._factors()
-        k = f["g"]._k_x(inputs, f["Xin"])  # B x M
-        mean = k @ f["alpha_X"]
-        v = torch.linalg.solve_triangular(f["LX"], k.T, upper=False)
-        var = f["g"]._k_x_diag(inputs) + 1.0 / self.log_alpha.exp()[-1] - (v ** 2).sum(0)
-        return mean, var.clamp_min(1e-12)
+        h = f["latent"]
+        k = f["g"]._k_x(inputs, h.Z)
+        return h.mean(k), h.var(k, f["g"]._k_x_diag(inputs))
 
     def predict_pose(self, latent: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Mean ``B x D`` (normalised features) and per-dimension variance ``B x D`` of poses at latent points."""
         f = self._factors()
-        k = f["g"]._k_y(latent, self.X)
-        mean = k @ f["alpha_Y"]
-        v = torch.linalg.solve_triangular(f["LY"], k.T, upper=False)
-        b = self.log_beta.exp()
-        var = (b[0] + 1.0 / b[2] - (v ** 2).sum(0)).clamp_min(1e-12)
-        return mean, var[:, None] / self.W[None, :] ** 2
+        h = f["pose"]
+        k = f["g"]._k_y(latent, h.Z)
+        var = h.var(k, self.log_beta.exp()[0].expand(len(latent)))
+        return h.mean(k), var[:, None] / self.W[None, :] ** 2
+
+    def sampler(self, dtype: torch.dtype = torch.float32) -> "GPDMSampler":
+        """The batched step of the tracking prior, with the latent variance's ``B x n x n`` product in ``dtype``
+        (see :class:`GPDMSampler`)."""
+        f = self._factors()
+        return GPDMSampler(f["g"], f["latent"], f["pose"], f["latent"].PT.to(dtype))
 
     def project(self, poses: torch.Tensor, iterations: int = 50) -> torch.Tensor:
         """Latent points ``B x d`` for poses ``B x D`` (normalised features): each starts at the training latent
@@ -341,6 +567,34 @@ class GPDMPredictor:
         return torch.stack(out)
 
 
+@dataclass
+class GPDMSampler:
+    """One step of the tracking prior for a batch of particles, no autograd: the next latent point drawn from
+    the dynamics GP, and the observation GP's mean pose there.
+
+    Kernels and means are float64: the weights ``K^-1 T`` are large (hundreds to thousands, of both signs), and
+    a float32 kernel's rounding (5e-7) times them moved latent means by 5e-4 to 8e-4, 2-3% of the latent
+    noise. The latent variance's product ``k P^T`` (``B x n x n``, the step's main cost) is in ``PT``'s dtype,
+    float32 by default: its error was 3% of the variance at worst, 1.5% of the noise's standard deviation.
+    """
+
+    g: GPDM
+    latent: _Head
+    pose: _Head
+    PT: torch.Tensor
+
+    def step(self, inputs: torch.Tensor, noise: torch.Tensor, scale: float) -> tuple[torch.Tensor, torch.Tensor]:
+        """Next latent points ``x = mu + scale sigma noise`` (``B x d``) for dynamics inputs ``B x (order d)`` and
+        standard normal ``noise`` (``B x d``), and the mean normalised features ``B x D`` at ``x``."""
+        inputs, noise = inputs.to(torch.float64), noise.to(torch.float64)
+        with torch.no_grad():
+            k = self.g._k_x(inputs, self.latent.Z)
+            x = self.latent.mean(k)
+            if scale > 0:
+                x = x + scale * self.latent.var(k, self.g._k_x_diag(inputs), self.PT).sqrt()[:, None] * noise
+            return x, self.pose.mean(self.g._k_y(x, self.pose.Z))
+
+
 def pca_init(Y: np.ndarray, d: int) -> np.ndarray:
     """The top ``d`` principal components of centred ``Y`` (``N x d``), scaled to unit variance per axis."""
     Yc = Y - Y.mean(0)
@@ -390,17 +644,21 @@ def save_gpdm(path: str | Path, model: GPDM, extra: dict | None = None) -> None:
     doc = {"format": FORMAT, "config": asdict(model.config), "lengths": list(model.lengths),
            "X": model.X.detach().clone(), "Y": model.Y.clone(), "W": model.W.clone(),
            "log_alpha": model.log_alpha.detach().clone(), "log_beta": model.log_beta.detach().clone(),
+           "active": None if model.active is None else model.active.clone(),
            "objective_history": [float(v) for v in model.objective_history], "extra": extra or {}}
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     torch.save(doc, path)
 
 
 def load_gpdm(path: str | Path) -> tuple[GPDM, dict]:
-    """Read a model written by :func:`save_gpdm`: the GPDM and its ``extra`` metadata."""
+    """Read a model written by :func:`save_gpdm`: the GPDM and its ``extra`` metadata. Files written before
+    sparse models existed have no inducing frames (``active``) and no ``inducing`` setting: they are exact."""
     doc = read_model_file(path, FORMAT, "GPDM")
     config = dict(doc["config"])
     config.pop("seed", None)  # files written when the config carried an (unused) seed
-    model = GPDM(doc["Y"].numpy(), doc["lengths"], GPDMConfig(**config), X=doc["X"].numpy())
+    active = doc.get("active")
+    model = GPDM(doc["Y"].numpy(), doc["lengths"], GPDMConfig(**config), X=doc["X"].numpy(),
+                 active=None if active is None else active.numpy())
     with torch.no_grad():
         model.log_alpha.copy_(doc["log_alpha"])
         model.log_beta.copy_(doc["log_beta"])
@@ -436,8 +694,10 @@ class GPDMPriorModel:
         """One line on how training went."""
         h, c = self.gpdm.objective_history, self.gpdm.config
         fit = f"objective {h[0]:.1f} -> {h[-1]:.1f}, " if h else ""
-        return (f"{c.latent_dim}D GPDM ({c.dynamics} dynamics, order {c.order}): {fit}"
-                f"{self.gpdm.training_seconds:.1f} s")
+        g = self.gpdm
+        size = (f"{len(g.Y)} frames, {len(g.active)} inducing" if g.sparse else f"{len(g.Y)} frames, exact")
+        return (f"{c.latent_dim}D GPDM ({c.dynamics} dynamics, order {c.order}; {size}): {fit}"
+                f"{g.training_seconds:.1f} s")
 
     def check_compatible(self, body_model: str, dof_names: Sequence[str], fps: float | None,
                          source: str | Path | None = None) -> None:
@@ -478,11 +738,13 @@ class GPDMPrior(MotionPrior):
     name = "gpdm"
     order = 1
 
-    def __init__(self, model: GPDMPriorModel, noise_scale: float = 1.0, root_noise_mm: float = ROOT_NOISE_MM):
+    def __init__(self, model: GPDMPriorModel, noise_scale: float = 1.0, root_noise_mm: float = ROOT_NOISE_MM,
+                 dtype: torch.dtype = torch.float32):
         if not noise_scale >= 0 or not root_noise_mm >= 0:
             raise InputError("GPDM noise scale and root noise must be non-negative")
         self.model = model
         self.predictor = model.gpdm.prepare()
+        self.sampler = self.predictor.sampler(dtype)
         self.latent_order = model.gpdm.config.order
         self.noise_scale = float(noise_scale)
         self.root_noise_mm = float(root_noise_mm)
@@ -500,23 +762,33 @@ class GPDMPrior(MotionPrior):
         return {"latent": np.repeat(history[None], n_particles, axis=0),
                 "step": np.repeat(pending_step(known)[None], n_particles, axis=0)}
 
-    def sample(self, history: np.ndarray, available: int, state: PriorState,
-               rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
+    def draw(self, n_particles: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
+        """Every random number of one step, drawn in one batch: standard normal ``latent`` (``P x d``) and
+        ``ground`` (``P x 2``) noise; particle ``i`` uses row ``i`` of each."""
+        return {"latent": rng.standard_normal((n_particles, self.model.gpdm.config.latent_dim)),
+                "ground": rng.standard_normal((n_particles, 2))}
+
+    def advance(self, history: np.ndarray, state: PriorState, noise: dict[str, np.ndarray]
+                ) -> tuple[np.ndarray, PriorState]:
+        """The step of :meth:`sample` for given noise (:meth:`draw`): deterministic, and row by row the same
+        for any batch of particles."""
         step = list(STEP_FEATURES)
-        inputs = torch.tensor(state["latent"])
-        with torch.no_grad():
-            mean, var = self.predictor.predict_latent(inputs)
-            noise = torch.randn(mean.shape, generator=torch_generator(rng, "cpu"), dtype=torch.float64)
-            x = mean + self.noise_scale * var.sqrt()[:, None] * noise
-            pose_features, _ = self.predictor.predict_pose(x)
+        x, pose_features = self.sampler.step(torch.from_numpy(np.ascontiguousarray(state["latent"])),
+                                             torch.from_numpy(noise["latent"]), self.noise_scale)
+        x = x.numpy()
         f_next = self.model.normaliser.inverse(pose_features.numpy())
         previous = np.zeros_like(f_next)
         previous[:, step] = state["step"]
-        poses = add_ground_diffusion(next_poses(history[:, -1], previous, f_next), self.root_noise_mm, rng)
+        poses = next_poses(history[:, -1], previous, f_next)
+        if self.root_noise_mm > 0:
+            poses[:, :2] += self.root_noise_mm * noise["ground"]
         d = self.model.gpdm.config.latent_dim
-        latent = np.concatenate([x.numpy(), state["latent"][:, :-d]], axis=1) if self.latent_order > 1 \
-            else x.numpy()
+        latent = np.concatenate([x, state["latent"][:, :-d]], axis=1) if self.latent_order > 1 else x
         return poses, {"latent": latent, "step": f_next[:, step]}
+
+    def sample(self, history: np.ndarray, available: int, state: PriorState,
+               rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
+        return self.advance(history, state, self.draw(len(state["latent"]), rng))
 
     def diffusion_std(self) -> np.ndarray:
         return self.model.pose_step_rms
@@ -531,7 +803,8 @@ def train_gpdm_from_data(data: TrainingData, options: dict, rng: np.random.Gener
                          checkpoint: Path | None = None) -> GPDMPriorModel:
     """``train --prior gpdm``: a GPDM on the clips of ``data`` (deterministic: ``rng`` is not drawn from)."""
     config = GPDMConfig(latent_dim=options["latent_dim"], dynamics=options["dynamics"], order=options["order"],
-                        balance=options["balance"], iterations=options["iterations"]).check()
+                        balance=options["balance"], iterations=options["iterations"],
+                        inducing=options.get("inducing")).check()
     report = None if progress is None else (
         lambda done, value: progress(done, config.iterations, {"objective": value}))
     return train_gpdm_prior(list(data.clips), config, data.fps, data.body_model.dof_names, data.body_model.name,
@@ -545,6 +818,9 @@ GPDM_TRAIN_OPTIONS = (
     Option("balance", float, GPDMConfig.balance,
            "exponent M of the prior on the observation hyperparameters (default 1)", minimum=0.0, strict=True),
     Option("iterations", int, GPDMConfig.iterations, "L-BFGS iterations (default 300)", minimum=1),
+    Option("inducing", int, GPDMConfig.inducing,
+           f"inducing frames of the sparse GPs, chosen by farthest-point sampling; 0 = exact (default: exact up "
+           f"to {EXACT_MAX_FRAMES} training frames, {AUTO_INDUCING} above)", minimum=0),
 )
 
 
