@@ -421,7 +421,7 @@ class CRBMPrior(MotionPrior):
 
     name = "crbm"
 
-    def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = 30, noise: float = 0.0,
+    def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = 30,
                  device: str = "cpu", mode: str = "gibbs", root_noise_mm: float = ROOT_NOISE_MM,
                  robust_fraction: float = 0.0, heading_noise: float = 0.0):
         if not models:
@@ -451,7 +451,6 @@ class CRBMPrior(MotionPrior):
         self.heading_noise = float(heading_noise)
         self.order = self.models[-1].order
         self.gibbs_steps = gibbs_steps
-        self.noise = float(noise)
         self.device = torch.device(device)
         for m in self.models:
             m.crbm.W, m.crbm.A, m.crbm.B, m.crbm.a, m.crbm.b = (
@@ -496,8 +495,6 @@ class CRBMPrior(MotionPrior):
         with torch.no_grad():
             if self.mode == "gibbs":
                 v = model.crbm.gibbs(hist, self.gibbs_steps, generator)
-            if self.noise > 0:
-                v = v + self.noise * torch.randn(v.shape, generator=generator, device=self.device)
         f_next = model.normaliser.inverse(v.cpu().double().numpy())
         poses = add_ground_diffusion(next_poses(history[:, -1], feats[:, -1], f_next), self.root_noise_mm, rng)
         add_heading_diffusion(poses, history[:, -1], self.heading_noise, rng)

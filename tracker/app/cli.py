@@ -340,18 +340,16 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 
 def _parse_views(text: str | None, n_views: int) -> list[int]:
+    """``--views 0,2`` as camera indices, checked by :func:`tracker.app.tracking.check_views`."""
+    from tracker.app.tracking import check_views
+
     if text is None:
         return list(range(n_views))
     try:
         views = [int(v) for v in text.split(",") if v.strip() != ""]
     except ValueError:
         raise InputError(f"--views must be comma-separated camera indices, got {text!r}") from None
-    if not views or len(set(views)) != len(views):
-        raise InputError(f"--views must list distinct camera indices, got {text!r}")
-    bad = [v for v in views if not 0 <= v < n_views]
-    if bad:
-        raise InputError(f"--views {bad} out of range: the sequence has {n_views} cameras (0..{n_views - 1})")
-    return views
+    return check_views(views, n_views)
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
