@@ -171,3 +171,28 @@ def test_quick_start_runs(tmp_path):
     lines = r.stdout.strip().splitlines()
     assert lines[0].strip().startswith("zero-velocity:") and lines[1].strip().startswith("crbm:")
     assert (tmp_path / "crbm" / "result.json").exists()
+
+
+def test_plugins_do_not_pull_in_the_application_layer():
+    code = ("import sys, importlib, pkgutil\n"
+            "for pkg in ('priors', 'likelihoods', 'data_tools'):\n"
+            "    p = importlib.import_module(pkg)\n"
+            "    for m in pkgutil.iter_modules(p.__path__):\n"
+            "        importlib.import_module(pkg + '.' + m.name)\n"
+            "print(sorted(m for m in sys.modules if m.startswith('tracker.app')))")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0 and r.stdout.strip() == "[]", (r.stdout, r.stderr[-300:])
+
+
+def test_a_plugin_option_clashing_with_a_command_flag_is_refused(tmp_path):
+    plugin = tmp_path / "clash.py"
+    plugin.write_text(textwrap.dedent('''
+        import tracker
+
+        @tracker.register_prior("clashing", options=(tracker.Option("seed", int, 0, "a clash"),))
+        def build_clashing(context, model_files, options):
+            raise AssertionError("never built")
+    '''))
+    r = subprocess.run([sys.executable, "-m", "tracker", "--plugin", str(plugin), "track", "--help"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "clashes with a flag" in r.stderr and "Traceback" not in r.stderr
