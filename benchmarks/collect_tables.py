@@ -4,7 +4,8 @@
 
 RESULTS_ROOT holds one output folder per experiment (as written by `python -m tracker compare EXP --out
 RESULTS_ROOT/NAME`). Each folder's table.md goes in with the command that made it; the notes file (findings
-written by hand) goes first.
+written by hand) goes first. Each folder's per_frame.png is linked when it was copied to
+docs/figures/NAME.png.
 """
 from __future__ import annotations
 
@@ -22,7 +23,8 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "experiments.md")
     args = parser.parse_args()
     parts = [args.notes.read_text().rstrip() + "\n"] if args.notes.exists() else []
-    for folder in sorted(p for p in args.root.iterdir() if (p / "table.md").exists()):
+    folders = [p for p in args.root.iterdir() if (p / "table.md").exists()]
+    for folder in sorted(folders, key=lambda p: (not p.name.startswith("table"), p.name != "monocular", p.name)):
         meta = json.loads((folder / "experiment.json").read_text())
         experiment = Path(meta["experiment"])
         try:
@@ -33,7 +35,9 @@ def main() -> None:
         parts.append(f"\n---\n\n## {table.splitlines()[0]}\n\n```\npython -m tracker compare {experiment} "
                      f"--out results/{folder.name} --jobs 2\n```\n\n" + "\n".join(
                          line.replace("## ", "### ", 1) if line.startswith("## ") else line
-                         for line in table.splitlines()[1:]).strip() + "\n")
+                         for line in table.splitlines()[1:]).strip() + "\n"
+                     + (f"\n![per-frame error, mean over seeds with a band of one std](figures/{folder.name}.png)\n"
+                        if (args.out.parent / "figures" / f"{folder.name}.png").exists() else ""))
     args.out.write_text("\n".join(parts))
     print(f"{len(parts)} part(s) -> {args.out}")
 

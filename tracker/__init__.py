@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import importlib
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 _EXPORTS = {
     "load_sequence": "tracker.app.api", "load_clip": "tracker.app.api", "synthesize": "tracker.app.api",
