@@ -408,8 +408,9 @@ def _track_arguments(args: argparse.Namespace) -> argparse.Namespace:
     """The arguments of a run: as given (paths made absolute, kept in OUTDIR for --resume), or with --resume
     those saved by the interrupted run."""
     if args.resume:
+        defaults = vars(build_parser().parse_args(["track"]))
         given = [k for k, v in vars(args).items() if k not in ("resume", "command", "plugin", "threads")
-                 and v not in (None, False, [], build_parser().parse_args(["track"]).__dict__.get(k))]
+                 and v not in (None, False, [], defaults.get(k))]
         if given:
             raise InputError(f"--resume takes no other arguments (got {', '.join('--' + g for g in given)})")
         path = Path(args.resume) / TRACK_ARGS

@@ -201,6 +201,27 @@ def execute_run(spec: RunSpec) -> dict:
 
 # -- executors --------------------------------------------------------------------------------------------------
 
+def _ready() -> bool:
+    """Imports a worker needs before its first run (the tracker, its plugins, torch)."""
+    from tracker.app.api import available_priors
+
+    available_priors()
+    return True
+
+
+def warm_joblib_workers(jobs: int):
+    """Start joblib's worker processes and their imports in a background thread, so that they are ready when
+    the runs start (they are reused by the next ``Parallel`` of the same size); returns the thread to join."""
+    import threading
+
+    from joblib import Parallel, delayed
+
+    thread = threading.Thread(target=lambda: Parallel(n_jobs=jobs)(delayed(_ready)() for _ in range(jobs)),
+                              daemon=True)
+    thread.start()
+    return thread
+
+
 def run_all(specs: list[RunSpec], jobs: int, backend: str, address: str | None) -> Iterator[dict]:
     """Execute runs with the chosen backend, yielding each summary as it finishes (in any order)."""
     if backend == "joblib":
@@ -273,6 +294,7 @@ def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str
         raise InputError(f"cannot create the output folder ({exc.strerror})", out) from None
     for stale in runs_dir.glob(".*.tmp-*"):  # left by an interrupted run
         shutil.rmtree(stale, ignore_errors=True)
+    warming = warm_joblib_workers(jobs) if backend == "joblib" and jobs > 1 else None
     version = tracker.__version__
     sequence_paths, sequence_hashes = prepare_sequences(exp, out, version, say)
     models = prepare_models(exp, out, version, say)
@@ -285,6 +307,8 @@ def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str
     todo = [s for s in unique if not (runs_dir / s.key / "result.json").exists()]
     say(f"{len(unique)} runs: {len(unique) - len(todo)} finished before (skipped), {len(todo)} to run "
         f"({backend}, {jobs} job(s), {per_worker} thread(s) each)")
+    if warming is not None:  # the workers started while the experiment was prepared
+        warming.join()
     summaries = {}
     t0 = time.perf_counter()
     bar = None

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from data_tools.files import atomic_path, write_text_atomic
+from tracker.core.metrics import summarize_runs
 
 METRICS = (
     ("mean_error_mm", "per_frame_error_mm", "Marker error (mm)"),
@@ -40,11 +41,12 @@ def bootstrap_interval(differences: np.ndarray, level: float = 0.95, draws: int 
 
 
 def _cell(values: list[float], digits: int = 1) -> str:
+    """``mean ± std`` over runs (:func:`~tracker.core.metrics.summarize_runs`), or n/a."""
     v = np.asarray(values, float)
     if v.size == 0 or not np.all(np.isfinite(v)):
         return "n/a"
-    sd = v.std(ddof=1) if v.size > 1 else 0.0
-    return f"{v.mean():.{digits}f} ± {sd:.{digits}f}"
+    mean, sd = summarize_runs(v)
+    return f"{mean:.{digits}f} ± {sd:.{digits}f}"
 
 
 def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
@@ -76,10 +78,9 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
                 vals = [per_run(r, per_frame_key) for r in group]
                 cells.append(_cell(vals))
                 secs += [r["seconds_per_frame"] for r in group]
-                if group:
-                    v = np.asarray(vals)
-                    csv_rows.append([metric, row, s, f"{np.mean(v):.4f}",
-                                     f"{(v.std(ddof=1) if v.size > 1 else 0.0):.4f}", len(v),
+                if group and np.all(np.isfinite(vals)):
+                    mean, sd = summarize_runs(vals)
+                    csv_rows.append([metric, row, s, f"{mean:.4f}", f"{sd:.4f}", len(vals),
                                      f"{np.mean([r['seconds_per_frame'] for r in group]):.4f}"])
             md.write(f"| {row} | " + " | ".join(cells) + f" | {np.mean(secs):.3f} |\n")
     labels = sorted((p.label for p in exp.priors), key=len, reverse=True)
