@@ -147,7 +147,8 @@ def execute_run(spec: RunSpec) -> dict:
     """Track one run and write its folder ``runs/<key>/`` atomically; returns its summary (``result.json``)."""
     from tracker.app.api import track
     from tracker.app.threads import set_threads
-    from tracker.core.metrics import pck, procrustes_aligned_error
+    from tracker.app.api import load_sequence
+    from tracker.core.metrics import marker_error, pck, procrustes_aligned_error
 
     set_threads(spec.threads)
     final = Path(spec.out) / spec.key
@@ -166,7 +167,8 @@ def execute_run(spec: RunSpec) -> dict:
                           + ("" if err is None else f", marker error {err:.1f} mm") + "\n")
 
             seed = run_seed(spec.seed_entropy, spec.seed_index)
-            run = track(spec.sequence_path, spec.prior, models=spec.models, prior_options=spec.prior_options,
+            seq = load_sequence(spec.sequence_path)
+            run = track(seq, spec.prior, models=spec.models, prior_options=spec.prior_options,
                         likelihood=spec.likelihood, likelihood_options=spec.likelihood_options,
                         particles=spec.particles, views=spec.views, frames=spec.frames, seed=seed,
                         annealing_layers=spec.annealing_layers, resampling=spec.resampling,
@@ -174,14 +176,10 @@ def execute_run(spec: RunSpec) -> dict:
                         step_std=None if spec.step_std is None else np.array(spec.step_std), on_frame=on_frame)
             log.write(f"done in {time.perf_counter() - t0:.1f} s\n")
         result = run.save(tmp)
-        from data_tools.sequence import read_sequence
-
-        gt = read_sequence(spec.sequence_path).groundtruth
+        gt = seq.groundtruth
         if gt is not None:
             n0, T = run.first_tracked, len(run.poses)
             est, truth = run.markers[n0:], gt.markers[n0:T]
-            from tracker.core.metrics import marker_error
-
             result["per_frame_relative_error_mm"] = [round(float(e), 3)
                                                      for e in marker_error(est, truth, root_aligned=True)]
             result["per_frame_pa_mpjpe_mm"] = [round(float(e), 3) for e in procrustes_aligned_error(est, truth)]
