@@ -113,6 +113,50 @@ def mix_in_random_walk(poses: np.ndarray, last: np.ndarray, std: np.ndarray, fra
     return mask
 
 
+#: Most of each frame's samples the adaptive robust option gives to the random walk (see :func:`robust_share`).
+ROBUST_CAP = 0.5
+
+
+def robust_share(walked: np.ndarray | None, floor: float, adaptive: bool) -> float:
+    """The fraction of this frame's samples the robust option draws from the zero-velocity random walk.
+
+    Fixed at ``floor`` unless ``adaptive``; then it follows the posterior: ``walked`` ``(P,)`` flags the
+    particles whose latest sample came from the random walk, *after* resampling, so its mean is the share of
+    the posterior mass that the random walk earned on the last frame (the mixture-weight update of population
+    Monte Carlo, Douc et al. 2007), kept within ``[floor, ROBUST_CAP]``. When the person does what the model
+    learned, the learned samples win and the share falls to ``floor``; at a start, a stop or a change of
+    pace the random walk wins and the share grows, without a setting tuned per sequence."""
+    if not adaptive or walked is None or len(walked) == 0:
+        return floor
+    return float(min(max(floor, np.mean(walked)), max(floor, ROBUST_CAP)))
+
+
+def start_log_pace(n_particles: int, spread: float, rng: np.random.Generator) -> np.ndarray:
+    """Each particle's initial log pace ``(P,)``: the log of the factor between the person's ground steps and the
+    steps the learned model would take (0: the model's own pace), Gaussian with std ``spread``. Nothing is
+    drawn when ``spread`` is 0."""
+    if spread <= 0:
+        return np.zeros(n_particles)
+    return spread * rng.standard_normal(n_particles)
+
+
+def drift_log_pace(log_pace: np.ndarray, drift: float, rng: np.random.Generator) -> np.ndarray:
+    """The log pace ``(P,)`` after one frame's random walk of std ``drift`` (nothing drawn when 0)."""
+    if drift <= 0:
+        return log_pace
+    return log_pace + drift * rng.standard_normal(len(log_pace))
+
+
+def scale_ground_steps(features: np.ndarray, factor: np.ndarray) -> np.ndarray:
+    """Invariant features ``P x ... x K`` with the ground-plane steps (forward and lateral velocity) of every
+    frame multiplied by ``factor`` ``(P,)``, in place. A learned prior conditions on its history divided by a
+    particle's pace and multiplies its prediction by it, so one model walks people of other speeds and stride
+    lengths; the heading rate and the joints are left to the model."""
+    shape = (len(factor),) + (1,) * (features.ndim - 1)
+    features[..., :2] *= factor.reshape(shape)
+    return features
+
+
 def steps_taken(last: np.ndarray, poses: np.ndarray) -> np.ndarray:
     """The root steps ``n x 3`` (:data:`~tracker.core.representation.STEP_FEATURES`) from ``last`` to ``poses``
     (each ``n x D``)."""
@@ -127,3 +171,29 @@ def torch_generator(rng: np.random.Generator, device) -> "torch.Generator":
     import torch
 
     return torch.Generator(device=device).manual_seed(int(rng.integers(2 ** 62)))
+
+
+#: Highest frame rate (Hz) a learned prior's model file may state.
+MAX_MODEL_FPS = 1e5
+
+
+def checked_data_settings(d: dict, kind: str, source=None) -> tuple[float, str, list[str], list[str], np.ndarray]:
+    """A learned prior file's data settings ``(fps, body_model, dof_names, sources, pose_step_rms)``, checked:
+    fps a number in (0, :data:`MAX_MODEL_FPS`], names text, the per-dof step RMS finite, non-negative, one per
+    dof. A missing or malformed one is an :class:`InputError` naming the file and the key."""
+    import torch
+
+    try:
+        fps, body, dofs, sources, step = (d[k] for k in ("fps", "body_model", "dof_names", "sources", "pose_step_rms"))
+    except KeyError as exc:
+        raise InputError(f"{kind} model file lacks {exc.args[0]!r}", source) from None
+    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 0 < fps <= MAX_MODEL_FPS:
+        raise InputError(f"{kind} model file's fps must be a number in (0, {MAX_MODEL_FPS:g}] Hz, got {fps!r}", source)
+    for key, names in (("body_model", [body]), ("dof_names", dofs), ("sources", sources)):
+        if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+            raise InputError(f"{kind} model file's {key} must be {'text' if key == 'body_model' else 'a list of text'}",
+                             source)
+    if not isinstance(step, torch.Tensor) or tuple(step.shape) != (len(dofs),) or not step.is_floating_point() \
+            or not torch.all(torch.isfinite(step)) or torch.any(step < 0):
+        raise InputError(f"{kind} model file's pose_step_rms must be finite, non-negative, one per pose number", source)
+    return float(fps), body, list(dofs), list(sources), step.numpy()

@@ -42,8 +42,9 @@ import numpy as np
 import torch
 
 from priors.common import (
-    ROOT_NOISE_MM, add_ground_diffusion, add_heading_diffusion, check_model_fits, mix_in_random_walk,
-    normaliser_from_tensors, normaliser_to_tensors, read_model_file, steps_taken, torch_generator,
+    ROBUST_CAP, ROOT_NOISE_MM, add_ground_diffusion, add_heading_diffusion, check_model_fits, drift_log_pace,
+    mix_in_random_walk, normaliser_from_tensors, normaliser_to_tensors, read_model_file, robust_share,
+    scale_ground_steps, start_log_pace, steps_taken, torch_generator,
 )
 from tracker.core.errors import InputError
 from tracker.core.representation import (
@@ -415,15 +416,21 @@ class CRBMPrior(MotionPrior):
     ``'gibbs'`` (samples, for tracking) or ``'free-energy'`` (the best guess, for prediction).
     ``root_noise_mm`` adds ground-plane diffusion to each sample (see :data:`priors.common.ROOT_NOISE_MM`).
     The filter keeps ``order`` = the highest order poses per particle; the prior's own per-particle state is
-    the pending step (:data:`~tracker.core.representation.STEP_FEATURES`) of the newest history frame, which
-    the previous sample chose. Each sample's torch generator is seeded from the filter's generator.
+    a dict of ``step`` ``P x 3``, the pending step (:data:`~tracker.core.representation.STEP_FEATURES`) of
+    the newest history frame, which the previous sample chose; ``log_pace`` ``(P,)``, the log factor between
+    the particle's ground steps and the model's (``pace_spread``/``pace_drift``, see
+    :func:`priors.common.scale_ground_steps`); and ``walked`` ``(P,)``, whether its latest sample came from
+    the robust option's random walk (``robust_fraction``, adapted to the posterior when ``robust_adaptive``,
+    see :func:`priors.common.robust_share`). Each sample's torch generator is seeded from the filter's
+    generator.
     """
 
     name = "crbm"
 
     def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = 30,
                  device: str = "cpu", mode: str = "gibbs", root_noise_mm: float = ROOT_NOISE_MM,
-                 robust_fraction: float = 0.0, heading_noise: float = 0.0):
+                 robust_fraction: float = 0.0, heading_noise: float = 0.0, robust_adaptive: bool = False,
+                 pace_spread: float = 0.0, pace_drift: float = 0.0):
         if not models:
             raise InputError("the CRBM prior needs at least one model")
         by_order = {m.order: m for m in models}
@@ -449,6 +456,10 @@ class CRBMPrior(MotionPrior):
         if not heading_noise >= 0:
             raise InputError(f"heading noise must be a non-negative number of radians, got {heading_noise}")
         self.heading_noise = float(heading_noise)
+        self.robust_adaptive = bool(robust_adaptive)
+        if not (pace_spread >= 0 and pace_drift >= 0):
+            raise InputError(f"pace spread and drift must be non-negative (log units), got {pace_spread}, {pace_drift}")
+        self.pace_spread, self.pace_drift = float(pace_spread), float(pace_drift)
         self.order = self.models[-1].order
         self.gibbs_steps = gibbs_steps
         self.device = torch.device(device)
@@ -459,7 +470,8 @@ class CRBMPrior(MotionPrior):
     def settings(self) -> dict:
         return {"orders": [m.order for m in self.models], "gibbs_steps": self.gibbs_steps,
                 "root_noise_mm": self.root_noise_mm, "mode": self.mode, "robust_fraction": self.robust_fraction,
-                "heading_noise_rad": self.heading_noise}
+                "robust_adaptive": self.robust_adaptive, "heading_noise_rad": self.heading_noise,
+                "pace_spread": self.pace_spread, "pace_drift": self.pace_drift}
 
     def model_for(self, available: int) -> CRBMModel:
         """The highest-order model whose history is all real poses (never a padded history)."""
@@ -474,10 +486,13 @@ class CRBMPrior(MotionPrior):
         return f"crbm order {self.model_for(available).order}"
 
     def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
-        """The pending step of the last known frame (see :func:`~tracker.core.representation.pending_step`).
-        Refuses known frames too few for every model (a higher order never runs on a padded history)."""
+        """The pending step of the last known frame (see :func:`~tracker.core.representation.pending_step`),
+        each particle's log pace, and no random-walk samples yet. Refuses known frames too few for every model
+        (a higher order never runs on a padded history)."""
         self.model_for(min(len(np.atleast_2d(known)), self.order))
-        return np.repeat(pending_step(known)[None], n_particles, axis=0)
+        return {"step": np.repeat(pending_step(known)[None], n_particles, axis=0),
+                "log_pace": start_log_pace(n_particles, self.pace_spread, rng),
+                "walked": np.zeros(n_particles, bool)}
 
     def sample(self, history: np.ndarray, available: int, state: PriorState,
                rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
@@ -486,7 +501,9 @@ class CRBMPrior(MotionPrior):
         step = list(STEP_FEATURES)
         feats = poses_to_invariant(history[:, -n - 1:] if history.shape[1] > n else
                                    np.concatenate([history[:, :1], history], axis=1))[:, -n:]
-        feats[:, -1, step] = state
+        feats[:, -1, step] = state["step"]
+        previous = feats[:, -1].copy()  # the newest frame's features with the step the particle takes
+        scale_ground_steps(feats, np.exp(-state["log_pace"]))  # the history at the model's pace
         z = model.normaliser.transform(feats)  # P x n x K
         hist = torch.tensor(z.reshape(len(z), -1), dtype=torch.float32, device=self.device)
         generator = torch_generator(rng, self.device)
@@ -496,12 +513,15 @@ class CRBMPrior(MotionPrior):
             if self.mode == "gibbs":
                 v = model.crbm.gibbs(hist, self.gibbs_steps, generator)
         f_next = model.normaliser.inverse(v.cpu().double().numpy())
-        poses = add_ground_diffusion(next_poses(history[:, -1], feats[:, -1], f_next), self.root_noise_mm, rng)
+        log_pace = drift_log_pace(state["log_pace"], self.pace_drift, rng)
+        scale_ground_steps(f_next, np.exp(log_pace))  # the predicted step at the particle's pace
+        poses = add_ground_diffusion(next_poses(history[:, -1], previous, f_next), self.root_noise_mm, rng)
         add_heading_diffusion(poses, history[:, -1], self.heading_noise, rng)
         pending = f_next[:, step]
-        walked = mix_in_random_walk(poses, history[:, -1], model.pose_step_rms, self.robust_fraction, rng)
+        share = robust_share(state["walked"], self.robust_fraction, self.robust_adaptive)
+        walked = mix_in_random_walk(poses, history[:, -1], model.pose_step_rms, share, rng)
         pending[walked] = steps_taken(history[walked, -1], poses[walked])
-        return poses, pending
+        return poses, {"step": pending, "log_pace": log_pace, "walked": walked}
 
     def diffusion_std(self) -> np.ndarray:
         return self.models[-1].pose_step_rms
@@ -607,7 +627,16 @@ CRBM_TRAIN_OPTIONS = (
                     minimum=0.0),
              Option("robust_fraction", float, 0.0,
                     "fraction of each frame's samples drawn from the zero-velocity random walk instead, so motion "
-                    "the model did not learn (a start, a stop, a run) stays trackable (default 0)", minimum=0.0),
+                    "the model did not learn (a start, a stop, a run) stays trackable (default 0); with "
+                    "robust_adaptive, the least fraction", minimum=0.0),
+             Option("robust_adaptive", bool, False,
+                    "let the random walk's share follow the posterior mass its samples earned on the last frame, "
+                    f"between robust_fraction and {ROBUST_CAP} (default off)"),
+             Option("pace_spread", float, 0.0, "std of each particle's log pace, the factor between its ground steps "
+                                               "and the model's, at the start (default 0: the model's pace)",
+                    minimum=0.0),
+             Option("pace_drift", float, 0.0, "std of the change of each particle's log pace per frame (default 0)",
+                    minimum=0.0),
              Option("heading_noise", float, 0.0, "diffusion of each sample's heading in rad per frame, so that the "
                                                  "likelihood can correct an integrated heading (default 0)",
                     minimum=0.0)))
@@ -617,4 +646,5 @@ def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict
         m.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, path)
     return CRBMPrior(models, gibbs_steps=options["gibbs_steps"], root_noise_mm=options["root_noise"],
                      device=context.device, robust_fraction=options["robust_fraction"],
-                     heading_noise=options["heading_noise"])
+                     heading_noise=options["heading_noise"], robust_adaptive=options["robust_adaptive"],
+                     pace_spread=options["pace_spread"], pace_drift=options["pace_drift"])
