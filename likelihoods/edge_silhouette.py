@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from likelihoods.observations import DEFAULT_OBSERVATION, ObservationConfig, Observations, observe
+from likelihoods.observations import DEFAULT_OBSERVATION, BackgroundPlate, ObservationConfig, Observations, observe
 from tracker.core.body import BodyModel
 from tracker.core.cameras import CameraRig
 from tracker.core.cones import contour_angles, contour_endpoints
@@ -77,16 +77,29 @@ class EdgeSilhouetteLikelihood(Likelihood):
         self.centres = np.array([c.centre for c in rig.cameras])
         self.n_contour = 2 * config.n_along
         self.weights = _sample_weights(config.n_along, config.n_across)  # 4 x N
+        self._plates: dict[int, BackgroundPlate] = {}  # per view: the last plate seen, prepared once
 
     def settings(self) -> dict:
         return {"sharpness": self.config.sharpness, "bidirectional": self.config.bidirectional}
 
     def prepare(self, frame: Frame) -> "PreparedFrame":
-        """Silhouettes and edge maps of the frame's images (provided masks where the frame has them)."""
-        return self.prepare_observations(observe(list(frame.images), None if frame.backgrounds is None
-                                                 else list(frame.backgrounds),
+        """Silhouettes and edge maps of the frame's images (provided masks where the frame has them).
+
+        A sequence hands the same background plate (array) with every frame: its statistics are derived
+        once per view and kept while the plate stays the same object.
+        """
+        plates = None if frame.backgrounds is None else [self._plate(v, b) for v, b in enumerate(frame.backgrounds)]
+        return self.prepare_observations(observe(list(frame.images), plates,
                                                  None if frame.masks is None else list(frame.masks),
                                                  self.observation))
+
+    def _plate(self, view: int, background: np.ndarray | None) -> BackgroundPlate | None:
+        if background is None:
+            return None
+        plate = self._plates.get(view)
+        if plate is None or plate.image is not background:
+            plate = self._plates[view] = BackgroundPlate.of(background, self.observation)
+        return plate
 
     def prepare_observations(self, obs: Observations) -> "PreparedFrame":
         """The scorer for already derived observations (``V x H x W`` silhouettes and edge maps)."""

@@ -73,7 +73,7 @@ def _grey(img: np.ndarray) -> np.ndarray:
 
 def clean_mask(mask: np.ndarray, config: ObservationConfig = DEFAULT_OBSERVATION) -> np.ndarray:
     """Morphological clean-up of a bool ``H x W`` mask: open, close, drop small components."""
-    m = mask.astype(np.uint8)
+    m = mask.view(np.uint8) if mask.dtype == bool else mask.astype(np.uint8)
     if config.open_radius > 0:
         m = cv2.morphologyEx(m, cv2.MORPH_OPEN, _disc(config.open_radius))
     if config.close_radius > 0:
@@ -82,25 +82,52 @@ def clean_mask(mask: np.ndarray, config: ObservationConfig = DEFAULT_OBSERVATION
         n, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
         keep = np.zeros(n, bool)
         keep[1:] = stats[1:, cv2.CC_STAT_AREA] >= config.min_area
-        m = keep[labels].astype(np.uint8)
+        if not keep[1:].all():  # (when every component is large enough the mask stays as it is)
+            return keep[labels]
     return m.astype(bool)
 
 
-def silhouette(image: np.ndarray, background: np.ndarray, config: ObservationConfig = DEFAULT_OBSERVATION) -> np.ndarray:
-    """Foreground mask (bool ``H x W``) of ``image`` against its background plate (same shape, uint8)."""
-    if image.shape != background.shape:
-        raise ValueError(f"image {image.shape} and background {background.shape} differ in shape")
+@dataclass(frozen=True)
+class BackgroundPlate:
+    """A background plate with what :func:`silhouette` derives from it once per sequence and view.
+
+    ``image``: the plate as given (``H x W x 3`` or ``H x W`` uint8); ``values``: float32, blurred by
+    ``blur_sigma``; ``grey_sample``: the grey levels (float32) of every 4th row and column that exceed 20,
+    ``sample_valid`` (bool, on the 4th rows and columns) says which: the denominators of the gain statistic.
+    """
+
+    image: np.ndarray
+    blur_sigma: float
+    values: np.ndarray
+    sample_valid: np.ndarray
+    grey_sample: np.ndarray
+
+    @classmethod
+    def of(cls, background: np.ndarray, config: ObservationConfig = DEFAULT_OBSERVATION) -> "BackgroundPlate":
+        values = _blur(background, config.blur_sigma)
+        grey = _grey_float(values[::4, ::4])
+        valid = grey > 20.0
+        return cls(background, config.blur_sigma, values, valid, grey[valid])
+
+
+def silhouette(image: np.ndarray, background: np.ndarray | BackgroundPlate,
+               config: ObservationConfig = DEFAULT_OBSERVATION) -> np.ndarray:
+    """Foreground mask (bool ``H x W``) of ``image`` against its background plate (same shape, uint8; or the
+    plate prepared once by :meth:`BackgroundPlate.of`)."""
+    plate = background if isinstance(background, BackgroundPlate) else BackgroundPlate.of(background, config)
+    if plate.blur_sigma != config.blur_sigma:
+        plate = BackgroundPlate.of(plate.image, config)
+    if image.shape != plate.image.shape:
+        raise ValueError(f"image {image.shape} and background {plate.image.shape} differ in shape")
     img = _blur(image, config.blur_sigma)
-    bg = _blur(background, config.blur_sigma)
+    bg = plate.values
     # Robust statistics (medians) are taken on every 4th row and column: 1/16 of the pixels is plenty.
-    if config.compensate_gain:
-        gi, gb = _grey_float(img[::4, ::4]), _grey_float(bg[::4, ::4])
-        valid = gb > 20.0
-        if valid.sum() > 100:
-            bg = bg * float(np.median(gi[valid] / gb[valid]))
-    diff = cv2.absdiff(img, bg)
+    if config.compensate_gain and len(plate.grey_sample) > 100:
+        gi = _grey_float(img[::4, ::4])[plate.sample_valid]
+        bg = bg * float(np.median(gi / plate.grey_sample))
+    diff = cv2.absdiff(img, bg, dst=img)  # (img is this call's own float copy)
     if diff.ndim == 3:
-        dist = cv2.sqrt(cv2.transform(diff * diff, np.ones((1, 3), np.float32)))
+        dist = cv2.sqrt(cv2.transform(np.multiply(diff, diff, out=diff), np.ones((1, 3), np.float32)))
         chi_median = 1.5382  # median of a chi distribution with 3 degrees of freedom
     else:
         dist = diff
@@ -117,22 +144,57 @@ def _grey_float(img: np.ndarray) -> np.ndarray:
 def gradient_magnitude(image: np.ndarray, blur_sigma: float = 1.0) -> np.ndarray:
     """Gradient magnitude ``H x W`` float32 of the blurred grey image, grey levels per pixel."""
     g = _blur(_grey(image), blur_sigma)
-    gx = cv2.Sobel(g, cv2.CV_32F, 1, 0, ksize=3) / 8.0
-    gy = cv2.Sobel(g, cv2.CV_32F, 0, 1, ksize=3) / 8.0
+    gx = cv2.Sobel(g, cv2.CV_32F, 1, 0, ksize=3, scale=0.125)
+    gy = cv2.Sobel(g, cv2.CV_32F, 0, 1, ksize=3, scale=0.125)
     return cv2.magnitude(gx, gy)
+
+
+#: Distance (in units of ``edge_sigma``) beyond which the smoothed edge map is below 2^-26, so that its cost
+#: ``(1 - edge)^2`` is exactly 1 in float32; the map is only computed within this reach of an edge.
+EDGE_REACH = 6.2
+
+
+def _box(mask: np.ndarray, grow: int) -> tuple[slice, slice]:
+    """Rows and columns of the bounding box of ``mask`` (uint8 ``H x W``, not empty) grown by ``grow`` pixels."""
+    x, y, w, h = cv2.boundingRect(mask)
+    H, W = mask.shape
+    return slice(max(y - grow, 0), min(y + h + grow, H)), slice(max(x - grow, 0), min(x + w + grow, W))
 
 
 def edge_map(image: np.ndarray, foreground: np.ndarray | None = None,
              config: ObservationConfig = DEFAULT_OBSERVATION) -> np.ndarray:
-    """Smoothed edge map ``H x W`` float32 in [0, 1] (1 on an edge), see the module docstring."""
-    edges = gradient_magnitude(image, config.edge_blur_sigma) > config.edge_threshold
-    if foreground is not None and config.foreground_margin is not None:
-        near = cv2.dilate(foreground.astype(np.uint8), _disc(config.foreground_margin)).astype(bool)
-        edges &= near
+    """Smoothed edge map ``H x W`` float32 in [0, 1] (1 on an edge), see the module docstring.
+
+    With a foreground mask only the box around it that edges near the person can reach (the margin plus
+    ``EDGE_REACH`` edge widths) is computed: outside it the map is below 2^-26 and set to 0.
+    """
+    H, W = image.shape[:2]
+    out = np.zeros((H, W), np.float32)
+    restrict = foreground is not None and config.foreground_margin is not None
+    fg = None
+    if restrict:
+        fg = foreground.view(np.uint8) if foreground.dtype == bool else foreground.astype(np.uint8)
+        if not fg.any():
+            return out
+        reach = config.foreground_margin + int(np.ceil(EDGE_REACH * config.edge_sigma))
+        rows, cols = _box(fg, reach)
+        halo = int(np.ceil(4 * config.edge_blur_sigma)) + 2  # the blur's and Sobel's reach
+        crows = slice(max(rows.start - halo, 0), min(rows.stop + halo, H))
+        ccols = slice(max(cols.start - halo, 0), min(cols.stop + halo, W))
+        grad = gradient_magnitude(image[crows, ccols], config.edge_blur_sigma)
+        grad = grad[rows.start - crows.start:rows.stop - crows.start, cols.start - ccols.start:cols.stop - ccols.start]
+        edges = grad > config.edge_threshold
+        edges &= cv2.dilate(fg[rows, cols], _disc(config.foreground_margin)).astype(bool)
+    else:
+        rows, cols = slice(0, H), slice(0, W)
+        edges = gradient_magnitude(image, config.edge_blur_sigma) > config.edge_threshold
     if not edges.any():
-        return np.zeros(edges.shape, np.float32)
-    dist = cv2.distanceTransform((~edges).astype(np.uint8), cv2.DIST_L2, 5)
-    return np.exp(-(dist * dist) / (2.0 * config.edge_sigma ** 2)).astype(np.float32)
+        return out
+    dist = cv2.distanceTransform(np.logical_not(edges).view(np.uint8), cv2.DIST_L2, 5)
+    dist *= dist
+    dist /= np.float32(-2.0 * config.edge_sigma ** 2)
+    out[rows, cols] = np.exp(dist)
+    return out
 
 
 @dataclass
@@ -148,10 +210,11 @@ class Observations:
         return len(self.silhouettes)
 
 
-def observe(images: list[np.ndarray], backgrounds: list[np.ndarray | None] | None = None,
+def observe(images: list[np.ndarray], backgrounds: list[np.ndarray | BackgroundPlate | None] | None = None,
             masks: list[np.ndarray | None] | None = None, config: ObservationConfig = DEFAULT_OBSERVATION) -> Observations:
     """Observations of one frame: per view a silhouette (the given mask if any, else background subtraction)
-    and an edge map. Every view needs a mask or a background plate."""
+    and an edge map. Every view needs a mask or a background plate (a uint8 image, or a
+    :class:`BackgroundPlate` prepared once for the sequence)."""
     sils, edges = [], []
     for v, img in enumerate(images):
         mask = None if masks is None else masks[v]
