@@ -492,6 +492,10 @@ def cmd_track(args: argparse.Namespace) -> int:
     run.settings["prior_models"] = [str(m) for m in (args.model or ())]
     result = run.save(out)
     (out / TRACK_ARGS).unlink(missing_ok=True)
+    if run.prior_summary is not None:  # e.g. the FCRBM's posterior over style labels, per frame
+        from tracker.app.visualize import summary_plot
+
+        summary_plot(out / "prior_summary.png", run.prior_summary, f"{args.prior}: posterior per frame")
     if run.recovered_frames:
         print(f"warning: no particle explained frame(s) {result['recovered_frames']}; the filter re-diffused "
               f"around its last estimate", file=sys.stderr)

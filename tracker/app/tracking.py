@@ -34,7 +34,9 @@ class TrackingResult:
     estimate of every tracked frame; ``best_poses`` likewise with the best particle; ``first_tracked`` is the
     first tracked frame; ``errors`` the per-frame marker error (mm) of the tracked frames, when the sequence
     has ground truth; ``records`` what the filter recorded per tracked frame (``ess``, timings, ...);
-    ``settings`` every setting that produced the run (written to ``result.json``).
+    ``settings`` every setting that produced the run (written to ``result.json``); ``summary_names`` names the
+    entries of the prior's per-frame summary (``records["prior_summary"]``, e.g. the FCRBM's posterior over
+    style labels), empty for a prior without one.
     """
 
     poses: np.ndarray
@@ -44,6 +46,7 @@ class TrackingResult:
     errors: np.ndarray | None
     records: dict[str, np.ndarray]
     settings: dict[str, Any] = field(default_factory=dict)
+    summary_names: list[str] = field(default_factory=list)
 
     @property
     def tracked_frames(self) -> list[int]:
@@ -84,9 +87,22 @@ class TrackingResult:
                 spans.append({"first": frame, "last": frame, "model": str(lab)})
         return spans
 
+    @property
+    def prior_summary(self) -> dict[str, Any] | None:
+        """The prior's per-frame summary as written to ``result.json``: ``names``, ``first_frame``, ``per_frame``
+        (one row per tracked frame) and ``most_probable`` (the name of each row's largest entry); None without."""
+        rows = self.records.get("prior_summary")
+        if not self.summary_names or rows is None:
+            return None
+        rows = np.asarray(rows, float).reshape(-1, len(self.summary_names))
+        return {"names": list(self.summary_names), "first_frame": self.first_tracked,
+                "per_frame": [[round(float(x), 4) for x in r] for r in rows],
+                "most_probable": [self.summary_names[int(k)] for k in np.argmax(rows, axis=1)]}
+
     def to_dict(self) -> dict[str, Any]:
         """The content of ``result.json``."""
         errors = self.errors
+        summary = self.prior_summary
         return {
             **self.settings,
             "frames": len(self.tracked_frames),
@@ -98,6 +114,7 @@ class TrackingResult:
             "mean_effective_sample_size": float(np.mean(self.ess)) if "ess" in self.records else None,
             "recovered_frames": self.recovered_frames,
             "prior_per_frame": self.prior_per_frame,
+            **({} if summary is None else {"prior_summary": summary}),
         }
 
     def save(self, out: str | Path) -> dict[str, Any]:
@@ -198,6 +215,11 @@ def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, conf
         record = {"mean_poses": lambda s: s.mean, "best_poses": lambda s: s.best, **dict(record)}
     else:  # the result needs these whatever else the caller records
         record = list(record) + [k for k in ("mean_poses", "best_poses") if k not in record]
+    names = list(prior.summary_names)
+    if names and isinstance(record, dict):
+        record.setdefault("prior_summary", lambda s: s.prior_summary)
+    elif names and "prior_summary" not in record:
+        record.append("prior_summary")
     recording = Recording(record)
     fingerprint = {**(fingerprint or {}), "frames": T, "known_frames": n_known}
     state = None
@@ -229,18 +251,19 @@ def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, conf
             recording.values[name] = recording.values[name][:done]
         if checkpoint is not None and last["state"] is not None:
             save_checkpoint(checkpoint, last["state"], recording, last["rng"], fingerprint)
-        partial = _result(seq, known, n0, recording.result(), gt, T) if done else None
+        partial = _result(seq, known, n0, recording.result(), gt, T, names) if done else None
         raise TrackingInterrupted(partial, checkpoint if last["state"] is not None else None) from None
     if checkpoint is not None:
         Path(checkpoint).unlink(missing_ok=True)  # complete: nothing to resume
-    return _result(seq, known, n0, records, gt, T)
+    return _result(seq, known, n0, records, gt, T, names)
 
 
-def _result(seq: Sequence, known: np.ndarray, n0: int, records: dict, gt, T: int) -> TrackingResult:
+def _result(seq: Sequence, known: np.ndarray, n0: int, records: dict, gt, T: int,
+            summary_names: Seq[str] = ()) -> TrackingResult:
     D = seq.model.n_dofs
     poses = np.concatenate([known[:n0], records["mean_poses"].reshape(-1, D)])
     best = np.concatenate([known[:n0], records["best_poses"].reshape(-1, D)])
     est_markers = model_markers(seq.model, poses)
     errors = None if gt is None else marker_error(est_markers[n0:], gt.markers[n0:len(poses)])
     return TrackingResult(poses=poses, markers=est_markers, best_poses=best, first_tracked=n0, errors=errors,
-                          records=records)
+                          records=records, summary_names=list(summary_names))

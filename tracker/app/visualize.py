@@ -231,3 +231,30 @@ def error_plot(path, curves: dict[str, tuple[np.ndarray, np.ndarray]], title: st
     fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp)
+
+
+def summary_plot(path, summary: dict, title: str, truth: list[tuple[int, int, str]] | None = None) -> None:
+    """The prior's per-frame summary (``TrackingResult.prior_summary``: e.g. the posterior over style labels) as
+    stacked areas over the tracked frames, with optional true segments ``(first, last, name)`` drawn as a bar
+    above; PNG via matplotlib (a bare Figure, as :func:`error_plot`)."""
+    from matplotlib.figure import Figure
+
+    from data_tools.files import atomic_path
+
+    rows = np.asarray(summary["per_frame"], float)
+    frames = summary["first_frame"] + np.arange(len(rows))
+    fig = Figure(figsize=(7, 3), dpi=120)
+    ax = fig.subplots()
+    colours = [f"C{i}" for i in range(len(summary["names"]))]
+    ax.stackplot(frames, rows.T, labels=summary["names"], colors=colours, alpha=0.8, step="mid")
+    for first, last, name in truth or []:
+        k = summary["names"].index(name) if name in summary["names"] else 0
+        ax.plot([first, last], [1.04, 1.04], color=colours[k], lw=6, solid_capstyle="butt")
+    ax.set_xlabel("frame")
+    ax.set_ylabel("posterior")
+    ax.set_ylim(0, 1.08)
+    ax.set_title(title)
+    ax.legend(loc="lower left", fontsize=8)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp)

@@ -165,6 +165,7 @@ class ParticleFilter:
         mean = W @ x
         best = x[int(np.argmax(W))]
         ess = effective_sample_size(W)
+        summary = self.prior.summarize(prior_state, W)
         history = np.concatenate([history[:, 1:], x[:, None]], axis=1)
         recent = np.concatenate([state.recent_estimates[1:], mean[None]])
         resampled = cfg.annealing_layers > 1 or ess < cfg.ess_threshold * cfg.n_particles
@@ -180,7 +181,8 @@ class ParticleFilter:
                                 state.tracked + 1)
         step = FrameStep(index=state.tracked, frame=frame.index, particles=x, weights=weights, mean=mean, best=best,
                          ess=ess, resampled=bool(resampled), recovered=recovered,
-                         seconds={"load": load_seconds, "observe": t1 - t0, "filter": t2 - t1}, prior_label=label)
+                         seconds={"load": load_seconds, "observe": t1 - t0, "filter": t2 - t1}, prior_label=label,
+                         prior_summary=summary)
         return new_state, step
 
     def _anneal(self, x: np.ndarray, history: np.ndarray, prior_state: PriorState, ll: np.ndarray,

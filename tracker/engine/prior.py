@@ -43,6 +43,8 @@ class MotionPrior(ABC):
     order: int = 1
     #: Name used on the command line and in results.
     name: str = "prior"
+    #: Names of the entries of :meth:`summarize`'s vector (none: the prior has no per-frame summary).
+    summary_names: tuple[str, ...] = ()
 
     def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
         """Per-particle state from the known initial poses ``n0 x D`` (none by default)."""
@@ -67,6 +69,12 @@ class MotionPrior(ABC):
     def diffusion_std(self) -> np.ndarray:
         """Per-dof standard deviation ``(D,)`` (pose units per frame) of the prior's one-step noise: the scale
         annealed filter layers diffuse particles with."""
+
+    def summarize(self, state: PriorState, weights: np.ndarray) -> np.ndarray | None:
+        """A per-frame summary ``(len(summary_names),)`` of the per-particle ``state`` under the normalised
+        ``weights`` ``(P,)`` (e.g. the posterior over a style label the particles carry), recorded per frame as
+        ``prior_summary``; None (the default) for a prior without one."""
+        return None
 
     def settings(self) -> dict:
         """The prior's settings as plain JSON values, recorded in ``result.json`` (none by default)."""

@@ -27,7 +27,9 @@ class FrameStep:
     the filter re-diffused around its last estimate. ``seconds`` splits the
     frame's wall time into ``load`` (reading the frame), ``observe`` (the
     likelihood's per-frame preparation) and ``filter`` (prior, likelihood,
-    resampling). ``prior_label`` names the model that drew the frame's poses.
+    resampling). ``prior_label`` names the model that drew the frame's poses; ``prior_summary`` is the prior's
+    summary of its per-particle state under the weights (:meth:`~tracker.engine.prior.MotionPrior.summarize`),
+    or None.
     """
 
     index: int
@@ -41,6 +43,7 @@ class FrameStep:
     recovered: bool
     seconds: Mapping[str, float]
     prior_label: str = ""
+    prior_summary: np.ndarray | None = None
 
 
 #: Named per-frame quantities.
@@ -54,6 +57,7 @@ RECORDERS: dict[str, Callable[[FrameStep], Any]] = {
     "observe_seconds": lambda s: s.seconds["observe"],
     "filter_seconds": lambda s: s.seconds["filter"],
     "prior_labels": lambda s: s.prior_label,
+    "prior_summary": lambda s: s.prior_summary,
     "particles": lambda s: s.particles,
     "weights": lambda s: s.weights.normalised,
 }
