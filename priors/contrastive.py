@@ -1,0 +1,50 @@
+"""Contrastive-divergence helpers shared by the FCRBM and the deep (two-layer) CRBM: shuffled mini-batches of
+windows, the momentum update with weight decay, and the label-balanced window list.
+
+Every random draw comes from the ``torch.Generator`` passed in (derived from the caller's numpy generator with
+:func:`priors.common.torch_generator`).
+"""
+from __future__ import annotations
+
+from typing import Iterable, Iterator
+
+import torch
+
+
+def minibatches(starts: torch.Tensor, batch_size: int, generator: torch.Generator) -> Iterator[torch.Tensor]:
+    """Window start indices ``(M,)`` in a random order, ``batch_size`` at a time (one epoch)."""
+    order = starts[torch.randperm(len(starts), generator=generator, device=starts.device)]
+    for i in range(0, len(order), batch_size):
+        yield order[i:i + batch_size]
+
+
+def window_index(batch: torch.Tensor, length: int) -> torch.Tensor:
+    """Frame indices ``B x length`` of the windows starting at ``batch`` ``(B,)`` (windows by indexing)."""
+    return batch[:, None] + torch.arange(length, device=batch.device)
+
+
+def momentum_step(params: dict[str, torch.Tensor], velocity: dict[str, torch.Tensor],
+                  grads: dict[str, torch.Tensor], rates: dict[str, float], momentum: float, weight_decay: float,
+                  decayed: Iterable[str]) -> None:
+    """In place, for every name of ``params``: ``velocity = momentum * velocity + rate * (grad - weight_decay *
+    param)`` (weight decay only for the ``decayed`` names), then ``param += velocity``. ``grads`` are ascent
+    directions (the CD statistics, data minus reconstruction)."""
+    decayed = set(decayed)
+    for k, param in params.items():
+        grad = grads[k] - weight_decay * param if k in decayed else grads[k]
+        velocity[k] = momentum * velocity[k] + rates[k] * grad
+        params[k] = param + velocity[k]
+
+
+def balanced_starts(starts: torch.Tensor, groups: torch.Tensor) -> torch.Tensor:
+    """Window starts ``(M,)`` with those of every group (label index per window, ``(M,)``) repeated so that each
+    group has about as many windows as the largest (Taylor & Hinton 2009 balance their styles by repeating
+    the shorter sequences)."""
+    counts = torch.bincount(groups)
+    most = int(counts.max())
+    parts = []
+    for g in range(len(counts)):
+        mine = starts[groups == g]
+        if len(mine):
+            parts.append(mine.repeat(max(1, round(most / len(mine)))))
+    return torch.cat(parts)
