@@ -93,16 +93,32 @@ def load_clip(mocap: str | Path, skeleton: str | Path | None = None, fps: float 
 
 def synthesize(mocap: str | Path | RetargetResult, out: str | Path, *, skeleton: str | Path | None = None,
                config: SynthConfig | None = None, progress: Callable | None = None, overwrite: bool = False,
-               length_unit: float | None = None, **settings) -> Sequence:
+               length_unit: float | None = None, then: str | Path | RetargetResult | None = None,
+               then_skeleton: str | Path | None = None, switch_at: int | None = None, fade: int = 12,
+               **settings) -> Sequence:
     """Render a mocap clip (a file, or a clip from :func:`load_clip`) into a synthetic multi-view sequence
     folder ``out`` and return it. ``settings`` are :class:`~data_tools.synth.SynthConfig` fields (``frames``,
-    ``views``, ``seed``, ``noise``, ...). A non-empty ``out`` is refused unless ``overwrite``."""
+    ``views``, ``seed``, ``noise``, ...). A non-empty ``out`` is refused unless ``overwrite``.
+
+    With ``then`` (a second clip) the person changes activity: the clip until frame ``switch_at`` (at the
+    output rate, before ``start``/``frames`` cut the result), cross-faded over ``fade`` frames into ``then``
+    (:func:`data_tools.transition.cross_fade`; e.g. a walk into a run of the same subject)."""
+    from data_tools.transition import cross_fade
+
     try:
         config = config or SynthConfig(**settings)
     except TypeError as exc:
         raise InputError(f"unknown synth setting ({exc})") from None
     clip = mocap if isinstance(mocap, RetargetResult) else load_clip(mocap, skeleton, config.fps, length_unit)
     source = str(mocap) if not isinstance(mocap, RetargetResult) else clip.source
+    if then is not None:
+        second = then if isinstance(then, RetargetResult) else load_clip(then, then_skeleton, config.fps, length_unit)
+        if switch_at is None:
+            raise InputError("a transition (then = ...) needs switch_at, the frame where the second clip has taken over")
+        clip, _ = cross_fade(clip, second, switch_at, fade)
+        source = clip.source
+    elif switch_at is not None:
+        raise InputError("switch_at applies to a transition: give the second clip (then = ...)")
     render_sequence(clip, out, config, source=source, progress=progress, overwrite=overwrite)
     return read_sequence(out)
 

@@ -105,6 +105,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--length-unit", type=_positive_float, default=None, metavar="MM",
                    help="BVH only: millimetres per file unit (default: inferred)")
     s.add_argument("--overwrite", action="store_true", help="replace a non-empty output folder")
+    s.add_argument("--then", metavar="FILE", help="a second clip the person changes to (e.g. a run after a walk): "
+                                                 "cross-faded into at --switch-at")
+    s.add_argument("--then-skeleton", metavar="ASF", help="ASF skeleton of --then (default: <subject>.asf beside it)")
+    s.add_argument("--switch-at", type=_positive_int, default=None, metavar="FRAME",
+                   help="with --then: the frame (output rate, before --start) where the second clip has taken over")
+    s.add_argument("--fade", type=_positive_int, default=12, metavar="FRAMES",
+                   help="with --then: frames of the cross-fade before --switch-at (default 12)")
 
     w = sub.add_parser("show", parents=[plugin_flag], help="draw the projected body model over every view of a sequence frame",
                        description="Draw the projected cones (ground truth, the initial pose, or --poses) over "
@@ -281,7 +288,17 @@ def cmd_synth(args: argparse.Namespace) -> int:
     for note in clip.notes:
         print(f"note: {Path(args.mocap).name}: {note}", file=sys.stderr)
     result = retarget(clip, fps=args.fps)
-    out = synthesize(result, args.out, settings, source=str(args.mocap), overwrite=args.overwrite,
+    if args.then or args.switch_at:
+        from data_tools.transition import cross_fade
+
+        if not (args.then and args.switch_at):
+            raise InputError("a transition needs both --then FILE and --switch-at FRAME")
+        second = retarget(load_mocap(args.then, args.then_skeleton, args.length_unit), fps=args.fps)
+        result, change = cross_fade(result, second, args.switch_at, args.fade)
+        print(f"transition: {Path(args.mocap).name} until frame {change.fade_start}, cross-faded into "
+              f"{Path(args.then).name} (from its frame {change.second_start}) by frame {change.switch}")
+    out = synthesize(result, args.out, settings, source=result.source if args.then else str(args.mocap),
+                     overwrite=args.overwrite,
                      progress=lambda it: tqdm(it, desc="rendering", unit="frame"))
     print(f"{Path(args.mocap).name}: {out.n_frames} frames x {args.views} views at "
           f"{result.fps:g} fps -> {out.root} ({out.render_seconds / out.n_frames * 1000:.0f} ms per frame "

@@ -57,7 +57,8 @@ def prepare_sequences(exp: Experiment, out: Path, version: str, say: Callable[[s
             paths[s.name], hashes[s.name] = s.path, _folder_hash(s.path)
             continue
         ident = {"mocap": file_hash(s.mocap), "skeleton": file_hash(s.skeleton) if s.skeleton else None,
-                 "synth": s.synth, "fps": exp.fps, "version": version}
+                 "synth": s.synth, "fps": exp.fps, "version": version,
+                 **({"then": file_hash(Path(s.synth["then"]))} if "then" in s.synth else {})}
         h = config_hash(ident)
         folder = out / "sequences" / h
         if not (folder / "meta.json").exists():  # synthesize renders under a temporary name, then renames

@@ -24,6 +24,12 @@ File layout (paths are relative to the experiment file; every key is checked, un
     mocap = "../../../shared/mocap/cmu/16/16_15.amc"
     start = 0                                # synth options: start, frames, views, seed, noise, ...
     frames = 150
+    [[sequence]]                             # ... or two clips cross-faded: a change of activity
+    name = "subject 2 walk then run"         # (data_tools.transition; switch_at at the experiment's fps)
+    mocap = "../../../shared/mocap/cmu/02/02_01.amc"
+    then = "../../../shared/mocap/cmu/02/02_03.amc"
+    switch_at = 120
+    fade = 12
 
     [[prior]]
     label = "zero-velocity"                  # row label (default: the name)
@@ -68,7 +74,7 @@ else:  # pragma: no cover
 TOP_KEYS = {"description", "seed", "seeds", "fps", "baseline", "paired", "tracking", "sequence", "prior",
             "likelihood"}
 TRACKING_KEYS = {"particles", "views", "annealing_layers", "frames", "known_frames", "resampling"}
-SEQUENCE_KEYS = {"name", "path", "mocap", "skeleton", "start", "frames", "views", "seed", "noise", "width",
+SEQUENCE_KEYS = {"name", "path", "mocap", "skeleton", "then", "then_skeleton", "switch_at", "fade", "start", "frames", "views", "seed", "noise", "width",
                  "height", "lighting_change", "occluder", "missing_camera"}
 PRIOR_KEYS = {"label", "name", "options", "models", "train", "train_mocap"}
 TRAIN_KEYS = {"mocap", "skeletons", "options", "seed"}
@@ -268,6 +274,9 @@ def load_experiment(path: str | Path) -> Experiment:
             sequences.append(SequenceSpec(name, path=w.file(s["path"], entry, folder=True)))
         else:
             synth = {k: v for k, v in s.items() if k not in ("name", "mocap", "skeleton")}
+            for key in ("then", "then_skeleton"):  # a transition's second clip, relative to the file like mocap
+                if key in s:
+                    synth[key] = str(w.file(s[key], entry))
             sequences.append(SequenceSpec(name, mocap=w.file(s["mocap"], entry),
                                           skeleton=w.file(s["skeleton"], entry) if "skeleton" in s else None,
                                           synth=synth))
