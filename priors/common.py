@@ -197,3 +197,17 @@ def checked_data_settings(d: dict, kind: str, source=None) -> tuple[float, str, 
             or not torch.all(torch.isfinite(step)) or torch.any(step < 0):
         raise InputError(f"{kind} model file's pose_step_rms must be finite, non-negative, one per pose number", source)
     return float(fps), body, list(dofs), list(sources), step.numpy()
+
+
+def torch_save_atomic(doc: dict, path: Path) -> None:
+    """``torch.save(doc, path)`` through a temporary file beside ``path`` and an atomic rename, so ``path`` is
+    never half-written (a training checkpoint interrupted while saving keeps the one before)."""
+    import torch
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp")
+    try:
+        torch.save(doc, tmp)
+        tmp.replace(path)
+    finally:
+        tmp.unlink(missing_ok=True)

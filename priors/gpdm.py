@@ -49,7 +49,8 @@ import numpy as np
 import torch
 
 from priors.common import (
-    ROOT_NOISE_MM, check_model_fits, normaliser_from_tensors, normaliser_to_tensors, read_model_file,
+    ROOT_NOISE_MM, check_model_fits, checked_data_settings, normaliser_from_tensors, normaliser_to_tensors,
+    read_model_file, torch_save_atomic,
 )
 from tracker.core.errors import InputError
 from tracker.core.representation import (
@@ -59,6 +60,8 @@ from tracker.engine.prior import MotionPrior, PriorState
 from tracker.engine.registry import Option, PriorContext, TrainingData, register_prior
 
 FORMAT = "pose-tracker gpdm v1"
+#: Training checkpoints have their own format, so a half-trained model is never taken for a model file.
+CHECKPOINT_FORMAT = "pose-tracker gpdm training checkpoint v1"
 DYNAMICS = ("linear", "rbf", "linear+rbf")
 #: Sparse approximations (:class:`_Sparse`): ``dtc`` (the default; deterministic training conditional, or
 #: projected process, Seeger et al. 2003), ``vfe`` (DTC plus Titsias' 2009 trace term: a lower bound on the
@@ -603,14 +606,38 @@ def pca_init(Y: np.ndarray, d: int) -> np.ndarray:
     return X / X.std(0).clip(min=1e-12)
 
 
+@dataclass
+class GPDMCheckpoint:
+    """A training checkpoint read back (:func:`read_training_checkpoint`): the model as it was after
+    ``state['done']`` iterations, the L-BFGS optimiser's whole state, and the file it came from."""
+
+    model: GPDM
+    state: dict
+    path: Path | None = None
+
+
 def train_gpdm(Y: np.ndarray, lengths: Sequence[int], config: GPDMConfig,
-               progress: Callable[[int, float], None] | None = None) -> GPDM:
-    """Learn a GPDM on observations ``Y`` (``N x D``, sequences concatenated) by L-BFGS."""
+               progress: Callable[[int, float], None] | None = None,
+               checkpoint: tuple[Callable[[GPDM, dict], None], int] | None = None,
+               resume: GPDMCheckpoint | None = None) -> GPDM:
+    """Learn a GPDM on observations ``Y`` (``N x D``, sequences concatenated) by L-BFGS.
+
+    Training runs in chunks of ``config.w_update_every`` L-BFGS iterations, with the closed-form ``W`` update
+    between chunks; one optimiser runs through all chunks, so its curvature history carries over.
+    ``checkpoint = (save, every)`` calls ``save(model, training_state)`` at the end of the first chunk at or
+    after every ``every`` iterations (not after the last); the state holds the optimiser's ``state_dict`` (its
+    history of steps and gradient changes, last direction and step length, iteration counts), so ``resume``
+    (such a checkpoint) restores the parameters, ``W`` and the optimiser exactly and continues to the model an
+    uninterrupted run gives, bit for bit.
+    """
     t0 = time.perf_counter()
     model = GPDM(Y, lengths, config)  # PCA initialisation and L-BFGS: nothing random
     model.update_W()
     opt = torch.optim.LBFGS(model.parameters(), lr=1.0, max_iter=config.w_update_every,
                             line_search_fn="strong_wolfe", history_size=20)
+    done, seconds_before = 0, 0.0
+    if resume is not None:
+        done, seconds_before = _restore(model, opt, resume)
 
     def closure():
         opt.zero_grad()
@@ -618,7 +645,6 @@ def train_gpdm(Y: np.ndarray, lengths: Sequence[int], config: GPDMConfig,
         value.backward()
         return value
 
-    done = 0
     while done < config.iterations:
         opt.step(closure)
         model.update_W()
@@ -630,41 +656,159 @@ def train_gpdm(Y: np.ndarray, lengths: Sequence[int], config: GPDMConfig,
         model.objective_history.append(value)
         if progress is not None:
             progress(min(done, config.iterations), value)
-    model.training_seconds = time.perf_counter() - t0
+        if checkpoint is not None and done < config.iterations \
+                and done // checkpoint[1] > (done - config.w_update_every) // checkpoint[1]:
+            model.training_seconds = seconds_before + time.perf_counter() - t0
+            checkpoint[0](model, {"optimizer": opt.state_dict(), "done": done,
+                                  "seconds": model.training_seconds})
+    model.training_seconds = seconds_before + time.perf_counter() - t0
     return model
+
+
+def _restore(model: GPDM, opt: torch.optim.LBFGS, resume: GPDMCheckpoint) -> tuple[int, float]:
+    """Set ``model`` and ``opt`` to the checkpoint's state; the iterations done and seconds spent before.
+    A checkpoint of other data or settings is refused."""
+    saved, state = resume.model, resume.state
+    if (asdict(saved.config) != asdict(model.config) or saved.lengths != model.lengths
+            or not torch.equal(saved.Y, model.Y)):
+        raise InputError("the checkpoint is not of this training (other clips or settings)", resume.path)
+    try:
+        done, seconds = int(state["done"]), float(state["seconds"])
+        with torch.no_grad():
+            for mine, theirs in zip(model.parameters(), saved.parameters()):
+                mine.copy_(theirs)
+        model.W = saved.W.clone()
+        model.objective_history = list(saved.objective_history)
+        opt.load_state_dict(state["optimizer"])
+    except (KeyError, TypeError, ValueError, RuntimeError) as exc:
+        raise InputError(f"the training checkpoint's optimiser state is malformed ({type(exc).__name__}: "
+                         f"{str(exc)[:100]})", resume.path) from None
+    if not 0 < done < model.config.iterations:
+        raise InputError(f"the training checkpoint says {done} iterations were done, outside 1.."
+                         f"{model.config.iterations - 1}", resume.path)
+    return done, seconds
 
 
 # ---------------------------------------------------------------------------
 # Model files
 # ---------------------------------------------------------------------------
 
+def gpdm_document(model: GPDM, extra: dict | None = None) -> dict:
+    """The model file's dictionary (tensors and plain values; ``torch.load(weights_only=True)`` reads it)."""
+    return {"format": FORMAT, "config": asdict(model.config), "lengths": list(model.lengths),
+            "X": model.X.detach().clone(), "Y": model.Y.clone(), "W": model.W.clone(),
+            "log_alpha": model.log_alpha.detach().clone(), "log_beta": model.log_beta.detach().clone(),
+            "active": None if model.active is None else model.active.clone(),
+            "objective_history": [float(v) for v in model.objective_history], "extra": extra or {}}
+
+
 def save_gpdm(path: str | Path, model: GPDM, extra: dict | None = None) -> None:
     """Write a trained GPDM (latent points, data, scales, hyperparameters, config) and ``extra`` metadata
     (plain values or tensors) to a ``torch.save`` file loadable with ``weights_only=True``."""
-    doc = {"format": FORMAT, "config": asdict(model.config), "lengths": list(model.lengths),
-           "X": model.X.detach().clone(), "Y": model.Y.clone(), "W": model.W.clone(),
-           "log_alpha": model.log_alpha.detach().clone(), "log_beta": model.log_beta.detach().clone(),
-           "active": None if model.active is None else model.active.clone(),
-           "objective_history": [float(v) for v in model.objective_history], "extra": extra or {}}
     Path(path).parent.mkdir(parents=True, exist_ok=True)
-    torch.save(doc, path)
+    torch.save(gpdm_document(model, extra), path)
 
 
 def load_gpdm(path: str | Path) -> tuple[GPDM, dict]:
-    """Read a model written by :func:`save_gpdm`: the GPDM and its ``extra`` metadata. Files written before
-    sparse models existed have no inducing frames (``active``) and no ``inducing`` setting: they are exact."""
-    doc = read_model_file(path, FORMAT, "GPDM")
-    config = dict(doc["config"])
-    config.pop("seed", None)  # files written when the config carried an (unused) seed
-    active = doc.get("active")
-    model = GPDM(doc["Y"].numpy(), doc["lengths"], GPDMConfig(**config), X=doc["X"].numpy(),
-                 active=None if active is None else active.numpy())
+    """Read a model written by :func:`save_gpdm`: the GPDM and its ``extra`` metadata, every part checked
+    (:func:`gpdm_from_document`). Files written before sparse models existed have no inducing frames
+    (``active``) and no ``inducing`` setting: they are exact."""
+    path = Path(path)
+    return gpdm_from_document(read_model_file(path, FORMAT, "GPDM"), path)
+
+
+#: What a GPDM learns and a training checkpoint restores (with the optimiser's state and the objective history).
+GPDM_PARAMETERS = ("X", "log_alpha", "log_beta", "W")
+
+#: Largest magnitude of a log hyperparameter (kernel scales, inverse widths, noise precisions) in a model file:
+#: ``exp(+-30)`` spans 1e-13..1e13, far beyond any trained value; beyond it the kernels under- or overflow.
+MAX_LOG_HYPERPARAMETER = 30.0
+
+
+def gpdm_from_document(doc: dict, path: Path | None) -> tuple[GPDM, dict]:
+    """The GPDM of a model file's (or training checkpoint's) dictionary and its ``extra`` metadata.
+
+    A missing key, a setting that is unknown or of the wrong type, sequence lengths that do not add up, an
+    array of the wrong type or shape, a NaN or infinite value, a non-positive scale ``W``, a log hyperparameter
+    outside +-:data:`MAX_LOG_HYPERPARAMETER` (a kernel scale or noise precision of 0 or infinity) or inducing
+    frames out of range is one :class:`InputError` naming the file and the key.
+    """
+    try:
+        config = _config_from(doc["config"], path)
+        lengths = doc["lengths"]
+        if not isinstance(lengths, list) or not lengths \
+                or any(isinstance(n, bool) or not isinstance(n, int) or n < 1 for n in lengths):
+            raise InputError(f"GPDM lengths must be a list of positive frame counts, got {str(lengths)[:40]}", path)
+        arrays = {key: doc[key] for key in ("Y", "X", "W", "log_alpha", "log_beta")}
+        for key, t in arrays.items():
+            if not isinstance(t, torch.Tensor) or not t.is_floating_point():
+                raise InputError(f"GPDM {key} must be a tensor of real numbers, got {type(t).__name__}", path)
+        N, D = sum(lengths), (arrays["Y"].shape[1] if arrays["Y"].ndim == 2 else -1)
+        expected = {"Y": (N, D), "X": (N, config.latent_dim), "W": (D,), "log_alpha": (n_dynamics_params(config),),
+                    "log_beta": (3,)}
+        for key, shape in expected.items():
+            if tuple(arrays[key].shape) != shape:
+                raise InputError(f"GPDM {key} has shape {tuple(arrays[key].shape)}; {N} frames (the sum of the "
+                                 f"lengths) of {D} features, latent dimension {config.latent_dim} and "
+                                 f"{config.dynamics} dynamics of order {config.order} need {shape}", path)
+            if not torch.all(torch.isfinite(arrays[key])):
+                raise InputError(f"GPDM {key} contains NaN or infinite values", path)
+        if torch.any(arrays["W"] <= 0):
+            raise InputError("GPDM scales W must be positive", path)
+        for key in ("log_alpha", "log_beta"):
+            big = torch.nonzero(arrays[key].abs() > MAX_LOG_HYPERPARAMETER)
+            if len(big):
+                i = int(big[0, 0])
+                raise InputError(f"GPDM {key}[{i}] = {float(arrays[key][i]):.6g}: kernel scales and noise precisions "
+                                 f"are exp({key}) and must lie in exp(+-{MAX_LOG_HYPERPARAMETER:g})", path)
+        active = doc.get("active")
+        if active is not None and (not isinstance(active, torch.Tensor) or active.ndim != 1
+                                   or active.dtype not in (torch.int32, torch.int64) or len(active) == 0
+                                   or int(active.min()) < 0 or int(active.max()) >= N):
+            raise InputError(f"GPDM inducing frames (active) must be a 1-D integer tensor of indices in 0..{N - 1}",
+                             path)
+        history = [float(v) for v in doc["objective_history"]]
+        extra = doc["extra"]
+        if not isinstance(extra, dict):
+            raise InputError(f"GPDM extra must be a dictionary, got {type(extra).__name__}", path)
+        model = GPDM(arrays["Y"].numpy(), lengths, config, X=arrays["X"].numpy(),
+                     active=None if active is None else active.numpy())
+    except InputError as exc:
+        if exc.path is None:
+            raise InputError(f"GPDM model file: {exc.reason}", path) from None
+        raise
+    except KeyError as exc:
+        raise InputError(f"GPDM model file lacks {exc.args[0]!r}", path) from None
+    except (TypeError, ValueError, AttributeError, RuntimeError) as exc:
+        raise InputError(f"GPDM model file is malformed ({type(exc).__name__}: {str(exc)[:100]})", path) from None
     with torch.no_grad():
-        model.log_alpha.copy_(doc["log_alpha"])
-        model.log_beta.copy_(doc["log_beta"])
-    model.W = doc["W"].clone()
-    model.objective_history = list(doc["objective_history"])
-    return model, dict(doc["extra"])
+        model.log_alpha.copy_(arrays["log_alpha"])
+        model.log_beta.copy_(arrays["log_beta"])
+    model.W = arrays["W"].to(torch.float64).clone()
+    model.objective_history = history
+    return model, dict(extra)
+
+
+def _config_from(settings, path: Path | None) -> GPDMConfig:
+    """The :class:`GPDMConfig` of a model file, refusing unknown settings and values of the wrong type."""
+    if not isinstance(settings, dict):
+        raise InputError(f"GPDM config must be a dictionary, got {type(settings).__name__}", path)
+    settings = dict(settings)
+    settings.pop("seed", None)  # files written when the config carried an (unused) seed
+    fields = GPDMConfig.__dataclass_fields__
+    unknown = sorted(set(settings) - set(fields))
+    if unknown:
+        raise InputError(f"GPDM model file has unknown settings {', '.join(map(str, unknown))}", path)
+    kinds = {"latent_dim": int, "order": int, "iterations": int, "w_update_every": int, "inducing": int,
+             "balance": (int, float), "dynamics": str, "sparse_method": str}
+    for key, value in settings.items():
+        if key == "inducing" and value is None:
+            continue
+        if isinstance(value, bool) or not isinstance(value, kinds[key]) \
+                or (isinstance(value, float) and not math.isfinite(value)):
+            raise InputError(f"GPDM setting {key} must be {'text' if kinds[key] is str else 'a finite number'}, "
+                             f"got {str(value)[:30]!r}", path)
+    return GPDMConfig(**settings).check()
 
 
 # ---------------------------------------------------------------------------
@@ -706,23 +850,32 @@ class GPDMPriorModel:
 
 def train_gpdm_prior(clips: Sequence[np.ndarray], config: GPDMConfig, fps: float, dof_names: Sequence[str],
                      body_model: str = "15-cone", sources: Sequence[str] = (),
-                     progress: Callable[[int, float], None] | None = None) -> GPDMPriorModel:
-    """A GPDM on the invariant features of pose clips (each ``T x D`` at ``fps``), one sequence per clip."""
+                     progress: Callable[[int, float], None] | None = None,
+                     checkpoint: tuple[Callable[[GPDM, dict], None], int] | None = None,
+                     resume: GPDMCheckpoint | None = None) -> GPDMPriorModel:
+    """A GPDM on the invariant features of pose clips (each ``T x D`` at ``fps``), one sequence per clip;
+    ``checkpoint`` and ``resume`` as in :func:`train_gpdm`."""
     normed, norm = clip_features(clips, dof_names)
-    gpdm = train_gpdm(np.concatenate(normed), [len(f) for f in normed], config, progress)
+    gpdm = train_gpdm(np.concatenate(normed), [len(f) for f in normed], config, progress, checkpoint, resume)
     return GPDMPriorModel(gpdm, norm, fps, body_model, list(dof_names), list(sources), step_rms(clips))
 
 
 def load_gpdm_prior(path: str | Path) -> GPDMPriorModel:
+    """A GPDM prior's model file: the GPDM (:func:`load_gpdm`) and its data settings, every part checked (the
+    normaliser finite with positive scales and one kept feature per observed dimension; see
+    :func:`priors.common.checked_data_settings`)."""
+    path = Path(path)
     gpdm, extra = load_gpdm(path)
-    try:
-        norm = normaliser_from_tensors(extra["normaliser"])
-        model = GPDMPriorModel(gpdm, norm, float(extra["fps"]), extra["body_model"], list(extra["dof_names"]),
-                               list(extra["sources"]), extra["pose_step_rms"].numpy())
-    except (KeyError, AttributeError) as exc:
-        raise InputError(f"GPDM file lacks the data settings of a motion prior ({exc})", path) from None
-    gpdm.training_seconds = float(extra.get("training_seconds", 0.0))
-    return model
+    if "normaliser" not in extra:
+        raise InputError("GPDM model file lacks 'normaliser' (the data settings of a motion prior)", path)
+    norm = normaliser_from_tensors(extra["normaliser"], path)
+    if norm.n_kept != gpdm.Y.shape[1]:
+        raise InputError(f"GPDM model has {gpdm.Y.shape[1]} observed features but its normaliser keeps "
+                         f"{norm.n_kept}", path)
+    fps, body_model, dof_names, sources, step = checked_data_settings(extra, "GPDM", path)
+    seconds = extra.get("training_seconds", 0.0)
+    gpdm.training_seconds = float(seconds) if isinstance(seconds, (int, float)) else 0.0
+    return GPDMPriorModel(gpdm, norm, fps, body_model, dof_names, sources, step)
 
 
 class GPDMPrior(MotionPrior):
@@ -800,15 +953,42 @@ class GPDMPrior(MotionPrior):
 
 def train_gpdm_from_data(data: TrainingData, options: dict, rng: np.random.Generator,
                          progress: Callable[[int, int, dict], None] | None = None,
-                         checkpoint: Path | None = None) -> GPDMPriorModel:
-    """``train --prior gpdm``: a GPDM on the clips of ``data`` (deterministic: ``rng`` is not drawn from)."""
+                         checkpoint: Path | None = None, resume: bool = False) -> GPDMPriorModel:
+    """``train --prior gpdm``: a GPDM on the clips of ``data`` (deterministic: ``rng`` is not drawn from).
+
+    With ``checkpoint`` (a file) and the ``checkpoint_every`` option the training state is saved there in the
+    checkpoint format (never taken for a model file), atomically; ``resume`` continues from it to the model an
+    uninterrupted run gives. The checkpoint is removed when training finishes."""
     config = GPDMConfig(latent_dim=options["latent_dim"], dynamics=options["dynamics"], order=options["order"],
                         balance=options["balance"], iterations=options["iterations"],
                         inducing=options.get("inducing")).check()
+    every = options.get("checkpoint_every") or 0
     report = None if progress is None else (
         lambda done, value: progress(done, config.iterations, {"objective": value}))
-    return train_gpdm_prior(list(data.clips), config, data.fps, data.body_model.dof_names, data.body_model.name,
-                            list(data.sources), report)
+    saved = read_training_checkpoint(checkpoint) if resume else None
+
+    def save(model: GPDM, training_state: dict) -> None:
+        torch_save_atomic({**gpdm_document(model), "format": CHECKPOINT_FORMAT, "training_state": training_state},
+                          checkpoint)
+
+    model = train_gpdm_prior(list(data.clips), config, data.fps, data.body_model.dof_names, data.body_model.name,
+                             list(data.sources), report, (save, every) if checkpoint is not None and every else None,
+                             saved)
+    if checkpoint is not None:
+        checkpoint.unlink(missing_ok=True)
+    return model
+
+
+def read_training_checkpoint(path: Path | None) -> GPDMCheckpoint:
+    """A GPDM training checkpoint written by ``train --checkpoint-every``, checked like a model file."""
+    if path is None or not path.exists():
+        raise InputError("no training checkpoint to resume from", path)
+    doc = read_model_file(path, CHECKPOINT_FORMAT, "GPDM training checkpoint")
+    state = doc.get("training_state")
+    if not isinstance(state, dict):
+        raise InputError("the GPDM training checkpoint lacks its training state", path)
+    model, _ = gpdm_from_document(doc, path)
+    return GPDMCheckpoint(model, state, path)
 
 
 GPDM_TRAIN_OPTIONS = (
@@ -821,12 +1001,14 @@ GPDM_TRAIN_OPTIONS = (
     Option("inducing", int, GPDMConfig.inducing,
            f"inducing frames of the sparse GPs, chosen by farthest-point sampling; 0 = exact (default: exact up "
            f"to {EXACT_MAX_FRAMES} training frames, {AUTO_INDUCING} above)", minimum=0),
+    Option("checkpoint_every", int, None, "also save the training state every this many iterations (at the end of "
+                                          "the L-BFGS chunk reaching them), for train --resume", minimum=1),
 )
 
 
 @register_prior(
     "gpdm", summary="Gaussian Process Dynamical Model (Wang 2005), latent coordinates carried per particle",
-    model_files="one", train=train_gpdm_from_data, train_options=GPDM_TRAIN_OPTIONS,
+    model_files="one", train=train_gpdm_from_data, train_options=GPDM_TRAIN_OPTIONS, resumable=True,
     options=(Option("latent_noise", float, 1.0,
                     "multiple of the predictive standard deviation added to each latent step (default 1)",
                     minimum=0.0),
@@ -835,4 +1017,9 @@ GPDM_TRAIN_OPTIONS = (
 def build_gpdm(context: PriorContext, model_files: Sequence[Path], options: dict) -> GPDMPrior:
     model = load_gpdm_prior(model_files[0])
     model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, model_files[0])
-    return GPDMPrior(model, noise_scale=options["latent_noise"], root_noise_mm=options["root_noise"])
+    try:
+        return GPDMPrior(model, noise_scale=options["latent_noise"], root_noise_mm=options["root_noise"])
+    except InputError as exc:  # a kernel matrix of the file's hyperparameters that is not positive definite
+        if exc.path is not None:
+            raise
+        raise InputError(f"GPDM model file: {exc.reason}", model_files[0]) from None

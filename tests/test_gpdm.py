@@ -311,3 +311,108 @@ def test_inducing_is_a_training_option(walk_07_01):
     assert model.gpdm.sparse and len(model.gpdm.active) == 40 and "40 inducing" in model.summary()
     with pytest.raises(InputError, match="at least 10"):
         tracker.train("gpdm", [walk_07_01], iterations=10, inducing=5)
+
+
+# --- training resume and model-file checks ---------------------------------------------------------------------
+
+def test_interrupted_training_resumes_to_the_same_model(tmp_path):
+    """The checkpoint holds the L-BFGS optimiser's whole state (its step history, last direction and step
+    length), so the resumed run continues bit for bit; restarting L-BFGS without it moves X by about 0.1."""
+    import tracker
+    from data_tools.samples import sample_walks
+    from priors.gpdm import GPDM_PARAMETERS
+
+    asf, walks = sample_walks()
+    settings = dict(skeletons=[asf], iterations=30, rng=0, checkpoint_every=10)
+    whole = tracker.train("gpdm", [walks[0]], **settings)
+    checkpoint = tmp_path / "g.pt.checkpoint"
+    calls = []
+
+    def interrupt(done, total, metrics):  # Ctrl-C at iteration 30, after the checkpoint at iteration 20
+        calls.append(done)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        tracker.train("gpdm", [walks[0]], checkpoint=checkpoint, progress=interrupt, **settings)
+    with pytest.raises(InputError, match="not a GPDM model file"):  # never taken for a model
+        load_gpdm(checkpoint)
+    with pytest.raises(InputError, match="not of this training"):
+        tracker.train("gpdm", [walks[0]], checkpoint=checkpoint, resume=True, **{**settings, "iterations": 40})
+    resumed = tracker.train("gpdm", [walks[0]], checkpoint=checkpoint, resume=True, **settings)
+    for name in GPDM_PARAMETERS:
+        assert torch.equal(getattr(whole.gpdm, name), getattr(resumed.gpdm, name)), name
+    assert resumed.gpdm.objective_history == whole.gpdm.objective_history and not checkpoint.exists()
+    with pytest.raises(InputError, match="no training checkpoint"):
+        tracker.train("gpdm", [walks[0]], checkpoint=checkpoint, resume=True, **settings)
+
+
+@pytest.fixture(scope="module")
+def small_gpdm_file(tmp_path_factory):
+    """A GPDM prior trained for 10 iterations on the shipped walk 07_01, saved."""
+    import tracker
+    from data_tools.samples import sample_walks
+
+    asf, walks = sample_walks()
+    path = tmp_path_factory.mktemp("gpdm") / "g.pt"
+    tracker.train("gpdm", [walks[0]], skeletons=[asf], iterations=10).save(path)
+    return path
+
+
+def _extra(key, value):
+    return lambda d: d["extra"].__setitem__(key, value)
+
+
+def _normaliser(key, factor):
+    return lambda d: d["extra"]["normaliser"].__setitem__(key, d["extra"]["normaliser"][key] * factor)
+
+
+@pytest.mark.parametrize("damage, expected", [
+    (lambda d: d.pop("X"), "lacks 'X'"),
+    (lambda d: d.__setitem__("X", d["X"][:, :2]), "X has shape"),
+    (lambda d: d.__setitem__("log_alpha", d["log_alpha"][:1]), "log_alpha has shape"),
+    (lambda d: d.__setitem__("Y", d["Y"].tolist()), "Y must be a tensor of real numbers"),
+    (lambda d: d.__setitem__("X", d["X"] * float("nan")), "X contains NaN or infinite"),
+    (lambda d: d["log_beta"].__setitem__(2, float("inf")), "log_beta contains NaN or infinite"),
+    (lambda d: d["log_alpha"].__setitem__(0, -40.0), "log_alpha[0] = -40: kernel scales"),
+    (lambda d: d.__setitem__("W", d["W"] * 0), "W must be positive"),
+    (lambda d: d["config"].__setitem__("latent_dims", 3), "unknown settings latent_dims"),
+    (lambda d: d["config"].__setitem__("latent_dim", "3"), "latent_dim must be a finite number"),
+    (lambda d: d["config"].__setitem__("dynamics", "cubic"), "dynamics kernel must be one of"),
+    (lambda d: d.__setitem__("lengths", [5]), "Y has shape"),
+    (lambda d: d.__setitem__("lengths", "157"), "lengths must be a list"),
+    (lambda d: d.__setitem__("active", torch.tensor([0, 10 ** 6])), "inducing frames"),
+    (lambda d: d.__setitem__("extra", [1]), "extra must be a dictionary"),
+    (_extra("fps", "sixty"), "fps must be a number in (0, 100000] Hz, got 'sixty'"),
+    (_extra("fps", 1e308), "fps must be a number"),
+    (_extra("dof_names", 5), "dof_names must be a list of text"),
+    (_extra("pose_step_rms", torch.full((40,), float("nan"))), "pose_step_rms must be finite"),
+    (_normaliser("std", 0.0), "positive scales"),
+    (_normaliser("std", float("inf")), "finite"),
+    (lambda d: d["extra"].pop("normaliser"), "lacks 'normaliser'"),
+])
+def test_broken_model_files_are_refused(small_gpdm_file, tmp_path, damage, expected):
+    from priors.gpdm import load_gpdm_prior
+
+    doc = torch.load(small_gpdm_file, weights_only=True)
+    damage(doc)
+    bad = tmp_path / "bad.pt"
+    torch.save(doc, bad)
+    with pytest.raises(InputError) as err:
+        load_gpdm_prior(bad)
+    assert expected in str(err.value) and err.value.path == str(bad) and "\n" not in str(err.value)
+
+
+def test_foreign_and_corrupt_model_files_are_refused(small_gpdm_file, tmp_path):
+    from priors.gpdm import load_gpdm_prior
+
+    text, cut, other = tmp_path / "text.pt", tmp_path / "cut.pt", tmp_path / "other.pt"
+    text.write_text("not a model\n")
+    cut.write_bytes(small_gpdm_file.read_bytes()[:2000])
+    torch.save({"format": "pose-tracker crbm v1"}, other)
+    for path, expected in ((text, "cannot read model file"), (cut, "cannot read model file"),
+                           (other, "not a GPDM model file")):
+        with pytest.raises(InputError, match=expected) as err:
+            load_gpdm_prior(path)
+        assert err.value.path == str(path)
+    assert load_gpdm_prior(small_gpdm_file).fps == 60.0
