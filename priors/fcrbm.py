@@ -228,32 +228,33 @@ class FCRBM:
         Rows with the same label vector share the effective weights ``Wv diag(s) Wh^T`` ``K x H``; with at most
         :data:`GROUPED_STYLES_MAX` distinct rows (``grouped=None``) sampling runs on those matrices, rows sorted
         by style, else on the factored form. Both draw the same random numbers (one ``B x H`` uniform array per
-        step, in row order) and agree to rounding.
+        step, its rows taken in the order of the rows sorted by style) and agree to rounding.
         """
         s = self.style_factors(y)
         a_hat, b_hat = self.biases(history, s)
         v = history[:, -self.n_visible:] if init is None else init
         B, H = len(v), self.n_hidden
         styles, inverse = torch.unique(y, dim=0, return_inverse=True)
+        order = torch.argsort(inverse, stable=True)
         if grouped is None:
             grouped = len(styles) <= GROUPED_STYLES_MAX
         if not grouped:
+            rank = torch.empty_like(order)
+            rank[order] = torch.arange(B, device=order.device)
             for step in range(steps):
                 p = self.hidden_probabilities(v, s, b_hat)
                 h = p if step == steps - 1 else \
-                    (torch.rand((B, H), generator=generator, device=v.device, dtype=v.dtype) < p).to(v.dtype)
+                    (torch.rand((B, H), generator=generator, device=v.device, dtype=v.dtype)[rank] < p).to(v.dtype)
                 v = self.visible_means(h, s, a_hat)
             return v
         weights = torch.einsum("kf,sf,hf->skh", self.Wv, self.style_factors(styles), self.Wh)  # S x K x H
-        order = torch.argsort(inverse, stable=True)
         bounds = [0] + torch.cumsum(torch.bincount(inverse, minlength=len(styles)), 0).tolist()
         groups = [(slice(bounds[i], bounds[i + 1]), weights[i]) for i in range(len(styles))
                   if bounds[i + 1] > bounds[i]]
         a_hat, b_hat, v = a_hat[order], b_hat[order], v[order]
         h = torch.empty((B, H), device=v.device, dtype=v.dtype)
         for step in range(steps):
-            u = None if step == steps - 1 else \
-                torch.rand((B, H), generator=generator, device=v.device, dtype=v.dtype)[order]
+            u = None if step == steps - 1 else torch.rand((B, H), generator=generator, device=v.device, dtype=v.dtype)
             for rows, W in groups:
                 p = torch.sigmoid(torch.addmm(b_hat[rows], v[rows], W))
                 h[rows] = p if u is None else (u[rows] < p).to(v.dtype)
