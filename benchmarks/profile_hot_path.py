@@ -8,7 +8,7 @@ Two fixed workloads, each profiled with cProfile (the table sorted by cumulative
    particles, zero-velocity prior.
 
 Then the likelihood's stages, timed one by one on the synthetic frame (median of 20 calls, milliseconds per
-1000 particles x 4 views): kinematics, contour solve, contour end points, projection, cost lookup.
+1000 particles x 4 views, one block): kinematics, camera frames, contour solve, projection, whole call.
 """
 from __future__ import annotations
 
@@ -26,6 +26,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 SHARED = REPO.parent / "shared"
+
+from timing import median_ms  # noqa: E402
 
 
 def profile(label: str, fn, top: int) -> None:
@@ -49,7 +51,7 @@ def profile(label: str, fn, top: int) -> None:
 def stage_times(seq, P: int = 1000, repeats: int = 20) -> None:
     """Median milliseconds of each likelihood stage for ``P`` poses near frame 10's ground truth."""
     from likelihoods.edge_silhouette import EdgeSilhouetteLikelihood
-    from tracker.core.cones import contour_angles, contour_endpoints
+    from tracker.core.cones import contour_corners
     from tracker.core.kinematics import forward_kinematics
 
     V = seq.n_views
@@ -59,30 +61,23 @@ def stage_times(seq, P: int = 1000, repeats: int = 20) -> None:
     rng = np.random.default_rng(0)
     poses = seq.groundtruth.poses[10] + rng.normal(0, 0.02, (P, seq.model.n_dofs))
     model, rig = seq.model, seq.rig
-    fk = forward_kinematics(model, poses)
-    frames = fk.segment_frames()
-    angles = contour_angles(model, frames, lik.centres)
-    ends = contour_endpoints(model, frames, angles, np.float32)
-    S = ends.shape[2]
+    rotations, origins = forward_kinematics(model, poses).segment_rotations()
+    axes, cam_origins = rig.frames_in_cameras(rotations, origins)
+    X, Y, Z = contour_corners(model, axes, cam_origins)
     stages = {
         "observations (decode 4 views)": lambda: seq.frame(10, range(V)),
         "observations (silhouettes + edge maps)": lambda: lik.prepare(frame),
-        "kinematics (forward_kinematics + segment_frames)": lambda: forward_kinematics(model, poses).segment_frames(),
-        "contour solve (contour_angles)": lambda: contour_angles(model, frames, lik.centres),
-        "contour end points": lambda: contour_endpoints(model, frames, angles, np.float32),
-        "projection (project_each)": lambda: rig.project_each(ends.reshape(P, V, S * 4, 3)),
+        "kinematics (forward_kinematics + segment_rotations)":
+            lambda: forward_kinematics(model, poses).segment_rotations(),
+        "segment frames in the cameras (frames_in_cameras)": lambda: rig.frames_in_cameras(rotations, origins),
+        "contour solve and end points (contour_corners)": lambda: contour_corners(model, axes, cam_origins),
+        "projection (pixels)": lambda: rig.pixels(X, Y, Z),
         "whole likelihood": lambda: scorer(poses),
     }
     print(f"\n=== likelihood stages, {P} particles x {V} views (median of {repeats}, ms) ===")
     for name, fn in stages.items():
-        fn()
-        times = []
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            fn()
-            times.append(time.perf_counter() - t0)
-        t = np.array(times) * 1000
-        print(f"{name:55s} {np.median(t):8.2f}  (min {t.min():.2f}, max {t.max():.2f})")
+        med, lo, hi = median_ms(fn, repeats)
+        print(f"{name:55s} {med:8.2f}  (min {lo:.2f}, max {hi:.2f})")
 
 
 def main() -> None:

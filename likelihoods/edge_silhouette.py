@@ -2,7 +2,7 @@
 
 For every particle and view each cone is projected: points are sampled evenly
 along its two occluding-contour lines (the rulings whose tangent plane
-contains the camera centre, :func:`tracker.core.cones.contour_angles`) and on a
+contains the camera centre, :func:`tracker.core.cones.contour_corners`) and on a
 grid between them in the image. Contour points look up the edge map, grid
 points the silhouette (nearest pixel; a point outside the image or behind the
 camera reads 0; the cost maps carry a border of cost 1). Per view::
@@ -31,7 +31,7 @@ import numpy as np
 from likelihoods.observations import DEFAULT_OBSERVATION, BackgroundPlate, ObservationConfig, Observations, observe
 from tracker.core.body import BodyModel
 from tracker.core.cameras import CameraRig
-from tracker.core.cones import contour_angles, contour_endpoints
+from tracker.core.cones import contour_corners
 from tracker.core.errors import InputError
 from tracker.core.kinematics import forward_kinematics
 from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood
@@ -131,26 +131,29 @@ class EdgeSilhouetteLikelihood(Likelihood):
         return LikelihoodTerms(edge=edge, silhouette=sil, coverage=cover, log_likelihood=ll)
 
     def _block_costs(self, poses: np.ndarray, maps: "_CostMaps"):
-        """Edge, silhouette and (optional) coverage costs ``p x V`` of poses within the limits."""
-        V = len(self.rig)
-        frames = forward_kinematics(self.model, poses).segment_frames()
-        angles = contour_angles(self.model, frames, self.centres)  # p V S 2
-        ends = contour_endpoints(self.model, frames, angles, np.float32)  # p V S 2 2 3
-        p, _, S = ends.shape[:3]
-        corners, depth = self.rig.project_each(ends.reshape(p, V, S * 4, 3))
-        corners = corners.reshape(p, V, S, 4, 2)  # line 0 proximal, distal; line 1 proximal, distal
-        behind = np.any(depth.reshape(p, V, S, 4) <= 0, axis=-1)
-        corners[behind] = -1e6  # reads the border of the cost maps: cost 1
-        # Every sample is a fixed affine combination of the 4 corners: contour points spaced evenly
-        # along each projected line (a ruling projects to a straight segment; with lens distortion a
-        # sub-pixel approximation on a limb), then the grid between the lines. One matrix product.
-        pts = np.swapaxes(corners, -1, -2).reshape(-1, 4) @ self.weights  # (p V S 2) x N
-        pts = pts.reshape(p, V, S, 2, -1)
-        flat = maps.flat_index(pts[..., 0, :], pts[..., 1, :])  # p V S N
+        """Edge, silhouette and (optional) coverage costs ``p x V`` of poses within the limits.
+
+        float32 from the camera frames on (sub-pixel error about 1e-4 px), components on the leading axis and
+        the views next, so every step runs over long contiguous arrays ``V x p x S (x 4 or N)``.
+        """
+        fk = forward_kinematics(self.model, poses)
+        rotations, origins = fk.segment_rotations()  # p S 3 3, p S 3
+        axes, origins = self.rig.frames_in_cameras(rotations, origins, np.float32)  # 3 3 V p S, 3 V p S
+        X, Y, Z = contour_corners(self.model, axes, origins)  # each V p S 4: line 0 proximal, distal; line 1
+        u, v = self.rig.pixels(X, Y, Z)
+        behind = np.any(Z <= 0, axis=-1)
+        u[behind] = -1e6  # reads the border of the cost maps: cost 1
+        v[behind] = -1e6
+        # Every sample is a fixed affine combination of the 4 corners: contour points spaced evenly along
+        # each projected line (a ruling projects to a straight segment; with lens distortion a sub-pixel
+        # approximation on a limb), then the grid between the lines. One matrix product per coordinate.
+        V, p, S = Z.shape[:3]
+        flat = maps.flat_index(u.reshape(-1, 4) @ self.weights, v.reshape(-1, 4) @ self.weights)
+        flat = flat.reshape(V, p, S, -1)
         nc = self.n_contour
-        edge = maps.edge.take(flat[..., :nc]).reshape(p, V, -1).mean(axis=-1)
-        sil = maps.silhouette.take(flat[..., nc:]).reshape(p, V, -1).mean(axis=-1)
-        cover = _uncovered(corners, maps.foreground) if self.config.bidirectional else None
+        edge = maps.edge.take(flat[..., :nc]).reshape(V, p, -1).mean(axis=-1).T
+        sil = maps.silhouette.take(flat[..., nc:]).reshape(V, p, -1).mean(axis=-1).T
+        cover = _uncovered(u, v, maps.foreground) if self.config.bidirectional else None
         return edge, sil, cover
 
 
@@ -195,7 +198,7 @@ class _CostMaps:
         self.foreground = foreground
         self.edge = edge.reshape(-1)
         self.silhouette = silhouette.reshape(-1)
-        self.view_offset = (np.arange(V, dtype=np.int32) * (self.Hp * self.Wp))[None, :, None, None]
+        self.view_offset = np.arange(V, dtype=np.int32) * (self.Hp * self.Wp)
 
     @classmethod
     def of(cls, obs: Observations, n_foreground: int = 0) -> "_CostMaps":
@@ -208,10 +211,18 @@ class _CostMaps:
         return cls(padded(obs.edges), padded(obs.silhouettes), fg)
 
     def flat_index(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """Flat indices of the nearest pixels to ``(x, y)`` ``p x V x S x N`` (clamped to the border)."""
-        ix = np.clip(x + (PAD + 0.5), 0, self.Wp - 1).astype(np.int32)
-        iy = np.clip(y + (PAD + 0.5), 0, self.Hp - 1).astype(np.int32)
-        return iy * self.Wp + ix + self.view_offset
+        """Flat indices of the nearest pixels to ``(x, y)``, each ``(V * n) x N`` float32 with views leading
+        (clamped to the border)."""
+        V = len(self.view_offset)
+        ix = np.add(x, np.float32(PAD + 0.5), out=x)
+        iy = np.add(y, np.float32(PAD + 0.5), out=y)
+        ix = np.clip(ix, 0, self.Wp - 1, out=ix).astype(np.int32)
+        iy = np.clip(iy, 0, self.Hp - 1, out=iy).astype(np.int32)
+        iy *= self.Wp
+        iy += ix
+        per_view = iy.reshape(V, -1)
+        per_view += self.view_offset[:, None]
+        return iy
 
 
 def foreground_sample(silhouette: np.ndarray, n: int) -> np.ndarray:
@@ -223,23 +234,22 @@ def foreground_sample(silhouette: np.ndarray, n: int) -> np.ndarray:
     return np.stack([xs[idx], ys[idx]], axis=1).astype(np.float32)
 
 
-def _uncovered(corners: np.ndarray, foreground: list[np.ndarray]) -> np.ndarray:
+def _uncovered(u: np.ndarray, v: np.ndarray, foreground: list[np.ndarray]) -> np.ndarray:
     """Fraction ``p x V`` of the sampled foreground pixels (``F x 2`` per view) outside every projected cone (a
-    cone's projection is taken as the quadrilateral of its contour lines' end points, ``corners``
-    ``p x V x S x 4 x 2``)."""
-    p, V, S = corners.shape[:3]
+    cone's projection is taken as the quadrilateral of its contour lines' end points, pixel coordinates
+    ``u``, ``v`` ``V x p x S x 4``)."""
+    V, p = u.shape[:2]
     out = np.zeros((p, V))
-    quads = corners[..., [0, 1, 3, 2], :]  # around the quadrilateral
-    for v in range(V):  # views only; particles, segments and pixels are batched
-        fg = foreground[v]
+    around = [0, 1, 3, 2]  # the quadrilateral's corners in order
+    for view in range(V):  # views only; particles, segments and pixels are batched
+        fg = foreground[view]
         if len(fg) == 0:
             continue
-        quad = quads[:, v]  # p S 4 2
-        edge_vec = np.roll(quad, -1, axis=2) - quad
-        rel = fg[None, None, None, :, :] - quad[:, :, :, None, :]  # p S 4 F 2
-        cross = edge_vec[..., None, 0] * rel[..., 1] - edge_vec[..., None, 1] * rel[..., 0]  # p S 4 F
+        qx, qy = u[view][..., around], v[view][..., around]  # p S 4
+        ex, ey = np.roll(qx, -1, axis=2) - qx, np.roll(qy, -1, axis=2) - qy
+        cross = ex[..., None] * (fg[:, 1] - qy[..., None]) - ey[..., None] * (fg[:, 0] - qx[..., None])  # p S 4 F
         inside = np.all(cross >= 0, axis=2) | np.all(cross <= 0, axis=2)  # p S F
-        out[:, v] = 1.0 - inside.any(axis=1).mean(axis=1)
+        out[:, view] = 1.0 - inside.any(axis=1).mean(axis=1)
     return out
 
 

@@ -149,27 +149,41 @@ class CameraRig:
         Xc = np.einsum("vij,...kj->...vki", self.R, X) + self.t[:, None, :]
         return self.camera_to_pixels(Xc)
 
-    def project_each(self, points_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Project view-specific world points ``(..., V, K, 3)``: view ``v``'s points into camera ``v`` only.
-
-        Returns pixels ``(..., V, K, 2)`` and depths ``(..., V, K)`` as :meth:`project`.
-        """
-        X = np.asarray(points_world)
-        dt = X.dtype if X.dtype in (np.float32, np.float64) else np.dtype(np.float64)
-        Xc = np.empty(X.shape, dt)
-        for v in range(len(self)):  # one matrix product per view (BLAS), batched over everything else
-            Xc[..., v, :, :] = X[..., v, :, :] @ self.R[v].T.astype(dt) + self.t[v].astype(dt)
-        return self.camera_to_pixels(Xc)
+    def frames_in_cameras(self, rotations: np.ndarray, origins: np.ndarray,
+                          dtype: type = np.float32) -> tuple[np.ndarray, np.ndarray]:
+        """Frames (rotations ``B... x 3 x 3`` world from frame, origins ``B... x 3`` mm, any batch shape ``B``)
+        in every camera's coordinates, components leading: axes ``3 x 3 x V x B...`` (``[k, i]``: component
+        ``i`` of axis ``k``) and origins ``3 x V x B...``, as ``dtype`` (one matrix product each)."""
+        batch = rotations.shape[:-2]
+        V = len(self)
+        cam = self.R.transpose(1, 0, 2).reshape(3 * V, 3).astype(dtype)  # rows (i, v), columns j
+        rot = np.ascontiguousarray(rotations.reshape(-1, 3, 3).transpose(2, 1, 0), dtype=dtype)  # k, j, batch
+        axes = np.matmul(cam, rot)  # k x (i v) x batch
+        org = cam @ origins.astype(dtype, copy=False).reshape(-1, 3).T  # (i v) x batch
+        org += self.t.T.reshape(3 * V, 1).astype(dtype)
+        return axes.reshape((3, 3, V) + batch), org.reshape((3, V) + batch)
 
     def camera_to_pixels(self, Xc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Camera coordinates ``(..., V, K, 3)`` (mm, view ``v`` in camera ``v``) -> pixels and depths."""
-        dt = Xc.dtype if Xc.dtype in (np.float32, np.float64) else np.dtype(np.float64)
-        z = Xc[..., 2]
+        x, y, z = (np.moveaxis(Xc[..., i], -2, 0) for i in range(3))
+        u, v = self.pixels(x, y, z)
+        return np.stack([np.moveaxis(u, 0, -2), np.moveaxis(v, 0, -2)], axis=-1), Xc[..., 2]
+
+    def pixels(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pixel coordinates ``(u, v)`` of camera coordinates given as components ``x, y, z`` ``V x ...`` (mm, view
+        ``v`` in camera ``v``), in their dtype (float32 or float64). Points behind a camera (``z <= 0``) get
+        meaningless pixels; callers mask them."""
+        dt = z.dtype if z.dtype in (np.float32, np.float64) else np.dtype(np.float64)
+        shape = (len(self),) + (1,) * (z.ndim - 1)
+
+        def per_view(values: np.ndarray) -> np.ndarray:
+            return values.astype(dt).reshape(shape)
+
         z_safe = np.where(np.abs(z) < 1e-9, dt.type(1e-9), z)
-        x = Xc[..., 0] / z_safe
-        y = Xc[..., 1] / z_safe
+        x = x / z_safe
+        y = y / z_safe
         if self.has_distortion:
-            k1, k2, p1, p2, k3 = (self.dist[:, i, None].astype(dt) for i in range(5))
+            k1, k2, p1, p2, k3 = (per_view(self.dist[:, i]) for i in range(5))
             r2 = x * x + y * y
             radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
             xy = x * y
@@ -177,10 +191,10 @@ class CameraRig:
             yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * xy
         else:
             xd, yd = x, y
-        f, c, sk = self.focal.astype(dt), self.principal.astype(dt), self.skew.astype(dt)
-        u = f[:, 0, None] * (xd + sk[:, None] * yd) + c[:, 0, None]
-        v = f[:, 1, None] * yd + c[:, 1, None]
-        return np.stack([u, v], axis=-1), z
+        fx, fy, cx, cy = (per_view(a) for a in (self.focal[:, 0], self.focal[:, 1], self.principal[:, 0],
+                                                 self.principal[:, 1]))
+        u = fx * (xd + per_view(self.skew) * yd) + cx
+        return u, fy * yd + cy
 
 
 # ---------------------------------------------------------------------------

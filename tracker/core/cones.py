@@ -71,46 +71,44 @@ def volume_grid(n_along: int, n_around: int, radial: tuple[float, ...] = (0.0, 0
     return np.concatenate(s_list), np.concatenate(phi_list), np.concatenate(rho_list)
 
 
-def contour_angles(model: BodyModel, frames: np.ndarray, centres: np.ndarray) -> np.ndarray:
-    """Angles ``phi`` ``(..., V, S, 2)`` of the two occluding-contour lines of every cone seen from each centre.
+def contour_corners(model: BodyModel, axes: np.ndarray, origins: np.ndarray) -> np.ndarray:
+    """End points of the two occluding-contour lines of every cone, seen from a camera at the origin.
 
-    ``frames`` ``(..., S, 4, 4)`` segment frames; ``centres`` ``V x 3`` camera
-    centres (mm, world). A ruling at angle ``phi`` of the cone is a contour
-    line when the tangent plane along it contains the camera centre ``c``
-    (segment coordinates): ``A cos phi + B sin phi = C`` with ``A = d L c_x``,
-    ``B = L c_y``, ``C = d (L r0 + (r1 - r0) c_z)``. When no ruling qualifies
-    (a camera looking down the cone's axis) the widest pair across the view
-    direction is used.
+    Coordinates are the camera's (mm), components on the leading axis so that every elementwise step runs
+    over long contiguous arrays: ``axes`` ``3 x 3 x B... x S`` (``axes[k, i]``: component ``i`` of the
+    segment's axis ``k`` -- width, depth, cone axis), ``origins`` ``3 x B... x S`` (the segments' proximal
+    centres), any batch shape ``B``, in the dtype of the result. Returns ``3 x B... x S x 4``: the corners
+    line 0 proximal, line 0 distal, line 1 proximal, line 1 distal.
+
+    A ruling at angle ``phi`` is a contour line when the tangent plane along it contains the camera centre
+    ``c`` (segment coordinates): ``A cos phi + B sin phi = C`` with ``A = d L c_x``, ``B = L c_y``,
+    ``C = d (L r0 + (r1 - r0) c_z)``, so ``phi = atan2(B, A) -+ acos(C / |(A, B)|)``, evaluated through the
+    cosines and sines of the two angles (no trigonometric calls). When no ruling qualifies (a camera looking
+    down the cone's axis) the widest pair across the view direction is used. Each contour line is a
+    straight ruling ``o + s L u_z + r(s) (cos phi u_x + d sin phi u_y)``, ``s`` = 0 and 1.
     """
     t = segment_table(model)
-    R = frames[..., None, :, :3, :3]  # ... 1 S 3 3
-    rel = centres[:, None, :] - frames[..., None, :, :3, 3]  # ... V S 3
-    # Centre in segment coordinates, R^T rel, written out (small arrays; einsum is slower here).
-    cx = R[..., 0, 0] * rel[..., 0] + R[..., 1, 0] * rel[..., 1] + R[..., 2, 0] * rel[..., 2]
-    cy = R[..., 0, 1] * rel[..., 0] + R[..., 1, 1] * rel[..., 1] + R[..., 2, 1] * rel[..., 2]
-    cz = R[..., 0, 2] * rel[..., 0] + R[..., 1, 2] * rel[..., 1] + R[..., 2, 2] * rel[..., 2]
-    L, d, r0, dr = t["length"], t["depth"], t["r0"], t["r1"] - t["r0"]
-    A = d * L * cx
+    dt = origins.dtype.type
+    L, d, r0, r1 = (t[k].astype(dt) for k in ("length", "depth", "r0", "r1"))
+    # The camera centre in segment coordinates: -axes^T @ origin.
+    cx, cy, cz = (-(axes[k, 0] * origins[0] + axes[k, 1] * origins[1] + axes[k, 2] * origins[2]) for k in range(3))
+    A = (d * L) * cx
     B = L * cy
-    C = d * (L * r0 + dr * cz)
-    base = np.arctan2(B, A)
+    C = d * (L * r0 + (r1 - r0) * cz)
     norm = np.sqrt(A * A + B * B)
-    ratio = np.clip(C / np.maximum(norm, 1e-12), -1.0, 1.0)
-    half = np.where(np.abs(C) < norm, np.arccos(ratio), np.pi / 2)
-    return np.stack([base - half, base + half], axis=-1)
-
-
-def contour_endpoints(model: BodyModel, frames: np.ndarray, angles: np.ndarray,
-                      dtype: type = np.float64) -> np.ndarray:
-    """World end points ``(..., V, S, 2, 2, 3)`` (line, proximal/distal end, xyz; mm) of the contour lines at
-    ``angles`` ``(..., V, S, 2)``, as ``dtype``. Each contour line is a straight ruling of the cone between
-    them: ``o + s L u_z + r(s) (cos phi u_x + d sin phi u_y)`` for ``s`` = 0, 1."""
-    t = segment_table(model)
-    R = frames[..., :3, :3].astype(dtype)
-    o = frames[..., :3, 3].astype(dtype)
-    cos = np.cos(angles).astype(dtype)[..., None]  # ... V S 2 1
-    dsin = (np.sin(angles) * t["depth"][:, None]).astype(dtype)[..., None]
-    radial = cos * R[..., None, :, None, :, 0] + dsin * R[..., None, :, None, :, 1]  # ... V S 2 3
-    ends = np.stack([o, o + t["length"].astype(dtype)[:, None] * R[..., :, 2]], axis=-2)  # ... S 2 3
-    r = np.stack([t["r0"], t["r1"]], axis=-1).astype(dtype)  # S x 2
-    return ends[..., None, :, None, :, :] + r[:, None, :, None] * radial[..., :, :, None, :]
+    inv = 1.0 / np.maximum(norm, dt(1e-12))
+    cos_b = np.where(norm > 0, A * inv, dt(1.0))  # atan2(0, 0) = 0
+    sin_b = B * inv
+    ratio = np.clip(C * inv, -1.0, 1.0)
+    seen = np.abs(C) < norm
+    cos_h = np.where(seen, ratio, dt(0.0))  # half the angle between the lines: acos(ratio), else pi / 2
+    sin_h = np.where(seen, np.sqrt(1.0 - ratio * ratio), dt(1.0))
+    out = np.empty(origins.shape + (4,), origins.dtype)
+    for line, sign in ((0, -1.0), (1, 1.0)):  # phi = base - half, base + half
+        cos_p = cos_b * cos_h - sign * (sin_b * sin_h)
+        dsin_p = d * (sin_b * cos_h + sign * (cos_b * sin_h))
+        for i in range(3):
+            radial = cos_p * axes[0, i] + dsin_p * axes[1, i]
+            out[i, ..., 2 * line] = origins[i] + r0 * radial
+            out[i, ..., 2 * line + 1] = origins[i] + L * axes[2, i] + r1 * radial
+    return out

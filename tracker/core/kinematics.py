@@ -42,13 +42,19 @@ class Kinematics:
         centre of the proximal end. A point at fraction s in [0, 1] of the cone,
         angle phi, has segment coordinates ``(r(s) cos phi, r(s) d sin phi, s L)``.
         """
-        tables = _tables(self.model)
-        R = self.rotations[..., tables["seg_link"], :, :] @ tables["seg_in_link"]
+        R, o = self.segment_rotations()
         out = np.zeros(R.shape[:-2] + (4, 4))
         out[..., :3, :3] = R
-        out[..., :3, 3] = self.origins[..., tables["seg_link"], :]
+        out[..., :3, 3] = o
         out[..., 3, 3] = 1.0
         return out
+
+    def segment_rotations(self) -> tuple[np.ndarray, np.ndarray]:
+        """The segment frames of :meth:`segment_frames` as rotations ``B x S x 3 x 3`` (world from segment) and
+        origins ``B x S x 3`` (mm)."""
+        tables = _tables(self.model)
+        link = tables["seg_link"]
+        return self.rotations[..., link, :, :] @ tables["seg_in_link"], self.origins[..., link, :]
 
 
 def _tables(model: BodyModel) -> dict:
@@ -82,7 +88,17 @@ def _tables(model: BodyModel) -> dict:
     fixed = np.array([np.eye(3) if link.rotation is None else np.asarray(link.rotation, float) for link in links])
     if np.abs(fixed @ np.swapaxes(fixed, -1, -2) - np.eye(3)).max() > 1e-9 or np.any(np.linalg.det(fixed) < 0):
         raise ValueError(f"{model.name}: every fixed link rotation must be a rotation matrix")
+    euler_links = [f[0] for f in euler_factors]
+    position = [euler_links[:j].count(link) for j, link in enumerate(euler_links)]  # k-th factor of its link
+    rounds = [(np.array([euler_links[j] for j in range(len(euler_links)) if position[j] == k], int),
+               np.array([j for j in range(len(euler_links)) if position[j] == k], int))
+              for k in range(max(position, default=-1) + 1)]
+    rotated = set(ball) | set(euler_links) | (set() if root_euler else {0})
     tables = {
+        "still_links": np.array([i for i in range(n) if i not in rotated], int),
+        "euler_rounds": rounds,
+        "fixed_links": np.array([i for i, link in enumerate(links) if link.rotation is not None
+                                 and not np.array_equal(np.asarray(link.rotation, float), np.eye(3))], int),
         "parents": np.array([link.parent for link in links]),
         "offsets": np.array([link.offset for link in links], float),
         "levels": levels,
@@ -108,7 +124,8 @@ def local_rotations(model: BodyModel, poses: np.ndarray) -> np.ndarray:
     """Joint rotations ``B x L x 3 x 3`` (parent from link) for poses ``B x D``."""
     t = _tables(model)
     batch = poses.shape[:-1]
-    R = np.broadcast_to(np.eye(3), batch + (len(model.links), 3, 3)).copy()
+    R = np.empty(batch + (len(model.links), 3, 3))
+    R[..., t["still_links"], :, :] = np.eye(3)
     rd = t["root_dofs"]
     if not t["root_euler"]:
         R[..., 0, :, :] = exp_map_to_matrix(poses[..., rd[3:6]])
@@ -116,15 +133,15 @@ def local_rotations(model: BodyModel, poses: np.ndarray) -> np.ndarray:
         R[..., t["ball_links"], :, :] = exp_map_to_matrix(poses[..., t["ball_dofs"]])
     if len(t["euler_links"]):
         factors = exp_map_to_matrix(poses[..., t["euler_dofs"], None] * t["euler_axes"])
-        # Multiply factors belonging to the same link left to right.
-        links = t["euler_links"]
-        first = np.ones(len(links), bool)
-        first[1:] = links[1:] != links[:-1]
-        R[..., links[first], :, :] = factors[..., first, :, :]
-        for j in np.flatnonzero(~first):
-            R[..., links[j], :, :] = R[..., links[j], :, :] @ factors[..., j, :, :]
-    if t["has_fixed"]:
-        R = t["fixed"] @ R
+        # Factors of the same link multiply left to right: the first of every link, then every link's
+        # second, third, ... in one batched product each.
+        rounds = t["euler_rounds"]
+        R[..., rounds[0][0], :, :] = factors[..., rounds[0][1], :, :]
+        for links, which in rounds[1:]:
+            R[..., links, :, :] = R[..., links, :, :] @ factors[..., which, :, :]
+    fixed = t["fixed_links"]
+    if len(fixed):
+        R[..., fixed, :, :] = t["fixed"][fixed] @ R[..., fixed, :, :]
     return R
 
 
