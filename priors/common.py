@@ -11,6 +11,7 @@ import numpy as np
 from tracker.core.errors import InputError
 from tracker.core.representation import STEP_FEATURES, FeatureNormaliser, poses_to_invariant
 from tracker.core.rotations import continuous_exp_maps, elementary_rotation, exp_map_to_matrix, matrix_to_exp_map
+from tracker.engine.registry import Option
 
 
 def read_model_file(path, fmt: str, kind: str) -> dict:
@@ -129,6 +130,23 @@ def robust_share(walked: np.ndarray | None, floor: float, adaptive: bool) -> flo
     if not adaptive or walked is None or len(walked) == 0:
         return floor
     return float(min(max(floor, np.mean(walked)), max(floor, ROBUST_CAP)))
+
+
+#: The options of the learned priors for people and motion their model did not learn (the CRBM and GPDM
+#: priors declare them alike): a share of random-walk samples, fixed or following the posterior, and a pace.
+UNLEARNED_MOTION_OPTIONS = (
+    Option("robust_fraction", float, 0.0,
+           "fraction of each frame's samples drawn from the zero-velocity random walk instead, so motion the model "
+           "did not learn (a start, a stop, a run) stays trackable (default 0); with robust_adaptive, the least "
+           "fraction", minimum=0.0),
+    Option("robust_adaptive", bool, False,
+           "let the random walk's share follow the posterior mass its samples earned on the last frame, between "
+           f"robust_fraction and {ROBUST_CAP} (default off)"),
+    Option("pace_spread", float, 0.0, "std of each particle's log pace, the factor between its ground steps and the "
+                                      "model's, at the start (default 0: the model's pace)", minimum=0.0),
+    Option("pace_drift", float, 0.0, "std of the change of each particle's log pace per frame (default 0)",
+           minimum=0.0),
+)
 
 
 def start_log_pace(n_particles: int, spread: float, rng: np.random.Generator) -> np.ndarray:

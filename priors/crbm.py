@@ -42,7 +42,7 @@ import numpy as np
 import torch
 
 from priors.common import (
-    ROBUST_CAP, ROOT_NOISE_MM, add_ground_diffusion, add_heading_diffusion, check_model_fits, drift_log_pace,
+    ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS, add_ground_diffusion, add_heading_diffusion, check_model_fits, drift_log_pace,
     mix_in_random_walk, normaliser_from_tensors, normaliser_to_tensors, read_model_file, robust_share,
     scale_ground_steps, start_log_pace, steps_taken, torch_generator,
 )
@@ -625,18 +625,7 @@ CRBM_TRAIN_OPTIONS = (
     options=(Option("gibbs_steps", int, 30, "alternating Gibbs steps per sample (default 30)", minimum=1),
              Option("root_noise", float, ROOT_NOISE_MM, "ground-plane diffusion of each sample in mm (default 5)",
                     minimum=0.0),
-             Option("robust_fraction", float, 0.0,
-                    "fraction of each frame's samples drawn from the zero-velocity random walk instead, so motion "
-                    "the model did not learn (a start, a stop, a run) stays trackable (default 0); with "
-                    "robust_adaptive, the least fraction", minimum=0.0),
-             Option("robust_adaptive", bool, False,
-                    "let the random walk's share follow the posterior mass its samples earned on the last frame, "
-                    f"between robust_fraction and {ROBUST_CAP} (default off)"),
-             Option("pace_spread", float, 0.0, "std of each particle's log pace, the factor between its ground steps "
-                                               "and the model's, at the start (default 0: the model's pace)",
-                    minimum=0.0),
-             Option("pace_drift", float, 0.0, "std of the change of each particle's log pace per frame (default 0)",
-                    minimum=0.0),
+             *UNLEARNED_MOTION_OPTIONS,
              Option("heading_noise", float, 0.0, "diffusion of each sample's heading in rad per frame, so that the "
                                                  "likelihood can correct an integrated heading (default 0)",
                     minimum=0.0)))

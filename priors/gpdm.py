@@ -49,8 +49,9 @@ import numpy as np
 import torch
 
 from priors.common import (
-    ROOT_NOISE_MM, check_model_fits, checked_data_settings, normaliser_from_tensors, normaliser_to_tensors,
-    read_model_file, torch_save_atomic,
+    ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS, check_model_fits, checked_data_settings, mix_in_random_walk, normaliser_from_tensors,
+    normaliser_to_tensors, read_model_file, robust_share, scale_ground_steps, start_log_pace, steps_taken,
+    torch_save_atomic,
 )
 from tracker.core.errors import InputError
 from tracker.core.representation import (
@@ -886,15 +887,28 @@ class GPDMPrior(MotionPrior):
     GP, mean plus ``noise_scale`` times the predictive standard deviation; the observation GP's mean gives
     the new frame's invariant features; the root moves by the pending step, plus ``root_noise_mm`` of
     ground-plane diffusion. Initial latent points are the projections of the known poses.
+
+    The options the CRBM prior has for people and motion the model did not learn work the same way here:
+    each particle's ``log_pace`` multiplies the predicted ground steps (``pace_spread``, ``pace_drift``; see
+    :func:`priors.common.scale_ground_steps`), and the robust option draws a share of the samples from the
+    zero-velocity random walk (``robust_fraction``, ``robust_adaptive``; :func:`priors.common.robust_share`);
+    such a particle's latent point becomes that of the training frame nearest its new pose.
     """
 
     name = "gpdm"
     order = 1
 
     def __init__(self, model: GPDMPriorModel, noise_scale: float = 1.0, root_noise_mm: float = ROOT_NOISE_MM,
-                 dtype: torch.dtype = torch.float32):
+                 dtype: torch.dtype = torch.float32, robust_fraction: float = 0.0, robust_adaptive: bool = False,
+                 pace_spread: float = 0.0, pace_drift: float = 0.0):
         if not noise_scale >= 0 or not root_noise_mm >= 0:
             raise InputError("GPDM noise scale and root noise must be non-negative")
+        if not 0.0 <= robust_fraction <= 1.0:
+            raise InputError(f"robust fraction must lie in [0, 1], got {robust_fraction}")
+        if not (pace_spread >= 0 and pace_drift >= 0):
+            raise InputError(f"pace spread and drift must be non-negative (log units), got {pace_spread}, {pace_drift}")
+        self.robust_fraction, self.robust_adaptive = float(robust_fraction), bool(robust_adaptive)
+        self.pace_spread, self.pace_drift = float(pace_spread), float(pace_drift)
         self.model = model
         self.predictor = model.gpdm.prepare()
         self.sampler = self.predictor.sampler(dtype)
@@ -903,7 +917,9 @@ class GPDMPrior(MotionPrior):
         self.root_noise_mm = float(root_noise_mm)
 
     def settings(self) -> dict:
-        return {"latent_noise": self.noise_scale, "root_noise_mm": self.root_noise_mm}
+        return {"latent_noise": self.noise_scale, "root_noise_mm": self.root_noise_mm,
+                "robust_fraction": self.robust_fraction, "robust_adaptive": self.robust_adaptive,
+                "pace_spread": self.pace_spread, "pace_drift": self.pace_drift}
 
     def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
         known = np.atleast_2d(np.asarray(known, float))
@@ -913,13 +929,18 @@ class GPDMPrior(MotionPrior):
         latent = self.predictor.project(torch.tensor(self.model.normaliser.transform(recent_feats)))
         history = torch.cat([latent[-1 - k] for k in range(o)]).numpy()  # newest first
         return {"latent": np.repeat(history[None], n_particles, axis=0),
-                "step": np.repeat(pending_step(known)[None], n_particles, axis=0)}
+                "step": np.repeat(pending_step(known)[None], n_particles, axis=0),
+                "log_pace": start_log_pace(n_particles, self.pace_spread, rng),
+                "walked": np.zeros(n_particles, bool)}
 
     def draw(self, n_particles: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
-        """Every random number of one step, drawn in one batch: standard normal ``latent`` (``P x d``) and
-        ``ground`` (``P x 2``) noise; particle ``i`` uses row ``i`` of each."""
-        return {"latent": rng.standard_normal((n_particles, self.model.gpdm.config.latent_dim)),
-                "ground": rng.standard_normal((n_particles, 2))}
+        """Every random number of one step, drawn in one batch: standard normal ``latent`` (``P x d``),
+        ``ground`` (``P x 2``) and, with a pace drift, ``pace`` (``P``) noise; particle ``i`` uses row ``i``."""
+        noise = {"latent": rng.standard_normal((n_particles, self.model.gpdm.config.latent_dim)),
+                 "ground": rng.standard_normal((n_particles, 2))}
+        if self.pace_drift > 0:
+            noise["pace"] = rng.standard_normal(n_particles)
+        return noise
 
     def advance(self, history: np.ndarray, state: PriorState, noise: dict[str, np.ndarray]
                 ) -> tuple[np.ndarray, PriorState]:
@@ -930,6 +951,8 @@ class GPDMPrior(MotionPrior):
                                              torch.from_numpy(noise["latent"]), self.noise_scale)
         x = x.numpy()
         f_next = self.model.normaliser.inverse(pose_features.numpy())
+        log_pace = state["log_pace"] + self.pace_drift * noise["pace"] if "pace" in noise else state["log_pace"]
+        scale_ground_steps(f_next, np.exp(log_pace))
         previous = np.zeros_like(f_next)
         previous[:, step] = state["step"]
         poses = next_poses(history[:, -1], previous, f_next)
@@ -937,11 +960,27 @@ class GPDMPrior(MotionPrior):
             poses[:, :2] += self.root_noise_mm * noise["ground"]
         d = self.model.gpdm.config.latent_dim
         latent = np.concatenate([x, state["latent"][:, :-d]], axis=1) if self.latent_order > 1 else x
-        return poses, {"latent": latent, "step": f_next[:, step]}
+        return poses, {"latent": latent, "step": f_next[:, step], "log_pace": log_pace, "walked": state["walked"]}
 
     def sample(self, history: np.ndarray, available: int, state: PriorState,
                rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
-        return self.advance(history, state, self.draw(len(state["latent"]), rng))
+        poses, new = self.advance(history, state, self.draw(len(state["latent"]), rng))
+        share = robust_share(state["walked"], self.robust_fraction, self.robust_adaptive)
+        walked = mix_in_random_walk(poses, history[:, -1], self.model.pose_step_rms, share, rng)
+        if walked.any():
+            new["step"][walked] = steps_taken(history[walked, -1], poses[walked])
+            new["latent"][walked, :self.model.gpdm.config.latent_dim] = self.nearest_latent(
+                history[walked, -1], poses[walked])
+        new["walked"] = walked
+        return poses, new
+
+    def nearest_latent(self, last: np.ndarray, poses: np.ndarray) -> np.ndarray:
+        """Latent points ``n x d`` of the training frames nearest (in the observation GP's weighted feature
+        space) to ``poses`` ``n x D``, whose predecessors are ``last`` ``n x D``."""
+        feats = poses_to_invariant(np.stack([last, poses], axis=1))[:, 1]
+        y = torch.tensor(self.model.normaliser.transform(feats), dtype=self.predictor.Y.dtype)
+        d2 = ((y[:, None, :] - self.predictor.Y[None]) * self.predictor.W).pow(2).sum(-1)
+        return self.predictor.X[d2.argmin(1)].numpy()
 
     def diffusion_std(self) -> np.ndarray:
         return self.model.pose_step_rms
@@ -1013,12 +1052,15 @@ GPDM_TRAIN_OPTIONS = (
                     "multiple of the predictive standard deviation added to each latent step (default 1)",
                     minimum=0.0),
              Option("root_noise", float, ROOT_NOISE_MM, "ground-plane diffusion of each sample in mm (default 5)",
-                    minimum=0.0)))
+                    minimum=0.0),
+             *UNLEARNED_MOTION_OPTIONS))
 def build_gpdm(context: PriorContext, model_files: Sequence[Path], options: dict) -> GPDMPrior:
     model = load_gpdm_prior(model_files[0])
     model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, model_files[0])
     try:
-        return GPDMPrior(model, noise_scale=options["latent_noise"], root_noise_mm=options["root_noise"])
+        return GPDMPrior(model, noise_scale=options["latent_noise"], root_noise_mm=options["root_noise"],
+                         robust_fraction=options["robust_fraction"], robust_adaptive=options["robust_adaptive"],
+                         pace_spread=options["pace_spread"], pace_drift=options["pace_drift"])
     except InputError as exc:  # a kernel matrix of the file's hyperparameters that is not positive definite
         if exc.path is not None:
             raise
