@@ -25,8 +25,10 @@ and its cost maps once; the returned :class:`PreparedFrame` scores pose batches.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
+from threadpoolctl import ThreadpoolController
 
 from likelihoods.observations import DEFAULT_OBSERVATION, BackgroundPlate, ObservationConfig, Observations, observe
 from tracker.core.body import BodyModel
@@ -118,14 +120,15 @@ class EdgeSilhouetteLikelihood(Likelihood):
         cover = np.ones((P, V)) if self.config.bidirectional else None
         # Blocks of particles keep the intermediates in cache: 256 at a time measured 1.5x faster than all
         # 4000 at once (each block is still one batched pass over particles, views and points).
-        for start in range(0, P, BLOCK):
-            block = slice(start, start + BLOCK)
-            ok = valid[block]
-            if ok.any():
-                e, s, c = self._block_costs(poses[block][ok], maps)
-                edge[block][ok], sil[block][ok] = e, s
-                if cover is not None:
-                    cover[block][ok] = c
+        with _serial_blas():
+            for start in range(0, P, BLOCK):
+                block = slice(start, start + BLOCK)
+                ok = valid[block]
+                if ok.any():
+                    e, s, c = self._block_costs(poses[block][ok], maps)
+                    edge[block][ok], sil[block][ok] = e, s
+                    if cover is not None:
+                        cover[block][ok] = c
         total = edge + sil + (cover if cover is not None else 0.0)
         ll = np.where(valid, -self.config.sharpness * total.sum(axis=1), -np.inf)
         return LikelihoodTerms(edge=edge, silhouette=sil, coverage=cover, log_likelihood=ll)
@@ -184,6 +187,19 @@ def _sample_weights(n_along: int, n_across: int) -> np.ndarray:
 
 #: Particles per block (see ``terms``).
 BLOCK = 256
+
+
+@lru_cache(maxsize=1)
+def _blas() -> ThreadpoolController:
+    return ThreadpoolController().select(user_api="blas")
+
+
+def _serial_blas():
+    """Context in which BLAS runs on one thread. The likelihood's matrix products are thin (``n x 4`` times
+    ``4 x N``): a second BLAS thread gains about 25 us per product on an idle machine, and on a busy one,
+    where BLAS threads wait for each other's cores, it measured 300 times slower (16 ms instead of 54 us).
+    Parallel work goes to frames instead (the filter prepares them ahead in background threads)."""
+    return _blas().limit(limits=1)
 
 #: Border (pixels) of cost 1 around the cost maps, so that lookups need no bounds test.
 PAD = 32

@@ -164,3 +164,35 @@ def test_step_by_step_equals_run():
         state, step = pf.step(state, Frame(k, ()))
         means.append(step.mean)
     assert np.array_equal(np.array(means), whole["mean_poses"]) and state.tracked == 4
+
+
+def test_frames_prepared_ahead_in_threads_give_the_same_result():
+    prior = LinearGaussianPrior(np.eye(2), np.full(2, 0.1))
+    functions = [lambda x, k=k: -0.5 * np.sum((x - 0.1 * k) ** 2, axis=1) for k in range(8)]
+    config = FilterConfig(n_particles=300, annealing_layers=2)
+    serial = run_filter(prior, functions, config, np.random.default_rng(3), np.zeros((1, 2)))
+    for workers in (1, 3):  # (up to 3 frames ahead)
+        ahead = run_filter(prior, functions, config, np.random.default_rng(3), np.zeros((1, 2)), workers=workers)
+        assert np.array_equal(ahead["mean_poses"], serial["mean_poses"])
+        assert np.all(ahead["observe_seconds"] == 0.0)  # prepared in the background: the wait counts as load
+
+
+def test_a_frame_that_fails_to_read_ahead_stops_the_run_where_it_is_due():
+    from tracker.core.errors import InputError
+
+    def frames():
+        for k in range(6):
+            if k == 4:
+                raise InputError("cannot read image: truncated PNG", f"frame{k}.png")
+            yield Frame(k, ())
+
+    prior = LinearGaussianPrior(np.eye(2), np.full(2, 0.1))
+    functions = [lambda x: -0.5 * np.sum(x ** 2, axis=1)] * 6
+    for workers in (0, 2):
+        seen = []
+        pf = ParticleFilter(prior, FunctionLikelihood(functions), FilterConfig(n_particles=50),
+                            np.random.default_rng(0))
+        with pytest.raises(InputError) as err:
+            pf.run(np.zeros((1, 2)), frames(), on_frame=lambda step: seen.append(step.frame), workers=workers)
+        assert seen == [0, 1, 2, 3]
+        assert str(err.value).splitlines() == [str(err.value)] and "truncated PNG" in str(err.value)

@@ -23,11 +23,23 @@ def share_of_cores(jobs: int) -> int:
     return max(1, available_cores() // max(1, jobs))
 
 
+#: The count last given to :func:`set_threads` (None: never called).
+_configured: int | None = None
+
+
+def configured_threads() -> int:
+    """Threads this process may use: the count last given to :func:`set_threads`, else the available cores."""
+    return available_cores() if _configured is None else _configured
+
+
 def set_threads(n: int | None) -> int:
-    """Limit BLAS (through threadpoolctl), OpenCV and torch to ``n`` threads (default: the available cores)."""
+    """Limit BLAS (through threadpoolctl), OpenCV and torch to ``n`` threads (default: the available cores);
+    tracking prepares frames ahead in ``n - 1`` background threads (:func:`configured_threads`)."""
+    global _configured
     n = available_cores() if n is None else int(n)
     if n < 1:
         raise InputError(f"threads must be at least 1, got {n}")
+    _configured = n
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(n)

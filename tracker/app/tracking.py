@@ -202,6 +202,7 @@ def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, conf
     result an uninterrupted run gives (its settings must match ``fingerprint``).
     """
     from tracker.app.checkpoint import load_checkpoint, save_checkpoint
+    from tracker.app.threads import configured_threads
     from tracker.engine.recording import Recording
 
     T = seq.n_frames if n_frames is None else int(n_frames)
@@ -243,8 +244,10 @@ def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, conf
 
     first = n0 + (0 if state is None else state.tracked)
     pf = ParticleFilter(prior, likelihood, config, rng)
+    workers = configured_threads() - 1  # this thread reads and filters, the others prepare frames ahead
     try:
-        records = pf.run(known, (seq.frame(k, views) for k in range(first, T)), recording, report, state, keep)
+        records = pf.run(known, (seq.frame(k, views) for k in range(first, T)), recording, report, state, keep,
+                         workers=workers)
     except KeyboardInterrupt:
         done = 0 if last["state"] is None else last["state"].tracked
         for name in recording.values:  # drop a frame recorded after the last complete state

@@ -9,6 +9,7 @@ Python loop over the batch, only over the depth levels of the tree (6 for the
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -27,7 +28,13 @@ class Kinematics:
     model: BodyModel
     rotations: np.ndarray
     origins: np.ndarray
-    points: np.ndarray
+
+    @cached_property
+    def points(self) -> np.ndarray:
+        """The model's named points ``B x M x 3`` (mm), computed on first use (the likelihood needs none)."""
+        t = _tables(self.model)
+        link = t["point_link"]
+        return np.einsum("...ij,...j->...i", self.rotations[..., link, :, :], t["point_pos"]) + self.origins[..., link, :]
 
     @property
     def markers(self) -> np.ndarray:
@@ -166,8 +173,7 @@ def forward_kinematics(model: BodyModel, poses: np.ndarray) -> Kinematics:
         Rp = R[..., par, :, :]
         R[..., level, :, :] = Rp @ local[..., level, :, :]
         o[..., level, :] = o[..., par, :] + np.einsum("...ij,...j->...i", Rp, offsets[level])
-    pts = np.einsum("...ij,...j->...i", R[..., t["point_link"], :, :], t["point_pos"]) + o[..., t["point_link"], :]
-    return Kinematics(model=model, rotations=R, origins=o, points=pts)
+    return Kinematics(model=model, rotations=R, origins=o)
 
 
 def markers(model: BodyModel, poses: np.ndarray) -> np.ndarray:

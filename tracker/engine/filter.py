@@ -27,11 +27,16 @@ The engine knows priors and likelihoods only through their interfaces
 draw comes from the one generator passed in. :meth:`ParticleFilter.start` and
 :meth:`ParticleFilter.step` expose the loop one frame at a time (its whole
 state is a :class:`FilterState`); :meth:`ParticleFilter.run` runs it over a
-sequence of frames and returns what the caller asked to record.
+sequence of frames and returns what the caller asked to record. With
+``workers > 0`` it reads the next frames ahead and prepares their observations
+in background threads while the filter steps (:class:`Prefetcher`);
+preparation draws no random numbers, so the results are the same.
 """
 from __future__ import annotations
 
 import time
+from collections import deque
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Iterator, Mapping
 
@@ -143,11 +148,16 @@ class ParticleFilter:
         prior_state = self.prior.start(known, P, self.rng)
         return FilterState(history, prior_state, LogWeights.uniform(P), recent.copy(), min(len(known), N))
 
-    def step(self, state: FilterState, frame: Frame, load_seconds: float = 0.0) -> tuple[FilterState, FrameStep]:
-        """Track one frame: propose, weigh (annealed if configured), estimate, resample when due."""
+    def step(self, state: FilterState, frame: Frame, load_seconds: float = 0.0,
+             prepared: FrameLikelihood | None = None) -> tuple[FilterState, FrameStep]:
+        """Track one frame: propose, weigh (annealed if configured), estimate, resample when due.
+
+        ``prepared`` is the frame's likelihood already prepared (by a :class:`Prefetcher`); ``load_seconds`` is
+        the time spent waiting for the frame (seconds, recorded as its ``load`` time).
+        """
         cfg = self.config
         t0 = time.perf_counter()
-        frame_lik = self.likelihood.prepare(frame)
+        frame_lik = self.likelihood.prepare(frame) if prepared is None else prepared
         t1 = time.perf_counter()
         label = self.prior.label_for(state.available)
         x, prior_state = self.prior.sample(state.history, state.available, state.prior_state, self.rng)
@@ -181,7 +191,8 @@ class ParticleFilter:
                                 state.tracked + 1)
         step = FrameStep(index=state.tracked, frame=frame.index, particles=x, weights=weights, mean=mean, best=best,
                          ess=ess, resampled=bool(resampled), recovered=recovered,
-                         seconds={"load": load_seconds, "observe": t1 - t0, "filter": t2 - t1}, prior_label=label,
+                         seconds={"load": load_seconds, "observe": 0.0 if prepared is not None else t1 - t0,
+                                  "filter": t2 - t1}, prior_label=label,
                          prior_summary=summary)
         return new_state, step
 
@@ -216,27 +227,89 @@ class ParticleFilter:
     def run(self, known: np.ndarray, frames: Iterable[Frame],
             record: Iterable[str] | Mapping[str, Callable[[FrameStep], Any]] | Recording = DEFAULT_RECORD,
             on_frame: Callable[[FrameStep], None] | None = None, state: FilterState | None = None,
-            on_state: Callable[[FilterState, Recording], None] | None = None) -> dict[str, np.ndarray]:
+            on_state: Callable[[FilterState, Recording], None] | None = None,
+            workers: int = 0) -> dict[str, np.ndarray]:
         """Track from the known poses ``n0 x D`` through ``frames``; returns the recorded quantities, one array
         each with tracked frames on the leading axis (see :mod:`tracker.engine.recording`).
 
         ``on_frame(step)`` sees every :class:`FrameStep` (particles and weights included); ``on_state(state,
         recording)`` sees the filter's whole state after every frame (for checkpoints). To continue an earlier
         run, pass its ``state`` and its :class:`Recording` as ``record``, restore the generator's state, and
-        give only the frames not yet tracked.
+        give only the frames not yet tracked. ``workers`` > 0 reads up to that many frames ahead and
+        prepares them in as many background threads (then a frame's ``load`` time is reading ahead plus the
+        wait for its prepared observations, and its ``observe`` time 0); 0 does everything in the calling
+        thread, one frame at a time.
         """
         recording = record if isinstance(record, Recording) else Recording(record)
         state = self.start(known) if state is None else state
-        iterator: Iterator[Frame] = iter(frames)
-        while True:
-            t0 = time.perf_counter()
-            frame = next(iterator, None)
-            if frame is None:
-                break
-            state, step = self.step(state, frame, time.perf_counter() - t0)
-            recording.add(step)
-            if on_frame is not None:
-                on_frame(step)
-            if on_state is not None:
-                on_state(state, recording)
+        with Prefetcher(frames, self.likelihood, workers) as source:
+            while True:
+                t0 = time.perf_counter()
+                item = source.next()
+                if item is None:
+                    break
+                frame, prepared = item
+                state, step = self.step(state, frame, time.perf_counter() - t0, prepared)
+                recording.add(step)
+                if on_frame is not None:
+                    on_frame(step)
+                if on_state is not None:
+                    on_state(state, recording)
         return recording.result()
+
+
+class Prefetcher:
+    """Frames in order, each with its likelihood prepared ahead in background threads.
+
+    The calling thread reads the frames (image decoding stays there: readers may briefly redirect the
+    process's stderr to silence image libraries, which would swallow another thread's messages) up to
+    ``workers`` frames ahead of the one it hands out, and ``workers`` threads prepare them with
+    ``likelihood.prepare`` meanwhile. An exception raised while reading or preparing a frame is raised by
+    :meth:`next` when that frame is due, so the frames before it are processed exactly as without
+    prefetching. ``workers = 0`` reads frame by frame and leaves preparation to the caller. Use as a context
+    manager (it stops the threads).
+    """
+
+    def __init__(self, frames: Iterable[Frame], likelihood: Likelihood, workers: int = 0):
+        self.iterator: Iterator[Frame] = iter(frames)
+        self.likelihood = likelihood
+        self.workers = max(0, int(workers))
+        self.pool = ThreadPoolExecutor(self.workers, thread_name_prefix="prepare") if self.workers else None
+        self.pending: deque[tuple[Frame, Future] | BaseException] = deque()
+        self.ended = False
+
+    def __enter__(self) -> "Prefetcher":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.pool is not None:
+            self.pool.shutdown(wait=False, cancel_futures=True)
+
+    def next(self) -> tuple[Frame, FrameLikelihood | None] | None:
+        """The next frame with its prepared likelihood (None when not prefetching), or None at the end."""
+        if self.pool is None:
+            frame = next(self.iterator, None)
+            return None if frame is None else (frame, None)
+        if not self.pending:
+            self._read()
+        item = self.pending.popleft() if self.pending else None
+        while len(self.pending) < self.workers and not self.ended:
+            self._read()  # while the frame about to be handed out is still being prepared
+        if item is None or isinstance(item, BaseException):
+            if item is not None:
+                raise item
+            return None
+        frame, future = item
+        return frame, future.result()
+
+    def _read(self) -> None:
+        try:
+            frame = next(self.iterator, None)
+        except Exception as exc:  # raised when this frame is due
+            self.ended = True
+            self.pending.append(exc)
+            return
+        if frame is None:
+            self.ended = True
+        else:
+            self.pending.append((frame, self.pool.submit(self.likelihood.prepare, frame)))

@@ -57,7 +57,11 @@ class Likelihood(ABC):
 
     @abstractmethod
     def prepare(self, frame: Frame) -> FrameLikelihood:
-        """Derive this frame's observations once; the result scores pose batches."""
+        """Derive this frame's observations once; the result scores pose batches.
+
+        The filter may call it from background threads, for several frames at once (it prepares frames
+        ahead): anything it keeps between frames must be safe to share.
+        """
 
     def settings(self) -> dict:
         """The likelihood's settings as plain JSON values, recorded in ``result.json`` (none by default)."""
