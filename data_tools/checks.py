@@ -25,8 +25,10 @@ MAX_BODY_SCALE = 10.0
 MAX_ANGLE_DEG = 1e5
 #: Length units of mocap files (mm per file unit): 1 micrometre to 10 m.
 MIN_MM_PER_UNIT, MAX_MM_PER_UNIT = 1e-3, 1e4
-#: Frame rates (Hz).
-MAX_FPS = 1e5
+#: Frame rates (Hz): from a frame every 10 s (slower is no motion capture) to 100 kHz.
+MIN_FPS, MAX_FPS = 0.1, 1e5
+#: Cameras in one rig.
+MAX_VIEWS = 64
 #: Image width and height (pixels).
 MAX_IMAGE_SIDE = 20000
 #: Focal lengths and principal point coordinates (pixels).

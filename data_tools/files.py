@@ -44,8 +44,18 @@ def _writable_ancestor(path: Path, what: str) -> None:
         parent = parent.parent
     if not parent.is_dir():
         raise InputError(f"cannot write {what} here: {parent} is a file, not a folder", path)
-    if not os.access(parent, os.W_OK | os.X_OK):
+    if not os.access(parent, os.W_OK | os.X_OK) or not _can_create_in(parent):
         raise InputError(f"cannot write {what} here: {parent} is not writable", path)
+
+
+def _can_create_in(folder: Path) -> bool:
+    """Whether a file can really be created in ``folder`` (a probe, removed at once): ``os.access`` says yes to
+    root everywhere, and to read-only or virtual file systems such as ``/proc``."""
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            return True
+    except OSError:
+        return False
 
 
 def check_output_file(path: str | Path, what: str = "the output file", suffixes: tuple[str, ...] = ()) -> Path:
@@ -75,7 +85,7 @@ def check_output_folder(path: str | Path, what: str = "the output folder", empty
             raise InputError(f"{what} is not empty and holds no {' or '.join(replaceable)}: refusing to replace "
                              "a folder this program did not write", path)
     if path.is_dir():
-        if not os.access(path, os.W_OK | os.X_OK):
+        if not os.access(path, os.W_OK | os.X_OK) or not _can_create_in(path):
             raise InputError(f"cannot write in {what}: not writable", path)
     else:
         _writable_ancestor(path, what)

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from data_tools.checks import MAX_FPS, check_range
+from data_tools.checks import MAX_FPS, MIN_FPS, check_range
 from data_tools.textfiles import parse_floats, read_lines  # noqa: F401 -- re-exported for older imports
 from tracker.core.body import EXTRA_POINT_NAMES, MARKER_NAMES
 from tracker.core.errors import InputError
@@ -51,12 +51,13 @@ def _name_index(names: list[str]) -> dict[str, int]:
 
 
 def check_fps(fps: float, what: str = "frame rate", source: str | None = None) -> float:
-    """``fps`` as a float, refused unless a number in (0, :data:`~data_tools.checks.MAX_FPS`] Hz."""
+    """``fps`` as a float, refused unless a number in [:data:`~data_tools.checks.MIN_FPS`,
+    :data:`~data_tools.checks.MAX_FPS`] Hz."""
     try:
         fps = float(fps)
     except (TypeError, ValueError):
         raise InputError(f"{what} must be a number, got {fps!r}", source) from None
-    return float(check_range(fps, what, source, hi=MAX_FPS, positive=True, unit=" Hz"))
+    return float(check_range(fps, what, source, lo=MIN_FPS, hi=MAX_FPS, unit=" Hz"))
 
 
 def resample(clip: MocapClip, fps: float) -> MocapClip:

@@ -337,6 +337,11 @@ def _read_own(root: Path) -> Sequence:
     if meta_fps is not None:
         meta_fps = real_number(meta_fps, "fps", meta_path, hi=MAX_FPS, positive=True, unit=" Hz")
     image_paths, backgrounds = [], []
+    if (root / "images").is_dir():
+        stray = sorted(d.name for d in (root / "images").iterdir() if d.is_dir() and d.name not in rig.names)
+        if stray:
+            raise InputError(f"images/{stray[0]}/ has images but cameras.json has no camera {stray[0]!r} "
+                             f"(its cameras: {', '.join(rig.names)})", root / "cameras.json")
     for cam in rig.cameras:
         first = (len(image_paths[0]), rig.names[0]) if image_paths else None
         image_paths.append(_camera_frames(root / "images" / cam.name, f"camera folder for {cam.name!r}",
@@ -353,8 +358,9 @@ def _read_own(root: Path) -> Sequence:
     seq = Sequence(root=root, layout=OWN, rig=rig, model=model, image_paths=image_paths,
                    background_paths=backgrounds, mask_paths=None, groundtruth=gt,
                    initial_poses=None if gt is None else gt.poses, fps=fps, meta=meta)
-    for v in range(len(rig)):  # fail early on a wrong-sized or unreadable first frame
+    for v in range(len(rig)):  # fail early on a wrong-sized or unreadable first frame or plate (kept once read)
         seq.image(0, v)
+        seq.background(v)
     return seq
 
 

@@ -639,3 +639,12 @@ def test_synth_replaces_a_folder_only_with_overwrite_and_whole(tmp_path):
     synthesize(clip, tmp_path / "s", SynthConfig(frames=2, views=1, width=160, height=120), overwrite=True)
     assert len(list((tmp_path / "s" / "images" / "cam0").iterdir())) == 2  # the old 3 frames are gone
     assert [p.name for p in tmp_path.iterdir()] == ["s"]  # no temporary folder left behind
+
+
+def test_frame_rates_below_a_tenth_of_a_hertz_are_refused():
+    from data_tools.load import load_mocap
+    from data_tools.mocap import resample
+
+    clip = load_mocap(SAMPLE_AMCS[0], SAMPLE_ASF)
+    refused(lambda: resample(clip, 1e-300), "target frame rate", "within [0.1, 100000] Hz")
+    assert resample(clip, 0.5).n_frames >= 1
