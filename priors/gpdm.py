@@ -79,6 +79,9 @@ EXACT_MAX_FRAMES = 500
 AUTO_INDUCING = 200
 #: Fewest inducing frames a sparse model may have.
 MIN_INDUCING = 10
+#: Largest latent noise (multiples of the predictive standard deviation) and ground-plane diffusion (mm per frame)
+#: of the tracking prior: far beyond any useful setting, and larger values throw particles kilometres away.
+MAX_LATENT_NOISE, MAX_ROOT_NOISE_MM = 100.0, 1000.0
 #: Jitter added to the inducing kernel matrix ``K_uu``, relative to its mean diagonal.
 JITTER = 1e-6
 
@@ -249,6 +252,9 @@ class GPDM:
                              f"{list(lengths)}")
         if min(lengths) <= cfg.order:
             raise InputError(f"every sequence needs more than {cfg.order} frames for order-{cfg.order} dynamics")
+        if cfg.latent_dim > Y.shape[1]:
+            raise InputError(f"latent dimension must be at most the {Y.shape[1]} observed features, got "
+                             f"{cfg.latent_dim}")
         self.Y = torch.tensor(Y, dtype=torch.float64)
         self.lengths = [int(n) for n in lengths]
         out_idx, in_idx = dynamics_pairs(self.lengths, cfg.order)
@@ -1050,9 +1056,9 @@ GPDM_TRAIN_OPTIONS = (
     model_files="one", train=train_gpdm_from_data, train_options=GPDM_TRAIN_OPTIONS, resumable=True,
     options=(Option("latent_noise", float, 1.0,
                     "multiple of the predictive standard deviation added to each latent step (default 1)",
-                    minimum=0.0),
+                    minimum=0.0, maximum=MAX_LATENT_NOISE),
              Option("root_noise", float, ROOT_NOISE_MM, "ground-plane diffusion of each sample in mm (default 5)",
-                    minimum=0.0),
+                    minimum=0.0, maximum=MAX_ROOT_NOISE_MM),
              *UNLEARNED_MOTION_OPTIONS))
 def build_gpdm(context: PriorContext, model_files: Sequence[Path], options: dict) -> GPDMPrior:
     model = load_gpdm_prior(model_files[0])

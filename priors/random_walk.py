@@ -86,7 +86,7 @@ class ConstantVelocityPrior(MotionPrior):
 
 
 SCALE_OPTION = Option("prior_scale", float, 1.0, "multiply the random-walk noise (default 1)", minimum=0.0,
-                      strict=True)
+                      strict=True, maximum=1000.0)
 
 
 @register_prior("zero-velocity", summary="first-order Gaussian random walk (the baseline)", options=(SCALE_OPTION,))

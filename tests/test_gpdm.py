@@ -416,3 +416,8 @@ def test_foreign_and_corrupt_model_files_are_refused(small_gpdm_file, tmp_path):
             load_gpdm_prior(path)
         assert err.value.path == str(path)
     assert load_gpdm_prior(small_gpdm_file).fps == 60.0
+
+
+def test_latent_dimension_above_the_features_is_refused():
+    with pytest.raises(InputError, match="latent dimension must be at most the 3 observed features, got 4"):
+        GPDM(np.random.default_rng(0).standard_normal((10, 3)), [10], GPDMConfig(latent_dim=4))

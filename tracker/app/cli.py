@@ -15,6 +15,7 @@ from typing import Sequence
 
 import numpy as np
 
+from data_tools.checks import MAX_FPS, MAX_IMAGE_SIDE, MAX_MM_PER_UNIT, MAX_VIEWS, MIN_FPS, MIN_MM_PER_UNIT
 from data_tools.files import atomic_path, check_output_file, check_output_folder
 from tracker.app.api import (
     available_likelihoods, available_priors, build_likelihood, build_prior, likelihood_entry, load_sequence,
@@ -27,17 +28,21 @@ from tracker.core.errors import InputError
 from tracker.engine.registry import Option
 
 
-def _number(kind: type, minimum: float, strict: bool):
-    """An argparse type: ``kind`` (int or float), finite, above (``strict``) or at least ``minimum``."""
+def _number(kind: type, minimum: float, strict: bool, maximum: float | None = None, strict_max: bool = False):
+    """An argparse type: ``kind`` (int or float), finite, above (``strict``) or at least ``minimum``, and below
+    (``strict_max``) or at most ``maximum`` when given; the message gives the range."""
     noun = "an integer" if kind is int else "a number"
     bound = f"greater than {minimum:g}" if strict else f"at least {minimum:g}"
+    if maximum is not None:
+        bound += f" and {'less than' if strict_max else 'at most'} {maximum if kind is int else format(maximum, 'g')}"
 
     def parse(text: str):
         try:
             value = kind(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected {noun}, got {text!r}") from None
-        if not np.isfinite(value) or value < minimum or (strict and value == minimum):
+        if (kind is float and not np.isfinite(value)) or value < minimum or (strict and value == minimum) \
+                or (maximum is not None and (value > maximum or (strict_max and value == maximum))):
             raise argparse.ArgumentTypeError(f"must be {bound}, got {text}")
         return value
 
@@ -48,6 +53,16 @@ _positive_float = _number(float, 0.0, strict=True)
 _non_negative_float = _number(float, 0.0, strict=False)
 _positive_int = _number(int, 1, strict=False)
 _non_negative_int = _number(int, 0, strict=False)
+#: Plausible ranges of the command-line values that size arrays or scale arithmetic (the API checks its own).
+_seed = _number(int, 0, strict=False, maximum=2 ** 63 - 1)
+_fps = _number(float, MIN_FPS, strict=False, maximum=MAX_FPS)
+_length_unit = _number(float, MIN_MM_PER_UNIT, strict=False, maximum=MAX_MM_PER_UNIT)
+_image_side = _number(int, 1, strict=False, maximum=MAX_IMAGE_SIDE)
+_views = _number(int, 1, strict=False, maximum=MAX_VIEWS)
+#: Particles and annealing layers: far beyond any run (Taylor 2009 uses 200-1000 particles; Deutscher & Reid
+#: 10 layers), and a million particles already take gigabytes per frame.
+_particles = _number(int, 1, strict=False, maximum=1_000_000)
+_layers = _number(int, 1, strict=False, maximum=100)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -75,8 +90,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "poses, markers (ground truth), model_markers, fps and the body shape.")
     c.add_argument("--mocap", required=True, help="motion file: .amc (CMU ASF/AMC) or .bvh")
     c.add_argument("--skeleton", help="ASF skeleton for an .amc file (default: <subject>.asf beside it)")
-    c.add_argument("--fps", type=_positive_float, default=60.0, help="output frame rate in Hz (default 60)")
-    c.add_argument("--length-unit", type=_positive_float, default=None, metavar="MM",
+    c.add_argument("--fps", type=_fps, default=60.0, help="output frame rate in Hz (default 60)")
+    c.add_argument("--length-unit", type=_length_unit, default=None, metavar="MM",
                    help="BVH only: millimetres per file unit (default: inferred from the skeleton's height)")
     c.add_argument("--out", required=True, help="output .npz")
 
@@ -87,22 +102,23 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--mocap", required=True, help="motion file: .amc (CMU ASF/AMC) or .bvh")
     s.add_argument("--skeleton", help="ASF skeleton for an .amc file (default: <subject>.asf beside it)")
     s.add_argument("--out", required=True, help="output sequence folder")
-    s.add_argument("--views", type=_positive_int, default=4, help="number of cameras (default 4)")
-    s.add_argument("--fps", type=_positive_float, default=60.0, help="frame rate in Hz (default 60)")
+    s.add_argument("--views", type=_views, default=4, help="number of cameras (default 4)")
+    s.add_argument("--fps", type=_fps, default=60.0, help="frame rate in Hz (default 60)")
     s.add_argument("--start", type=_non_negative_int, default=0, help="first frame, at the output rate (default 0)")
     s.add_argument("--frames", type=_positive_int, default=None, help="number of frames (default: to the end)")
-    s.add_argument("--seed", type=_non_negative_int, default=0,
+    s.add_argument("--seed", type=_seed, default=0,
                    help="random seed: scene, clothing, widths, noise (default 0)")
-    s.add_argument("--width", type=_positive_int, default=640, help="image width in pixels (default 640)")
-    s.add_argument("--height", type=_positive_int, default=480, help="image height in pixels (default 480)")
-    s.add_argument("--noise", type=_non_negative_float, default=2.0,
+    s.add_argument("--width", type=_image_side, default=640, help="image width in pixels (default 640)")
+    s.add_argument("--height", type=_image_side, default=480, help="image height in pixels (default 480)")
+    s.add_argument("--noise", type=_number(float, 0.0, strict=False, maximum=255.0), default=2.0,
                    help="sensor noise std in grey levels of 255 (default 2)")
-    s.add_argument("--lighting-change", type=float, default=0.0, metavar="FRACTION",
+    s.add_argument("--lighting-change", type=_number(float, -0.9, strict=True, maximum=2.0, strict_max=True),
+                   default=0.0, metavar="FRACTION",
                    help="brightness drifts from 1 to 1+FRACTION over the sequence (default 0)")
     s.add_argument("--occluder", action="store_true", help="put a pillar between camera 0 and the person")
     s.add_argument("--missing-camera", type=_non_negative_int, default=None, metavar="INDEX",
                    help="this camera delivers only black frames")
-    s.add_argument("--length-unit", type=_positive_float, default=None, metavar="MM",
+    s.add_argument("--length-unit", type=_length_unit, default=None, metavar="MM",
                    help="BVH only: millimetres per file unit (default: inferred)")
     s.add_argument("--overwrite", action="store_true", help="replace a non-empty output folder")
     s.add_argument("--then", metavar="FILE", help="a second clip the person changes to (e.g. a run after a walk): "
@@ -132,8 +148,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--mocap", required=True, nargs="+", metavar="FILE", help="training clips (.amc or .bvh)")
     r.add_argument("--skeleton", nargs="+", metavar="ASF",
                    help="ASF skeleton(s): one for all .amc clips or one per clip (default: <subject>.asf beside each)")
-    r.add_argument("--fps", type=_positive_float, default=60.0, help="frame rate of the training data (default 60)")
-    r.add_argument("--seed", type=_non_negative_int, default=0, help="random seed (default 0)")
+    r.add_argument("--fps", type=_fps, default=60.0, help="frame rate of the training data (default 60)")
+    r.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
     r.add_argument("--resume", action="store_true",
                    help="continue an interrupted training from OUT.checkpoint (same arguments as before)")
     r.add_argument("--out", required=True, help="output model file (.pt)")
@@ -148,12 +164,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="trained prior model(s); for crbm several orders (e.g. 1 and 3) grow the history")
     t.add_argument("--likelihood", default="edge-silhouette", choices=available_likelihoods(),
                    help="image likelihood (default edge-silhouette)")
-    t.add_argument("--particles", type=_positive_int, default=1000, help="number of particles (default 1000)")
+    t.add_argument("--particles", type=_particles, default=1000, help="number of particles (default 1000)")
     t.add_argument("--views", default=None, help="comma-separated camera indices (default: all)")
     t.add_argument("--frames", type=_positive_int, default=None,
                    help="track frames 0..N-1 (default: the whole sequence)")
-    t.add_argument("--seed", type=_non_negative_int, default=0, help="random seed (default 0)")
-    t.add_argument("--annealing-layers", type=_positive_int, default=1,
+    t.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
+    t.add_argument("--annealing-layers", type=_layers, default=1,
                    help="annealed layers per frame (default 1: plain SIR)")
     t.add_argument("--resampling", default="systematic", choices=list(SCHEMES),
                    help="resampling scheme (default systematic)")
@@ -409,9 +425,15 @@ def cmd_train(args: argparse.Namespace) -> int:
     options = _given_options(args, "prior", args.prior, trainable[args.prior], trainable)
     print(f"training a {args.prior} prior on {len(args.mocap)} clip(s) at {args.fps:g} fps", flush=True)
     checkpoint = out.with_name(out.name + ".checkpoint")
-    model = train(args.prior, args.mocap, skeletons=args.skeleton, fps=args.fps, rng=args.seed,
-                  progress=_progress_bar(f"training {args.prior}"), checkpoint=checkpoint, resume=args.resume,
-                  **options)
+    try:
+        model = train(args.prior, args.mocap, skeletons=args.skeleton, fps=args.fps, rng=args.seed,
+                      progress=_progress_bar(f"training {args.prior}"), checkpoint=checkpoint, resume=args.resume,
+                      **options)
+    except KeyboardInterrupt:  # Ctrl-C: the last checkpoint (if any) stays for --resume; no model is written
+        again = ("; continue with the same command and --resume" if checkpoint.exists() else
+                 "; nothing saved (--checkpoint-every E saves the training state as it goes)")
+        print(f"\ninterrupted{again}", file=sys.stderr)
+        return 130
     with atomic_path(out) as tmp:
         model.save(tmp)
     print(f"{model.summary()} -> {out}")
@@ -472,7 +494,7 @@ def cmd_track(args: argparse.Namespace) -> int:
                                  likelihoods)
     prior = build_prior(args.prior, seq, args.model or (), train_mocap=args.train_mocap, **prior_options)
     likelihood = build_likelihood(args.likelihood, seq, views, **lik_options)
-    init = read_poses_file(args.init, "initial poses") if args.init else None
+    init = read_poses_file(args.init, "initial poses", seq.model) if args.init else None
     out = Path(args.out)
     if not args.resume:
         from data_tools.files import write_text_atomic
@@ -482,29 +504,35 @@ def cmd_track(args: argparse.Namespace) -> int:
         write_text_atomic(out / TRACK_ARGS, json.dumps(saved, indent=1))
     T = args.frames or seq.n_frames
     errors: list[float] = []
-    with tqdm(total=T, desc=f"tracking ({args.prior})", unit="frame") as bar:
-        def on_frame(step, err: float | None) -> None:
-            bar.update(1)
-            if err is not None:
-                errors.append(err)
-                bar.set_postfix(error_mm=f"{err:.0f}", mean_mm=f"{np.mean(errors):.0f}")
+    bars: list = []  # the bar appears with the first tracked frame: a refusal before that stays one line
 
-        try:
-            run = track(seq, prior, likelihood=likelihood, particles=args.particles, views=views,
-                        frames=args.frames, seed=args.seed, annealing_layers=args.annealing_layers,
-                        resampling=args.resampling, known_frames=args.known_frames, init=init, on_frame=on_frame,
-                        checkpoint=out / "checkpoint.npz", checkpoint_every=args.checkpoint_every,
-                        resume=bool(args.resume))
-        except TrackingInterrupted as stop:
+    def on_frame(step, err: float | None) -> None:
+        if not bars:
+            bars.append(tqdm(total=T, desc=f"tracking ({args.prior})", unit="frame"))
+        bars[0].update(1)
+        if err is not None:
+            errors.append(err)
+            bars[0].set_postfix(error_mm=f"{err:.0f}", mean_mm=f"{np.mean(errors):.0f}")
+
+    try:
+        run = track(seq, prior, likelihood=likelihood, particles=args.particles, views=views,
+                    frames=args.frames, seed=args.seed, annealing_layers=args.annealing_layers,
+                    resampling=args.resampling, known_frames=args.known_frames, init=init, on_frame=on_frame,
+                    checkpoint=out / "checkpoint.npz", checkpoint_every=args.checkpoint_every,
+                    resume=bool(args.resume))
+    except TrackingInterrupted as stop:
+        for bar in bars:
             bar.close()
-            if stop.partial is not None:
-                stop.partial.settings.update(prior=args.prior, prior_models=list(args.model or ()))
-                stop.partial.save(out)
-            done = "" if stop.partial is None else f" after {len(stop.partial.tracked_frames)} frame(s)"
-            again = f"; resume with: python -m tracker track --resume {out}" if stop.checkpoint else ""
-            print(f"interrupted{done}: partial result in {out}{again}", file=sys.stderr)
-            return 130
+        if stop.partial is not None:
+            stop.partial.settings.update(prior=args.prior, prior_models=list(args.model or ()))
+            stop.partial.save(out)
+        done = "" if stop.partial is None else f" after {len(stop.partial.tracked_frames)} frame(s)"
+        again = f"; resume with: python -m tracker track --resume {out}" if stop.checkpoint else ""
+        print(f"interrupted{done}: partial result in {out}{again}", file=sys.stderr)
+        return 130
+    for bar in bars:
         bar.update(T - bar.n)
+        bar.close()
     run.settings["prior"] = args.prior
     run.settings["prior_models"] = [str(m) for m in (args.model or ())]
     result = run.save(out)
@@ -553,4 +581,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return COMMANDS[args.command](args)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except MemoryError as exc:  # sizes within the checked ranges that this machine still cannot hold
+        reason = str(exc).splitlines()[0][:160] if str(exc) else "allocation failed"
+        print(f"error: not enough memory for these settings ({reason}); choose smaller sizes", file=sys.stderr)
         return 2

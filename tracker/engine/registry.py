@@ -43,6 +43,8 @@ class Option:
     minimum: float | None = None
     strict: bool = False
     choices: tuple = ()
+    #: Largest value allowed (numbers): a scale far beyond any sensible setting overflows the arithmetic it feeds.
+    maximum: float | None = None
 
     @property
     def flag(self) -> str:
@@ -70,9 +72,12 @@ class Option:
         if self.type in (int, float):
             if not math.isfinite(out):
                 raise InputError(f"{owner}: {self.name} must be finite, got {value!r}")
-            if self.minimum is not None and (out < self.minimum or (self.strict and out == self.minimum)):
-                bound = "greater than" if self.strict else "at least"
-                raise InputError(f"{owner}: {self.name} must be {bound} {self.minimum:g}, got {value!r}")
+            low = self.minimum is not None and (out < self.minimum or (self.strict and out == self.minimum))
+            if low or (self.maximum is not None and out > self.maximum):
+                bound = [] if self.minimum is None else \
+                    [f"{'greater than' if self.strict else 'at least'} {self.minimum:g}"]
+                bound += [] if self.maximum is None else [f"at most {self.maximum:g}"]
+                raise InputError(f"{owner}: {self.name} must be {' and '.join(bound)}, got {value!r}")
         if self.choices and out not in self.choices:
             raise InputError(f"{owner}: {self.name} must be one of {', '.join(map(str, self.choices))}, got {value!r}")
         return out
