@@ -119,13 +119,20 @@ def test_an_unwritable_output_is_refused_before_any_work(command, seq, tmp_path,
     assert not (tmp_path / "out").exists()
 
 
-def test_running_out_of_memory_is_one_line(monkeypatch, capsys):
+@pytest.mark.parametrize("failure", [
+    MemoryError("Unable to allocate 291. TiB for an array with shape (1000000000000, 40)"),  # numpy
+    RuntimeError("[enforce fail at alloc_cpu.cpp:127] err == 0. DefaultCPUAllocator: can't allocate memory: you "
+                 "tried to allocate 156000000000000 bytes."),  # torch
+])
+def test_running_out_of_memory_is_one_line(failure, monkeypatch, capsys):
     def greedy(args):
-        raise MemoryError("Unable to allocate 291. TiB for an array with shape (1000000000000, 40)")
+        raise failure
 
     monkeypatch.setitem(cli.COMMANDS, "convert", greedy)
-    one_line_refusal(*run_cli(["convert", "--mocap", AMC, "--out", "x.npz"], capsys), "not enough memory",
-                     "291. TiB")
+    one_line_refusal(*run_cli(["convert", "--mocap", AMC, "--out", "x.npz"], capsys), "not enough memory")
+    monkeypatch.setitem(cli.COMMANDS, "convert", lambda args: (_ for _ in ()).throw(RuntimeError("a bug")))
+    with pytest.raises(RuntimeError, match="a bug"):  # other runtime errors are not taken for bad input
+        cli.main(["convert", "--mocap", AMC, "--out", "x.npz"])
 
 
 def test_ctrl_c_in_training_says_how_to_resume(monkeypatch, tmp_path, capsys):

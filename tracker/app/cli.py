@@ -582,7 +582,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    except MemoryError as exc:  # sizes within the checked ranges that this machine still cannot hold
+    except (MemoryError, RuntimeError) as exc:  # sizes within the checked ranges that this machine cannot hold
+        if isinstance(exc, RuntimeError) and "can't allocate memory" not in str(exc):  # torch's allocator says so
+            raise
         reason = str(exc).splitlines()[0][:160] if str(exc) else "allocation failed"
         print(f"error: not enough memory for these settings ({reason}); choose smaller sizes", file=sys.stderr)
         return 2
