@@ -229,3 +229,15 @@ def torch_save_atomic(doc: dict, path: Path) -> None:
         tmp.replace(path)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def check_weights(weights: dict, expected: dict, kind: str, sizes: str, source=None) -> None:
+    """Refuse a model file whose tensors ``weights[k]`` lack the shapes ``expected[k]`` (``sizes`` says what the
+    shapes follow from, e.g. "order 3 with 40 visible and 150 hidden units") or hold NaN or infinite values."""
+    import torch
+
+    for k, shape in expected.items():
+        if tuple(weights[k].shape) != tuple(shape):
+            raise InputError(f"{kind} {k} has shape {tuple(weights[k].shape)}; {sizes} needs {tuple(shape)}", source)
+        if not torch.all(torch.isfinite(weights[k])):
+            raise InputError(f"{kind} {k} contains NaN or infinite values", source)

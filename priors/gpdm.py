@@ -49,9 +49,9 @@ import numpy as np
 import torch
 
 from priors.common import (
-    ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS, check_model_fits, checked_data_settings, mix_in_random_walk, normaliser_from_tensors,
-    normaliser_to_tensors, read_model_file, robust_share, scale_ground_steps, start_log_pace, steps_taken,
-    torch_save_atomic,
+    ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS, check_model_fits, check_weights, checked_data_settings,
+    mix_in_random_walk, normaliser_from_tensors, normaliser_to_tensors, read_model_file, robust_share,
+    scale_ground_steps, start_log_pace, steps_taken, torch_save_atomic,
 )
 from tracker.core.errors import InputError
 from tracker.core.representation import (
@@ -753,13 +753,9 @@ def gpdm_from_document(doc: dict, path: Path | None) -> tuple[GPDM, dict]:
         N, D = sum(lengths), (arrays["Y"].shape[1] if arrays["Y"].ndim == 2 else -1)
         expected = {"Y": (N, D), "X": (N, config.latent_dim), "W": (D,), "log_alpha": (n_dynamics_params(config),),
                     "log_beta": (3,)}
-        for key, shape in expected.items():
-            if tuple(arrays[key].shape) != shape:
-                raise InputError(f"GPDM {key} has shape {tuple(arrays[key].shape)}; {N} frames (the sum of the "
-                                 f"lengths) of {D} features, latent dimension {config.latent_dim} and "
-                                 f"{config.dynamics} dynamics of order {config.order} need {shape}", path)
-            if not torch.all(torch.isfinite(arrays[key])):
-                raise InputError(f"GPDM {key} contains NaN or infinite values", path)
+        check_weights(arrays, expected, "GPDM", f"{N} frames (the sum of the lengths) of {D} features in "
+                      f"{config.latent_dim} latent dimensions with {config.dynamics} dynamics of order {config.order}",
+                      path)
         if torch.any(arrays["W"] <= 0):
             raise InputError("GPDM scales W must be positive", path)
         for key in ("log_alpha", "log_beta"):
