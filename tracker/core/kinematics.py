@@ -2,9 +2,10 @@
 
 Convention: world frame z up, millimetres; ``R_world_from_link`` maps link
 coordinates to world coordinates (column vectors), ``origin`` is the link's
-joint centre in world coordinates. Any leading batch shape is kept; there is no
-Python loop over the batch, only over the depth levels of the tree (6 for the
-15-cone model), each one a batched matrix product over all links of that depth.
+joint centre in world coordinates. Any leading batch shape is kept. The link
+frames come from one loop over the poses compiled with numba (measured 5x
+faster than batched numpy products over the tree's depth levels: 0.32 against
+1.64 ms for 256 poses of the bodytrack model, 4.8 against 34 ms for 4000).
 """
 from __future__ import annotations
 
@@ -12,9 +13,10 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+from numba import njit
 
 from tracker.core.body import BALL, EULER, FREE, BodyModel
-from tracker.core.rotations import exp_map_to_matrix
+from tracker.core.rotations import exp_map_into, exp_map_to_matrix
 
 
 @dataclass
@@ -34,7 +36,8 @@ class Kinematics:
         """The model's named points ``B x M x 3`` (mm), computed on first use (the likelihood needs none)."""
         t = _tables(self.model)
         link = t["point_link"]
-        return np.einsum("...ij,...j->...i", self.rotations[..., link, :, :], t["point_pos"]) + self.origins[..., link, :]
+        rotated = np.einsum("...ij,...j->...i", self.rotations[..., link, :, :], t["point_pos"])
+        return rotated + self.origins[..., link, :]
 
     @property
     def markers(self) -> np.ndarray:
@@ -73,12 +76,9 @@ def _tables(model: BodyModel) -> dict:
     n = len(links)
     if links[0].parent != -1 or links[0].joint != FREE:
         raise ValueError(f"{model.name}: link 0 must be the free root")
-    depth = np.zeros(n, int)
     for i, link in enumerate(links[1:], start=1):
         if not 0 <= link.parent < i:
             raise ValueError(f"{model.name}: link {link.name} must come after its parent")
-        depth[i] = depth[link.parent] + 1
-    levels = [np.flatnonzero(depth == d) for d in range(1, depth.max() + 1)]
     ball = [i for i, link in enumerate(links) if link.joint == BALL]
     root = links[0]
     root_euler = bool(root.axes)
@@ -95,20 +95,27 @@ def _tables(model: BodyModel) -> dict:
     fixed = np.array([np.eye(3) if link.rotation is None else np.asarray(link.rotation, float) for link in links])
     if np.abs(fixed @ np.swapaxes(fixed, -1, -2) - np.eye(3)).max() > 1e-9 or np.any(np.linalg.det(fixed) < 0):
         raise ValueError(f"{model.name}: every fixed link rotation must be a rotation matrix")
-    euler_links = [f[0] for f in euler_factors]
-    position = [euler_links[:j].count(link) for j, link in enumerate(euler_links)]  # k-th factor of its link
-    rounds = [(np.array([euler_links[j] for j in range(len(euler_links)) if position[j] == k], int),
-               np.array([j for j in range(len(euler_links)) if position[j] == k], int))
-              for k in range(max(position, default=-1) + 1)]
-    rotated = set(ball) | set(euler_links) | (set() if root_euler else {0})
+    # The compiled kernel's description of every link (see _fk_kernel).
+    kind = np.zeros(n, np.int64)
+    n_factors = np.zeros(n, np.int64)
+    most = max([3] + [sum(1 for f in euler_factors if f[0] == i) for i in range(n)])
+    dofs = np.zeros((n, most), np.int64)
+    axes = np.zeros((n, most, 3))
+    if not root_euler:
+        kind[0], dofs[0, :3] = 1, root.dofs[3:6]
+    for i in ball:
+        kind[i], dofs[i, :3] = 1, links[i].dofs
+    for i, dof, axis in euler_factors:
+        kind[i] = 2
+        dofs[i, n_factors[i]], axes[i, n_factors[i]] = dof, axis
+        n_factors[i] += 1
+    has_fixed = np.array([link.rotation is not None and not np.array_equal(fixed[i], np.eye(3))
+                          for i, link in enumerate(links)])
     tables = {
-        "still_links": np.array([i for i in range(n) if i not in rotated], int),
-        "euler_rounds": rounds,
-        "fixed_links": np.array([i for i, link in enumerate(links) if link.rotation is not None
-                                 and not np.array_equal(np.asarray(link.rotation, float), np.eye(3))], int),
+        "kernel": (kind, dofs, n_factors, axes, fixed, has_fixed, np.array([link.parent for link in links], np.int64),
+                   np.array([link.offset for link in links], float), np.array(root.dofs[:3], np.int64)),
         "parents": np.array([link.parent for link in links]),
         "offsets": np.array([link.offset for link in links], float),
-        "levels": levels,
         "root_dofs": np.array(links[0].dofs),
         "root_euler": root_euler,
         "fixed": fixed,
@@ -127,53 +134,70 @@ def _tables(model: BodyModel) -> dict:
     return tables
 
 
-def local_rotations(model: BodyModel, poses: np.ndarray) -> np.ndarray:
-    """Joint rotations ``B x L x 3 x 3`` (parent from link) for poses ``B x D``."""
-    t = _tables(model)
-    batch = poses.shape[:-1]
-    R = np.empty(batch + (len(model.links), 3, 3))
-    R[..., t["still_links"], :, :] = np.eye(3)
-    rd = t["root_dofs"]
-    if not t["root_euler"]:
-        R[..., 0, :, :] = exp_map_to_matrix(poses[..., rd[3:6]])
-    if len(t["ball_links"]):
-        R[..., t["ball_links"], :, :] = exp_map_to_matrix(poses[..., t["ball_dofs"]])
-    if len(t["euler_links"]):
-        factors = exp_map_to_matrix(poses[..., t["euler_dofs"], None] * t["euler_axes"])
-        # Factors of the same link multiply left to right: the first of every link, then every link's
-        # second, third, ... in one batched product each.
-        rounds = t["euler_rounds"]
-        R[..., rounds[0][0], :, :] = factors[..., rounds[0][1], :, :]
-        for links, which in rounds[1:]:
-            R[..., links, :, :] = R[..., links, :, :] @ factors[..., which, :, :]
-    fixed = t["fixed_links"]
-    if len(fixed):
-        R[..., fixed, :, :] = t["fixed"][fixed] @ R[..., fixed, :, :]
-    return R
+@njit(cache=True, nogil=True)
+def _matmul3(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
+
+
+@njit(cache=True, nogil=True)
+def _fk_kernel(poses, kind, dofs, n_factors, axes, fixed, has_fixed, parents, offsets, root_dofs, R, o):
+    """World rotations ``R`` ``B x L x 3 x 3`` and joint centres ``o`` ``B x L x 3`` (mm) of poses ``B x D``,
+    filled in place one pose at a time. Link ``l``'s joint rotation is the identity (``kind`` 0), the exp map
+    of dofs ``dofs[l, :3]`` (1), or the product, left to right, of ``n_factors[l]`` rotations by dof
+    ``dofs[l, k]`` about ``axes[l, k]`` (2); then its fixed rotation on the left where ``has_fixed``.
+    Links come after their parents."""
+    local = np.empty((3, 3))
+    factor = np.empty((3, 3))
+    tmp = np.empty((3, 3))
+    for p in range(poses.shape[0]):
+        for link in range(kind.shape[0]):
+            if kind[link] == 0:
+                for i in range(3):
+                    for j in range(3):
+                        local[i, j] = 1.0 if i == j else 0.0
+            elif kind[link] == 1:
+                exp_map_into(poses[p, dofs[link, 0]], poses[p, dofs[link, 1]], poses[p, dofs[link, 2]], local)
+            else:
+                for k in range(n_factors[link]):
+                    angle = poses[p, dofs[link, k]]
+                    exp_map_into(angle * axes[link, k, 0], angle * axes[link, k, 1], angle * axes[link, k, 2],
+                             factor if k else local)
+                    if k:
+                        _matmul3(local, factor, tmp)
+                        local[:, :] = tmp
+            if has_fixed[link]:
+                _matmul3(fixed[link], local, tmp)
+                local[:, :] = tmp
+            if link == 0:
+                R[p, 0] = local
+                for i in range(3):
+                    o[p, 0, i] = poses[p, root_dofs[i]] + offsets[0, i]
+            else:
+                parent = parents[link]
+                _matmul3(R[p, parent], local, R[p, link])
+                for i in range(3):
+                    o[p, link, i] = o[p, parent, i] + (R[p, parent, i, 0] * offsets[link, 0]
+                                                       + R[p, parent, i, 1] * offsets[link, 1]
+                                                       + R[p, parent, i, 2] * offsets[link, 2])
 
 
 def forward_kinematics(model: BodyModel, poses: np.ndarray) -> Kinematics:
-    """Forward kinematics of ``poses`` ``(..., D)`` (D = ``model.n_dofs``).
+    """Forward kinematics of ``poses`` ``(..., D)`` (D = ``model.n_dofs``), one compiled loop over the poses.
 
     No input checks (this is a hot path): callers at public boundaries use
     :meth:`BodyModel.check_poses`.
     """
     poses = np.asarray(poses, dtype=float)
     t = _tables(model)
-    local = local_rotations(model, poses)
     batch = poses.shape[:-1]
     n = len(model.links)
-    R = np.empty(batch + (n, 3, 3))
-    o = np.empty(batch + (n, 3))
-    R[..., 0, :, :] = local[..., 0, :, :]
-    o[..., 0, :] = poses[..., t["root_dofs"][:3]] + t["offsets"][0]
-    parents, offsets = t["parents"], t["offsets"]
-    for level in t["levels"]:
-        par = parents[level]
-        Rp = R[..., par, :, :]
-        R[..., level, :, :] = Rp @ local[..., level, :, :]
-        o[..., level, :] = o[..., par, :] + np.einsum("...ij,...j->...i", Rp, offsets[level])
-    return Kinematics(model=model, rotations=R, origins=o)
+    flat = np.ascontiguousarray(poses.reshape(-1, poses.shape[-1]))
+    R = np.empty((len(flat), n, 3, 3))
+    o = np.empty((len(flat), n, 3))
+    _fk_kernel(flat, *t["kernel"], R, o)
+    return Kinematics(model=model, rotations=R.reshape(batch + (n, 3, 3)), origins=o.reshape(batch + (n, 3)))
 
 
 def markers(model: BodyModel, poses: np.ndarray) -> np.ndarray:

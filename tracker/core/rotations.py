@@ -7,6 +7,7 @@ function keeps any leading batch shape (``x.shape[:-1]`` for vectors,
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 _SMALL = 1e-6
 
@@ -24,6 +25,36 @@ def skew(v: np.ndarray) -> np.ndarray:
     return out
 
 
+@njit(cache=True, nogil=True)
+def exp_map_into(x: float, y: float, z: float, out: np.ndarray) -> None:
+    """The rotation matrix of one exponential map ``(x, y, z)`` written into ``out`` 3 x 3 (compiled; the one
+    implementation behind :func:`exp_map_to_matrix` and the forward-kinematics kernel)."""
+    t2 = x * x + y * y + z * z
+    t = np.sqrt(t2)
+    if t < _SMALL:
+        a = 1.0 - t2 / 6.0
+        b = 0.5 - t2 / 24.0
+    else:
+        a = np.sin(t) / t
+        b = (1.0 - np.cos(t)) / (t * t)
+    # [v]_x^2 = v v^T - t^2 I, written out.
+    out[0, 0] = 1.0 - b * (y * y + z * z)
+    out[1, 1] = 1.0 - b * (x * x + z * z)
+    out[2, 2] = 1.0 - b * (x * x + y * y)
+    out[0, 1] = b * x * y - a * z
+    out[1, 0] = b * x * y + a * z
+    out[0, 2] = b * x * z + a * y
+    out[2, 0] = b * x * z - a * y
+    out[1, 2] = b * y * z - a * x
+    out[2, 1] = b * y * z + a * x
+
+
+@njit(cache=True, nogil=True)
+def _exp_maps(v: np.ndarray, out: np.ndarray) -> None:
+    for i in range(v.shape[0]):
+        exp_map_into(v[i, 0], v[i, 1], v[i, 2], out[i])
+
+
 def exp_map_to_matrix(v: np.ndarray) -> np.ndarray:
     """Rotation matrices ``(..., 3, 3)`` from exponential maps (axis * angle) ``(..., 3)``.
 
@@ -32,25 +63,10 @@ def exp_map_to_matrix(v: np.ndarray) -> np.ndarray:
     their Taylor series, so the map is smooth (and exact to float precision) at zero.
     """
     v = np.asarray(v, dtype=float)
-    t2 = np.einsum("...i,...i->...", v, v)
-    t = np.sqrt(t2)
-    small = t < _SMALL
-    t_safe = np.where(small, 1.0, t)
-    a = np.where(small, 1.0 - t2 / 6.0, np.sin(t_safe) / t_safe)
-    b = np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(t_safe)) / (t_safe * t_safe))
-    x, y, z = v[..., 0], v[..., 1], v[..., 2]
-    out = np.empty(v.shape[:-1] + (3, 3))
-    # [v]_x^2 = v v^T - t^2 I, written out to avoid two batched matmuls.
-    out[..., 0, 0] = 1.0 - b * (y * y + z * z)
-    out[..., 1, 1] = 1.0 - b * (x * x + z * z)
-    out[..., 2, 2] = 1.0 - b * (x * x + y * y)
-    out[..., 0, 1] = b * x * y - a * z
-    out[..., 1, 0] = b * x * y + a * z
-    out[..., 0, 2] = b * x * z + a * y
-    out[..., 2, 0] = b * x * z - a * y
-    out[..., 1, 2] = b * y * z - a * x
-    out[..., 2, 1] = b * y * z + a * x
-    return out
+    flat = np.ascontiguousarray(v.reshape(-1, 3))
+    out = np.empty((len(flat), 3, 3))
+    _exp_maps(flat, out)
+    return out.reshape(v.shape[:-1] + (3, 3))
 
 
 def matrix_to_quaternion(R: np.ndarray) -> np.ndarray:
