@@ -221,7 +221,8 @@ class _CostMaps:
         def padded(m: np.ndarray) -> np.ndarray:
             V, H, W = m.shape
             out = np.ones((V, H + 2 * PAD, W + 2 * PAD), np.float32)
-            out[:, PAD:PAD + H, PAD:PAD + W] = (1.0 - m) ** 2
+            inner = out[:, PAD:PAD + H, PAD:PAD + W]
+            np.square(np.subtract(1.0, m, out=inner), out=inner)
             return out
         fg = [foreground_sample(sil, n_foreground) for sil in obs.silhouettes] if n_foreground else []
         return cls(padded(obs.edges), padded(obs.silhouettes), fg)

@@ -78,12 +78,15 @@ def clean_mask(mask: np.ndarray, config: ObservationConfig = DEFAULT_OBSERVATION
         m = cv2.morphologyEx(m, cv2.MORPH_OPEN, _disc(config.open_radius))
     if config.close_radius > 0:
         m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, _disc(config.close_radius))
-    if config.min_area > 1:
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
+    rows, cols = _box(m, 0)  # components are labelled within the mask's bounding box only
+    if config.min_area > 1 and rows.stop > rows.start:
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(m[rows, cols], connectivity=8)
         keep = np.zeros(n, bool)
         keep[1:] = stats[1:, cv2.CC_STAT_AREA] >= config.min_area
         if not keep[1:].all():  # (when every component is large enough the mask stays as it is)
-            return keep[labels]
+            out = np.zeros(m.shape, bool)
+            out[rows, cols] = keep[labels]
+            return out
     return m.astype(bool)
 
 
@@ -155,7 +158,8 @@ EDGE_REACH = 6.2
 
 
 def _box(mask: np.ndarray, grow: int) -> tuple[slice, slice]:
-    """Rows and columns of the bounding box of ``mask`` (uint8 ``H x W``, not empty) grown by ``grow`` pixels."""
+    """Rows and columns of the bounding box of ``mask`` (uint8 ``H x W``) grown by ``grow`` pixels (empty
+    slices for an empty mask)."""
     x, y, w, h = cv2.boundingRect(mask)
     H, W = mask.shape
     return slice(max(y - grow, 0), min(y + h + grow, H)), slice(max(x - grow, 0), min(x + w + grow, W))
