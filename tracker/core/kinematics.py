@@ -63,8 +63,12 @@ class Kinematics:
         """The segment frames of :meth:`segment_frames` as rotations ``B x S x 3 x 3`` (world from segment) and
         origins ``B x S x 3`` (mm)."""
         tables = _tables(self.model)
-        link = tables["seg_link"]
-        return self.rotations[..., link, :, :] @ tables["seg_in_link"], self.origins[..., link, :]
+        link, in_link = tables["seg_link"], tables["seg_in_link"]
+        batch = self.rotations.shape[:-3]
+        R = np.ascontiguousarray(self.rotations.reshape((-1,) + self.rotations.shape[-3:]))
+        out = np.empty((len(R), len(link), 3, 3))
+        _segment_rotations(R, link, in_link, out)
+        return out.reshape(batch + out.shape[1:]), self.origins[..., link, :]
 
 
 def _tables(model: BodyModel) -> dict:
@@ -127,7 +131,7 @@ def _tables(model: BodyModel) -> dict:
         "euler_axes": np.array([f[2] for f in euler_factors], float).reshape(-1, 3),
         "point_link": np.array([p.link for p in model.points], int),
         "point_pos": np.array([p.position for p in model.points], float),
-        "seg_link": np.array([s.link for s in model.segments], int),
+        "seg_link": np.array([s.link for s in model.segments], np.int64),
         "seg_in_link": np.array([s.frame_in_link() for s in model.segments], float),
     }
     cache["fk_tables"] = tables
@@ -139,6 +143,14 @@ def _matmul3(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
     for i in range(3):
         for j in range(3):
             out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
+
+
+@njit(cache=True, nogil=True)
+def _segment_rotations(R: np.ndarray, link: np.ndarray, in_link: np.ndarray, out: np.ndarray) -> None:
+    """``out[b, s] = R[b, link[s]] @ in_link[s]`` for link rotations ``R`` ``B x L x 3 x 3``."""
+    for b in range(R.shape[0]):
+        for s in range(link.shape[0]):
+            _matmul3(R[b, link[s]], in_link[s], out[b, s])
 
 
 @njit(cache=True, nogil=True)
