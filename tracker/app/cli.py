@@ -487,6 +487,9 @@ def cmd_track(args: argparse.Namespace) -> int:
     views = _parse_views(args.views, seq.n_views)
     if args.frames is not None and args.frames > seq.n_frames:
         raise InputError(f"--frames {args.frames} is past the end of the sequence ({seq.n_frames} frames)", seq.root)
+    if args.known_frames >= (args.frames or seq.n_frames):
+        raise InputError(f"--known-frames {args.known_frames} leaves nothing to track: it must be less than the "
+                         f"{args.frames or seq.n_frames} frames of the run", seq.root)
     priors = {n: prior_entry(n).options for n in available_priors()}
     likelihoods = {n: likelihood_entry(n).options for n in available_likelihoods()}
     prior_options = _given_options(args, "prior", args.prior, prior_entry(args.prior).options, priors)
