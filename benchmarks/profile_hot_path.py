@@ -83,7 +83,7 @@ def stage_times(seq, P: int = 1000, repeats: int = 20) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--threads", type=int, default=1)
-    parser.add_argument("--top", type=int, default=25)
+    parser.add_argument("--top", type=int, default=40)
     parser.add_argument("--synthetic", type=Path, default=None,
                         help="an existing synthetic sequence folder (default: render one)")
     args = parser.parse_args()
@@ -104,8 +104,9 @@ def main() -> None:
             synthesize(tracker.load_clip(SHARED / "mocap" / "cmu" / "07" / "07_11.amc"), folder,
                        SynthConfig(frames=20))
         seq = tracker.load_sequence(folder)
+        std = tracker.random_walk_scale(seq)  # (retargets the shipped walks: not part of a frame's work)
         profile(f"synthetic 15-cone, 1000 particles x 4 views, {seq.n_frames - 2} frames",
-                lambda: tracker.track(seq, "zero-velocity", particles=1000, seed=0), args.top)
+                lambda: tracker.track(seq, "zero-velocity", particles=1000, seed=0, step_std=std), args.top)
         stage_times(seq)
 
 
