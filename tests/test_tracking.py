@@ -100,7 +100,7 @@ def test_track_bad_inputs_exit_2(walk_32_frames, tmp_path):
         (["--views", "0,9"], "out of range"),
         (["--views", "a,b"], "comma-separated"),
         (["--frames", "99"], "past the end of the sequence"),
-        (["--init", str(tmp_path / "bad_init.npz")], "initial poses must be n x 40"),
+        (["--init", str(tmp_path / "bad_init.npz")], "bad_init.npz: poses must have shape T x 40"),
         (["--init", str(tmp_path / "missing.npz")], "cannot read initial poses"),
         (["--prior", "hmm"], "invalid choice"),
         (["--prior", "gpdm"], "needs a model file"),

@@ -487,9 +487,6 @@ def cmd_track(args: argparse.Namespace) -> int:
     views = _parse_views(args.views, seq.n_views)
     if args.frames is not None and args.frames > seq.n_frames:
         raise InputError(f"--frames {args.frames} is past the end of the sequence ({seq.n_frames} frames)", seq.root)
-    if args.known_frames >= (args.frames or seq.n_frames):
-        raise InputError(f"--known-frames {args.known_frames} leaves nothing to track: it must be less than the "
-                         f"{args.frames or seq.n_frames} frames of the run", seq.root)
     priors = {n: prior_entry(n).options for n in available_priors()}
     likelihoods = {n: likelihood_entry(n).options for n in available_likelihoods()}
     prior_options = _given_options(args, "prior", args.prior, prior_entry(args.prior).options, priors)
@@ -498,6 +495,11 @@ def cmd_track(args: argparse.Namespace) -> int:
     prior = build_prior(args.prior, seq, args.model or (), train_mocap=args.train_mocap, **prior_options)
     likelihood = build_likelihood(args.likelihood, seq, views, **lik_options)
     init = read_poses_file(args.init, "initial poses", seq.model) if args.init else None
+    T = args.frames or seq.n_frames
+    given = len(init) if init is not None else 0 if seq.groundtruth is None else len(seq.groundtruth.poses)
+    if min(args.known_frames, given) >= T:  # known poses of the sequence's own first frames (not bodytrack's)
+        raise InputError(f"--known-frames {args.known_frames} leaves nothing to track: the run has {T} frame(s) and "
+                         f"{min(args.known_frames, given)} of them would be known", seq.root)
     out = Path(args.out)
     if not args.resume:
         from data_tools.files import write_text_atomic
@@ -505,7 +507,6 @@ def cmd_track(args: argparse.Namespace) -> int:
         saved = {k: v for k, v in vars(args).items() if k not in ("resume", "command", "threads")}
         saved["plugin"] = [str(Path(p).resolve()) if p.endswith(".py") else p for p in args.plugin]
         write_text_atomic(out / TRACK_ARGS, json.dumps(saved, indent=1))
-    T = args.frames or seq.n_frames
     errors: list[float] = []
     bars: list = []  # the bar appears with the first tracked frame: a refusal before that stays one line
 
