@@ -273,7 +273,7 @@ def _uncovered(u: np.ndarray, v: np.ndarray, foreground: list[np.ndarray]) -> np
 @register_likelihood(
     "edge-silhouette", summary="Deutscher & Reid's edge + silhouette likelihood, summed over views",
     options=(Option("sharpness", float, EdgeSilhouetteConfig.sharpness, "likelihood sharpness", minimum=0.0,
-                    strict=True),
+                    strict=True, maximum=1e6),
              Option("bidirectional", bool, False,
                     "also penalise foreground the model does not cover (for monocular tracking)")))
 def build_edge_silhouette(context: LikelihoodContext, options: dict) -> EdgeSilhouetteLikelihood:

@@ -138,14 +138,15 @@ UNLEARNED_MOTION_OPTIONS = (
     Option("robust_fraction", float, 0.0,
            "fraction of each frame's samples drawn from the zero-velocity random walk instead, so motion the model "
            "did not learn (a start, a stop, a run) stays trackable (default 0); with robust_adaptive, the least "
-           "fraction", minimum=0.0),
+           "fraction", minimum=0.0, maximum=1.0),
     Option("robust_adaptive", bool, False,
            "let the random walk's share follow the posterior mass its samples earned on the last frame, between "
            f"robust_fraction and {ROBUST_CAP} (default off)"),
     Option("pace_spread", float, 0.0, "std of each particle's log pace, the factor between its ground steps and the "
-                                      "model's, at the start (default 0: the model's pace)", minimum=0.0),
+                                      "model's, at the start (default 0: the model's pace)", minimum=0.0,
+           maximum=3.0),
     Option("pace_drift", float, 0.0, "std of the change of each particle's log pace per frame (default 0)",
-           minimum=0.0),
+           minimum=0.0, maximum=1.0),
 )
 
 

@@ -42,8 +42,8 @@ import numpy as np
 import torch
 
 from priors.common import (
-    ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS, add_ground_diffusion, add_heading_diffusion, check_model_fits, drift_log_pace,
-    mix_in_random_walk, normaliser_from_tensors, normaliser_to_tensors, read_model_file, robust_share,
+    ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS, add_ground_diffusion, add_heading_diffusion, check_model_fits,
+    drift_log_pace, mix_in_random_walk, normaliser_from_tensors, normaliser_to_tensors, read_model_file, robust_share,
     scale_ground_steps, start_log_pace, steps_taken, torch_generator,
 )
 from tracker.core.errors import InputError
@@ -541,6 +541,8 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
             noise = float(noise)
         except ValueError:
             raise InputError(f"history noise must be 'auto' or a number, got {noise!r}") from None
+        if not 0 <= noise <= 100:
+            raise InputError(f"history noise must lie in [0, 100] (normalised units), got {noise!r}")
     config = CRBMConfig(order=options["order"], hidden=options["hidden"], epochs=options["epochs"],
                         cd_k=options["cd_k"], batch_size=options["batch_size"], history_noise=noise,
                         sparsity_target=options["sparsity"]).check()
@@ -605,11 +607,14 @@ def _growth_orders(text: str, order: int) -> list[int]:
 
 
 CRBM_TRAIN_OPTIONS = (
-    Option("order", int, CRBMConfig.order, "CRBM order N (default 3)", minimum=1),
-    Option("hidden", int, CRBMConfig.hidden, "hidden units (default 150)", minimum=1),
-    Option("epochs", int, CRBMConfig.epochs, "passes through the data (default 500)", minimum=1),
-    Option("cd_k", int, CRBMConfig.cd_k, "Gibbs steps of contrastive divergence (default 10)", minimum=1),
-    Option("batch_size", int, CRBMConfig.batch_size, "windows per mini-batch (default 100)", minimum=1),
+    Option("order", int, CRBMConfig.order, "CRBM order N (default 3)", minimum=1, maximum=100),
+    Option("hidden", int, CRBMConfig.hidden, "hidden units (default 150)", minimum=1, maximum=100000),
+    Option("epochs", int, CRBMConfig.epochs, "passes through the data (default 500)", minimum=1,
+           maximum=1000000),
+    Option("cd_k", int, CRBMConfig.cd_k, "Gibbs steps of contrastive divergence (default 10)", minimum=1,
+           maximum=10000),
+    Option("batch_size", int, CRBMConfig.batch_size, "windows per mini-batch (default 100)", minimum=1,
+           maximum=1000000),
     Option("history_noise", str, "auto",
            "std of the noise added to the history in training (normalised units), or 'auto' (default)"),
     Option("sparsity", float, None, "target mean activation of the hidden units (default: no sparsity term)"),
@@ -622,13 +627,14 @@ CRBM_TRAIN_OPTIONS = (
 @register_prior(
     "crbm", summary="Conditional RBM (Taylor 2009); several model files of increasing order grow the history",
     model_files="several", train=train_crbm_prior, train_options=CRBM_TRAIN_OPTIONS, resumable=True,
-    options=(Option("gibbs_steps", int, 30, "alternating Gibbs steps per sample (default 30)", minimum=1),
+    options=(Option("gibbs_steps", int, 30, "alternating Gibbs steps per sample (default 30)", minimum=1,
+                    maximum=10000),
              Option("root_noise", float, ROOT_NOISE_MM, "ground-plane diffusion of each sample in mm (default 5)",
-                    minimum=0.0),
+                    minimum=0.0, maximum=1000.0),
              *UNLEARNED_MOTION_OPTIONS,
              Option("heading_noise", float, 0.0, "diffusion of each sample's heading in rad per frame, so that the "
                                                  "likelihood can correct an integrated heading (default 0)",
-                    minimum=0.0)))
+                    minimum=0.0, maximum=math.pi)))
 def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> CRBMPrior:
     models = [load_crbm(m, device=context.device) for m in model_files]
     for path, m in zip(model_files, models):
