@@ -200,6 +200,8 @@ def load_deep_crbm(path: str | Path, device: str = "cpu") -> DeepCRBMModel:
             raise InputError(f"deep CRBM model file has unknown settings {', '.join(unknown)}", path)
         cfg = TopConfig(**doc["top_config"]).check()
         params, H1, N = doc["top"], bottom.crbm.n_hidden, cfg.order
+        if not isinstance(params.get("W"), torch.Tensor) or params["W"].ndim != 2:
+            raise InputError("deep CRBM second-layer weight W must be a 2-D tensor", path)
         H2 = params["W"].shape[1]
         expected = {"W": (H1, H2), "A": (N * H1, H1), "B": (N * H1, H2), "a": (H1,), "b": (H2,)}
         for k, shape in expected.items():
@@ -216,7 +218,7 @@ def load_deep_crbm(path: str | Path, device: str = "cpu") -> DeepCRBMModel:
         raise
     except KeyError as exc:
         raise InputError(f"deep CRBM model file lacks {exc.args[0]!r}", path) from None
-    except (TypeError, ValueError, AttributeError, RuntimeError) as exc:
+    except (TypeError, ValueError, AttributeError, RuntimeError, IndexError) as exc:
         raise InputError(f"deep CRBM model file is malformed ({type(exc).__name__}: {str(exc)[:100]})",
                          path) from None
 
@@ -286,21 +288,23 @@ def train_deep_crbm_prior(data: TrainingData, options: dict, rng: np.random.Gene
 
 
 DEEP_TRAIN_OPTIONS = tuple(o for o in CRBM_TRAIN_OPTIONS if o.name != "checkpoint_every") + (
-    Option("top_order", int, TopConfig.order, "deep-crbm: order M of the second layer (default 2)", minimum=1),
-    Option("top_hidden", int, TopConfig.hidden, "deep-crbm: hidden units of the second layer (default 100)",
-           minimum=1),
-    Option("top_epochs", int, TopConfig.epochs, "deep-crbm: epochs of the second layer (default 200)", minimum=1),
+    Option("top_order", int, TopConfig.order, "order M of the second layer (default 2)", minimum=1, maximum=100),
+    Option("top_hidden", int, TopConfig.hidden, "hidden units of the second layer (default 100)", minimum=1,
+           maximum=100000),
+    Option("top_epochs", int, TopConfig.epochs, "epochs of the second layer (default 200)", minimum=1,
+           maximum=1000000),
 )
 
 
 @register_prior(
     "deep-crbm", summary="two-layer CRBM (Taylor 2009, Sec. 4.3): a second CRBM on the first one's hidden units",
     model_files="one", train=train_deep_crbm_prior, train_options=DEEP_TRAIN_OPTIONS,
-    options=(Option("gibbs_steps", int, 30, "alternating Gibbs steps per sample (default 30)", minimum=1),
+    options=(Option("gibbs_steps", int, 30, "alternating Gibbs steps per sample (default 30)", minimum=1,
+                    maximum=10000),
              Option("root_noise", float, ROOT_NOISE_MM, "ground-plane diffusion of each sample in mm (default 5)",
-                    minimum=0.0),
+                    minimum=0.0, maximum=1000.0),
              Option("heading_noise", float, 0.0, "diffusion of each sample's heading in rad per frame (default 0)",
-                    minimum=0.0)))
+                    minimum=0.0, maximum=math.pi)))
 def build_deep_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> DeepCRBMPrior:
     model = load_deep_crbm(model_files[0], device=context.device)
     model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, model_files[0])

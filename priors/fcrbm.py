@@ -358,6 +358,9 @@ def _from_document(doc: dict, path: Path, device: str) -> FCRBMModel:
         params = doc["params"]
         if not isinstance(params, dict) or any(not isinstance(params.get(k), torch.Tensor) for k in FCRBM.PARAMS):
             raise InputError(f"FCRBM model file lacks weights {', '.join(FCRBM.PARAMS)}", path)
+        for k in ("Wv", "Wh", "Z"):
+            if params[k].ndim != 2:
+                raise InputError(f"FCRBM weight {k} must be 2-D, got shape {tuple(params[k].shape)}", path)
         K, H, F, L = params["Wv"].shape[0], params["Wh"].shape[0], params["Wv"].shape[1], params["Z"].shape[0]
         net = FCRBM(K, H, cfg.order, len(labels), L, F, device=device)
         for k, shape in net.shapes().items():
@@ -390,7 +393,7 @@ def _from_document(doc: dict, path: Path, device: str) -> FCRBMModel:
         raise
     except KeyError as exc:
         raise InputError(f"FCRBM model file lacks {exc.args[0]!r}", path) from None
-    except (TypeError, ValueError, AttributeError, RuntimeError) as exc:
+    except (TypeError, ValueError, AttributeError, RuntimeError, IndexError) as exc:
         raise InputError(f"FCRBM model file is malformed ({type(exc).__name__}: {str(exc)[:100]})", path) from None
 
 
@@ -487,7 +490,7 @@ def transition_styles(n_labels: int, first: int, second: int, frames: int, start
 
 def generate(model: FCRBMModel, start: np.ndarray, styles: np.ndarray, rng: np.random.Generator,
              gibbs_steps: int = 30) -> np.ndarray:
-    """Poses ``T x D`` generated after the known poses ``start`` ``n0 x D`` (``n0 >= model.order + 1``) with the
+    """Poses ``T x D`` generated after the known poses ``start`` ``n0 x D`` (``n0 >= model.order``) with the
     label rows ``styles`` ``T x P`` clamped frame by frame (one-hot for a fixed style, blends for mixtures and
     transitions); no ground-plane or heading diffusion."""
     styles = np.asarray(styles, float)
@@ -584,7 +587,9 @@ class FCRBMPrior(CRBMPrior):
         self.labels = list(first.labels)
         self.fixed = None if style in (None, "") else first.label_index(style)
         self.style_switch = float(style_switch)
-        # The CRBM prior's sampling options this prior leaves at their defaults (pose step, see class docstring).
+        # CRBMPrior.__init__ is not called: it moves ``m.crbm`` weights (an FCRBM model has ``fcrbm``) and checks
+        # no labels. Every attribute CRBMPrior.start/sample/model_for/settings read is set here instead; the
+        # sampling options this prior leaves at the CRBM prior's defaults (pose step, see class docstring):
         self.mode, self.robust_fraction, self.robust_adaptive, self.pace_spread, self.pace_drift = \
             "gibbs", 0.0, False, 0.0, 0.0
         self.root_noise_mm, self.heading_noise = float(root_noise_mm), float(heading_noise)
@@ -663,6 +668,8 @@ def train_fcrbm_prior(data: TrainingData, options: dict, rng: np.random.Generato
             noise = float(noise)
         except ValueError:
             raise InputError(f"history noise must be 'auto' or a number, got {noise!r}") from None
+        if not 0 <= noise <= 100:
+            raise InputError(f"history noise must lie in [0, 100] (normalised units), got {noise!r}")
     config = FCRBMConfig(order=options["order"], hidden=options["hidden"], factors=options["factors"],
                          features=options["features"], epochs=options["epochs"], cd_k=options["cd_k"],
                          batch_size=options["batch_size"], learning_rate=options["learning_rate"],
@@ -684,15 +691,20 @@ def train_fcrbm_prior(data: TrainingData, options: dict, rng: np.random.Generato
 
 
 FCRBM_TRAIN_OPTIONS = (
-    Option("labels", str, None, "fcrbm: one style label per training clip, in clip order, comma-separated "
+    Option("labels", str, None, "one style label per training clip, in clip order, comma-separated "
                                 "(e.g. walk,walk,run)"),
-    Option("order", int, FCRBMConfig.order, "order N (default 3)", minimum=1),
-    Option("hidden", int, FCRBMConfig.hidden, "hidden units (default 150)", minimum=1),
-    Option("factors", int, FCRBMConfig.factors, "factors per sub-model (default 100)", minimum=1),
-    Option("features", int, FCRBMConfig.features, "real-valued style features (default 20)", minimum=1),
-    Option("epochs", int, FCRBMConfig.epochs, "passes through the data (default 300)", minimum=1),
-    Option("cd_k", int, 10, "Gibbs steps of contrastive divergence (default 10)", minimum=1),
-    Option("batch_size", int, 100, "windows per mini-batch (default 100)", minimum=1),
+    Option("order", int, FCRBMConfig.order, "order N (default 3)", minimum=1, maximum=100),
+    Option("hidden", int, FCRBMConfig.hidden, "hidden units (default 150)", minimum=1, maximum=100000),
+    Option("factors", int, FCRBMConfig.factors, "factors per sub-model (default 100)", minimum=1,
+           maximum=100000),
+    Option("features", int, FCRBMConfig.features, "real-valued style features (default 20)", minimum=1,
+           maximum=100000),
+    Option("epochs", int, FCRBMConfig.epochs, "passes through the data (default 300)", minimum=1,
+           maximum=1000000),
+    Option("cd_k", int, 10, "Gibbs steps of contrastive divergence (default 10)", minimum=1,
+           maximum=10000),
+    Option("batch_size", int, 100, "windows per mini-batch (default 100)", minimum=1,
+           maximum=1000000),
     Option("learning_rate", float, FCRBMConfig.learning_rate, "learning rate (default 1e-2)", minimum=0.0),
     Option("autoregressive_learning_rate", float, FCRBMConfig.autoregressive_learning_rate,
            "learning rate of the autoregressive and label-to-feature weights (default 1e-3)", minimum=0.0),
@@ -706,20 +718,19 @@ FCRBM_TRAIN_OPTIONS = (
     "fcrbm", summary="factored, style-gated CRBM (Taylor & Hinton 2009): every particle carries a style label; "
                      "result.json reports the posterior over the labels per frame",
     model_files="one", train=train_fcrbm_prior, train_options=FCRBM_TRAIN_OPTIONS,
-    options=(Option("gibbs_steps", int, 30, "alternating Gibbs steps per sample (default 30)", minimum=1),
+    options=(Option("gibbs_steps", int, 30, "alternating Gibbs steps per sample (default 30)", minimum=1,
+                    maximum=10000),
              Option("root_noise", float, ROOT_NOISE_MM, "ground-plane diffusion of each sample in mm (default 5)",
-                    minimum=0.0),
+                    minimum=0.0, maximum=1000.0),
              Option("heading_noise", float, 0.0, "diffusion of each sample's heading in rad per frame (default 0)",
-                    minimum=0.0),
-             Option("style_switch", float, 0.05, "fcrbm: probability per frame that a particle's style label "
-                                                 "switches to another label (default 0.05)", minimum=0.0),
-             Option("style", str, None, "fcrbm: give every particle this label and never switch (the oracle); "
+                    minimum=0.0, maximum=math.pi),
+             Option("style_switch", float, 0.05, "probability per frame that a particle's style label switches to "
+                                                 "another label (default 0.05)", minimum=0.0, maximum=1.0),
+             Option("style", str, None, "give every particle this label and never switch (the oracle); "
                                         "default: inferred")))
 def build_fcrbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> FCRBMPrior:
     model = load_fcrbm(model_files[0], device=context.device)
     model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, model_files[0])
-    if options["style_switch"] > 1:
-        raise InputError(f"prior fcrbm: style_switch must lie in [0, 1], got {options['style_switch']}")
     return FCRBMPrior([model], gibbs_steps=options["gibbs_steps"], device=context.device,
                       root_noise_mm=options["root_noise"], heading_noise=options["heading_noise"],
                       style_switch=options["style_switch"], style=options["style"])

@@ -83,6 +83,7 @@ def test_model_file_round_trip_and_broken_files(deep, walks, tmp_path):
         loaded.check_compatible("15-cone", DOF_NAMES, 30.0)
     for damage, expected in [(lambda d: d["top"].__setitem__("A", d["top"]["A"][:3]), "weight A must have shape"),
                              (lambda d: d["top"].__setitem__("W", d["top"]["W"] * float("nan")), "W contains NaN"),
+                             (lambda d: d["top"].__setitem__("W", torch.zeros(4)), "weight W must be a 2-D"),
                              (lambda d: d["bottom"]["params"].__setitem__("W", d["bottom"]["params"]["W"][:2]),
                               "CRBM weight A has shape"),
                              (lambda d: d["top_config"].__setitem__("ordr", 2), "unknown settings ordr"),

@@ -161,6 +161,7 @@ def test_model_file_round_trip(model, clips, tmp_path):
     (lambda d: d["params"].__setitem__("Wv", d["params"]["Wv"] * float("nan")), "Wv contains NaN"),
     (lambda d: d["params"].__setitem__("Ap", d["params"]["Ap"][:5]), "weight Ap has shape"),
     (lambda d: d["params"].__setitem__("R", d["params"]["R"][:1]), "weight R has shape"),
+    (lambda d: d["params"].__setitem__("Wv", torch.zeros(4)), "weight Wv must be 2-D"),
     (lambda d: d.__setitem__("labels", ["walk", "walk"]), "repeated or malformed"),
     (lambda d: d.__setitem__("labels", []), "non-empty list"),
     (lambda d: d.__setitem__("clip_labels", ["walk", "jump"]), "clip labels do not match"),

@@ -430,8 +430,12 @@ def cmd_train(args: argparse.Namespace) -> int:
                       progress=_progress_bar(f"training {args.prior}"), checkpoint=checkpoint, resume=args.resume,
                       **options)
     except KeyboardInterrupt:  # Ctrl-C: the last checkpoint (if any) stays for --resume; no model is written
-        again = ("; continue with the same command and --resume" if checkpoint.exists() else
-                 "; nothing saved (--checkpoint-every E saves the training state as it goes)")
+        if not prior_entry(args.prior).resumable:
+            again = "; nothing saved"
+        elif checkpoint.exists():
+            again = "; continue with the same command and --resume"
+        else:
+            again = "; nothing saved (--checkpoint-every E saves the training state as it goes)"
         print(f"\ninterrupted{again}", file=sys.stderr)
         return 130
     with atomic_path(out) as tmp:
