@@ -2,9 +2,10 @@
 
     python benchmarks/loso_summary.py RESULTS/leave_out_02 RESULTS/leave_out_07 ... [--baseline zero-velocity]
 
-For every prior row and view set: each fold's marker error as a ratio to the baseline's (same fold, same
-views), their mean over the folds, and the worst fold; rows missing from a fold are left out of its mean and
-the fold count says so. Prints a Markdown table.
+For every prior row and view set: its marker error on each fold's sequence (one column per folder and
+sequence) as a ratio to the baseline's (same sequence, same views), the mean of the ratios over the columns,
+and the worst; a row missing from a column is left out of its mean and the count says so. Prints a Markdown
+table.
 """
 from __future__ import annotations
 
@@ -14,15 +15,18 @@ from collections import defaultdict
 from pathlib import Path
 
 
-def read_fold(folder: Path) -> dict[tuple[str, str], float]:
-    """(prior label, views) -> mean marker error (mm) of one fold's table.csv (one sequence per fold)."""
-    out = {}
+def read_fold(folder: Path) -> dict[str, dict[tuple[str, str], float]]:
+    """Sequence -> (prior label, views) -> mean marker error (mm), from one folder's table.csv (rows without
+    a view set, from experiments with one, get views "all")."""
+    out: dict[str, dict[tuple[str, str], float]] = defaultdict(dict)
     with open(folder / "table.csv", newline="") as f:
         for row in csv.DictReader(f):
             if row["metric"] != "mean_error_mm":
                 continue
-            label, _, views = row["row"].rpartition(", views ")
-            out[(label, views)] = float(row["mean"])
+            label, sep, views = row["row"].rpartition(", views ")
+            if not sep:
+                label, views = row["row"], "all"
+            out[row["sequence"]][(label, views)] = float(row["mean"])
     return out
 
 
@@ -31,26 +35,32 @@ def main() -> None:
     parser.add_argument("folders", type=Path, nargs="+")
     parser.add_argument("--baseline", default="zero-velocity")
     args = parser.parse_args()
-    folds = {f.name: read_fold(f) for f in args.folders}
+    columns: dict[str, dict[tuple[str, str], float]] = {}  # one column per (folder, sequence)
+    for folder in args.folders:
+        for sequence, table in read_fold(folder).items():
+            name = f"{folder.name}: {sequence}"
+            if name in columns:
+                raise SystemExit(f"{folder}: a second folder named {folder.name} with sequence {sequence!r}")
+            columns[name] = table
     ratios: dict[tuple[str, str], dict[str, float]] = defaultdict(dict)
-    for name, table in folds.items():
+    for name, table in columns.items():
         for (label, views), err in table.items():
             base = table.get((args.baseline, views))
             if base:
                 ratios[(label, views)][name] = err / base
-    names = list(folds)
-    print("| prior | views | " + " | ".join(names) + " | mean ratio | worst | folds |")
+    names = list(columns)
+    print("| prior | views | " + " | ".join(names) + " | mean ratio | worst | columns |")
     print("|---|---|" + "---|" * (len(names) + 3))
-    for (label, views), by_fold in sorted(ratios.items(), key=lambda kv: (kv[0][1], kv[0][0])):
+    for (label, views), by_col in sorted(ratios.items(), key=lambda kv: (kv[0][1], kv[0][0])):
         if label == args.baseline:
             continue
-        cells = [f"{folds[n][(label, views)]:.1f} ({by_fold[n]:.2f})" if n in by_fold else "" for n in names]
-        values = list(by_fold.values())
+        cells = [f"{columns[n][(label, views)]:.1f} ({by_col[n]:.2f})" if n in by_col else "" for n in names]
+        values = list(by_col.values())
         print(f"| {label} | {views} | " + " | ".join(cells) +
               f" | {sum(values) / len(values):.2f} | {max(values):.2f} | {len(values)}/{len(names)} |")
-    base_cells = {v: [f"{folds[n].get((args.baseline, v), float('nan')):.1f}" for n in names]
-                  for v in sorted({v for t in folds.values() for (_, v) in t})}
-    for views, cells in base_cells.items():
+    for views in sorted({v for t in columns.values() for (_, v) in t}):
+        cells = [f"{columns[n][(args.baseline, views)]:.1f}" if (args.baseline, views) in columns[n] else ""
+                 for n in names]
         print(f"| {args.baseline} (mm) | {views} | " + " | ".join(cells) + " | 1 | 1 | |")
 
 

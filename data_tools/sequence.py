@@ -338,7 +338,9 @@ def _read_own(root: Path) -> Sequence:
         meta_fps = real_number(meta_fps, "fps", meta_path, hi=MAX_FPS, positive=True, unit=" Hz")
     image_paths, backgrounds = [], []
     if (root / "images").is_dir():
-        stray = sorted(d.name for d in (root / "images").iterdir() if d.is_dir() and d.name not in rig.names)
+        stray = sorted(d.name for d in (root / "images").iterdir()
+                       if d.is_dir() and not d.name.startswith(".") and d.name not in rig.names
+                       and any(f.suffix.lower() == ".png" for f in d.iterdir()))
         if stray:
             raise InputError(f"images/{stray[0]}/ has images but cameras.json has no camera {stray[0]!r} "
                              f"(its cameras: {', '.join(rig.names)})", root / "cameras.json")

@@ -124,7 +124,10 @@ def robust_share(walked: np.ndarray | None, floor: float, adaptive: bool) -> flo
     Fixed at ``floor`` unless ``adaptive``; then it follows the posterior: ``walked`` ``(P,)`` flags the
     particles whose latest sample came from the random walk, *after* resampling, so its mean is the share of
     the posterior mass that the random walk earned on the last frame (the mixture-weight update of population
-    Monte Carlo, Douc et al. 2007), kept within ``[floor, ROBUST_CAP]``. When the person does what the model
+    Monte Carlo, Douc et al. 2007), kept within ``[floor, ROBUST_CAP]``. The prior sees the particles, not
+    their weights, so the share is the posterior's only when the filter resampled after the last frame (it did
+    on every frame of the measured runs: their mean effective sample size stayed far below the resampling
+    threshold); after a frame without resampling it repeats the last proposal's share. When the person does what the model
     learned, the learned samples win and the share falls to ``floor``; at a start, a stop or a change of
     pace the random walk wins and the share grows, without a setting tuned per sequence."""
     if not adaptive or walked is None or len(walked) == 0:

@@ -522,12 +522,18 @@ class GPDMPredictor:
         f = self._factors()
         return GPDMSampler(f["g"], f["latent"], f["pose"], f["latent"].PT.to(dtype))
 
+    def nearest_latent(self, poses: torch.Tensor) -> torch.Tensor:
+        """Latent points ``B x d`` of the training frames whose poses are nearest to ``poses`` ``B x D``
+        (normalised features, distances weighted by the observation GP's ``W``), by one matrix product."""
+        a, b = poses.to(self.Y.dtype) * self.W, self.Y * self.W
+        d2 = (a * a).sum(1, keepdim=True) - 2 * a @ b.T + (b * b).sum(1)[None]
+        return self.X[d2.argmin(1)]
+
     def project(self, poses: torch.Tensor, iterations: int = 50) -> torch.Tensor:
         """Latent points ``B x d`` for poses ``B x D`` (normalised features): each starts at the training latent
         point whose pose is nearest and minimises the observation GP's negative log-likelihood
         ``|W (y - mu_Y(x))|^2 / (2 s^2(x)) + D/2 ln s^2(x)`` by L-BFGS."""
-        d2 = ((poses[:, None, :] - self.Y[None]) * self.W) .pow(2).sum(-1)
-        x = self.X[d2.argmin(1)].clone().requires_grad_(True)
+        x = self.nearest_latent(poses).clone().requires_grad_(True)
         opt = torch.optim.LBFGS([x], lr=1.0, max_iter=iterations, line_search_fn="strong_wolfe")
         D = poses.shape[1]
 
@@ -971,18 +977,11 @@ class GPDMPrior(MotionPrior):
         walked = mix_in_random_walk(poses, history[:, -1], self.model.pose_step_rms, share, rng)
         if walked.any():
             new["step"][walked] = steps_taken(history[walked, -1], poses[walked])
-            new["latent"][walked, :self.model.gpdm.config.latent_dim] = self.nearest_latent(
-                history[walked, -1], poses[walked])
+            feats = poses_to_invariant(np.stack([history[walked, -1], poses[walked]], axis=1))[:, 1]
+            new["latent"][walked, :self.model.gpdm.config.latent_dim] = self.predictor.nearest_latent(
+                torch.from_numpy(self.model.normaliser.transform(feats))).numpy()
         new["walked"] = walked
         return poses, new
-
-    def nearest_latent(self, last: np.ndarray, poses: np.ndarray) -> np.ndarray:
-        """Latent points ``n x d`` of the training frames nearest (in the observation GP's weighted feature
-        space) to ``poses`` ``n x D``, whose predecessors are ``last`` ``n x D``."""
-        feats = poses_to_invariant(np.stack([last, poses], axis=1))[:, 1]
-        y = torch.tensor(self.model.normaliser.transform(feats), dtype=self.predictor.Y.dtype)
-        d2 = ((y[:, None, :] - self.predictor.Y[None]) * self.predictor.W).pow(2).sum(-1)
-        return self.predictor.X[d2.argmin(1)].numpy()
 
     def diffusion_std(self) -> np.ndarray:
         return self.model.pose_step_rms

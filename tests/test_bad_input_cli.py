@@ -56,7 +56,8 @@ def one_line_refusal(code: int, err: str, *fragments: str) -> str:
     (["track", "s", "--prior", "zero-velocity", "--prior-scale", "1e308", "--out", "o"],
      ("--prior-scale", "at most 1000")),
 ])
-def test_absurd_values_are_refused_with_their_range(argv, fragments, capsys):
+def test_absurd_values_are_refused_with_their_range(argv, fragments, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # the relative output names must not land in the checkout if a refusal regresses
     one_line_refusal(*run_cli(argv, capsys), *fragments)
 
 
@@ -124,7 +125,9 @@ def test_an_unwritable_output_is_refused_before_any_work(command, seq, tmp_path,
     RuntimeError("[enforce fail at alloc_cpu.cpp:127] err == 0. DefaultCPUAllocator: can't allocate memory: you "
                  "tried to allocate 156000000000000 bytes."),  # torch
 ])
-def test_running_out_of_memory_is_one_line(failure, monkeypatch, capsys):
+def test_running_out_of_memory_is_one_line(failure, monkeypatch, capsys, tmp_path):
+    monkeypatch.chdir(tmp_path)
+
     def greedy(args):
         raise failure
 
