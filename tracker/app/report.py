@@ -128,10 +128,19 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
 
 
 def _plot(path: Path, rows: list[str], seqs: list[str], by: dict) -> None:
-    """Per-frame marker error of each row, mean over seeds with a ±1 std band, one panel per sequence."""
+    """Per-frame marker error of each row, mean over seeds with a ±1 std band, one panel per sequence.
+
+    Each prior gets its own colour (up to 20 distinct ones) and each view set its own line style, so rows
+    stay apart however many there are; the legend sits to the right of the panels."""
+    from matplotlib import colormaps
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(7.5, 3.2 * len(seqs)), dpi=110)
+    priors = list(dict.fromkeys(r.rpartition(", views ")[0] or r for r in rows))
+    view_sets = list(dict.fromkeys(r.rpartition(", views ")[2] if ", views " in r else "" for r in rows))
+    palette = colormaps["tab10" if len(priors) <= 10 else "tab20"]
+    styles = ["-", "--", ":", "-."]
+    height = max(3.2, 0.17 * len(rows) + 1.0)
+    fig = Figure(figsize=(11.5, height * len(seqs)), dpi=110)
     axes = fig.subplots(len(seqs), 1, squeeze=False)[:, 0]
     for ax, s in zip(axes, seqs):
         for row in rows:
@@ -142,14 +151,17 @@ def _plot(path: Path, rows: list[str], seqs: list[str], by: dict) -> None:
             errs = np.array([r["per_frame_error_mm"][:n] for r in group])
             frames = np.array(group[0]["tracked_frames"][:n])
             mean, sd = errs.mean(axis=0), errs.std(axis=0)
-            line, = ax.plot(frames, mean, label=f"{row} ({errs.mean():.0f} mm)")
-            ax.fill_between(frames, mean - sd, mean + sd, color=line.get_color(), alpha=0.2, linewidth=0)
+            prior, _, views = row.rpartition(", views ") if ", views " in row else (row, "", "")
+            colour = palette(priors.index(prior) % palette.N)
+            ax.plot(frames, mean, color=colour, linestyle=styles[view_sets.index(views) % len(styles)],
+                    label=f"{row} ({errs.mean():.0f} mm)")
+            ax.fill_between(frames, mean - sd, mean + sd, color=colour, alpha=0.12, linewidth=0)
         ax.set_title(s)
         ax.set_xlabel("frame")
         ax.set_ylabel("marker error (mm)")
         ax.set_ylim(bottom=0)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp)
