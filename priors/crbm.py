@@ -43,8 +43,9 @@ import torch
 
 from priors.common import (
     ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS, add_ground_diffusion, add_heading_diffusion, check_model_fits,
-    drift_log_pace, mix_in_random_walk, normaliser_from_tensors, normaliser_to_tensors, read_model_file, robust_share,
-    scale_ground_steps, start_log_pace, steps_taken, torch_generator,
+    check_weights, drift_log_pace, mix_in_random_walk, normaliser_from_tensors, normaliser_to_tensors,
+    read_model_file, robust_share, scale_ground_steps, start_log_pace, steps_taken, torch_generator,
+    torch_save_atomic,
 )
 from tracker.core.errors import InputError
 from tracker.core.representation import (
@@ -279,12 +280,7 @@ def _model_from_document(doc: dict, path: Path, device: str) -> CRBMModel:
         K, H = params["W"].shape
         N = cfg.order
         expected = {"W": (K, H), "A": (N * K, K), "B": (N * K, H), "a": (K,), "b": (H,)}
-        for k, shape in expected.items():
-            if tuple(params[k].shape) != shape:
-                raise InputError(f"CRBM weight {k} has shape {tuple(params[k].shape)}; order {N} with {K} "
-                                 f"visible and {H} hidden units needs {shape}", path)
-            if not torch.all(torch.isfinite(params[k])):
-                raise InputError(f"CRBM weight {k} contains NaN or infinite values", path)
+        check_weights(params, expected, "CRBM weight", f"order {N} with {K} visible and {H} hidden units", path)
         crbm = CRBM(K, H, N, device=device)
         crbm.load_state_dict(params)
         normaliser = normaliser_from_tensors(doc["normaliser"], path)
@@ -570,13 +566,7 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
         snapshot.growth = list(done)
         doc = {**snapshot.to_document(), "format": CHECKPOINT_FORMAT, "training_state": training_state,
                "stage_orders": orders}
-        checkpoint.parent.mkdir(parents=True, exist_ok=True)
-        tmp = checkpoint.with_name(f".{checkpoint.name}.tmp")
-        try:
-            torch.save(doc, tmp)
-            tmp.replace(checkpoint)  # a model is never half-written: the rename is atomic
-        finally:
-            tmp.unlink(missing_ok=True)
+        torch_save_atomic(doc, checkpoint)  # a model is never half-written: the rename is atomic
 
     for i in range(len(done), len(orders)):  # the lower orders first, on the same clips, each with its own draws
         report = None if progress is None else (

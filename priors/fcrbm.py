@@ -49,7 +49,7 @@ import numpy as np
 import torch
 
 from priors.common import (
-    ROOT_NOISE_MM, check_model_fits, normaliser_from_tensors, normaliser_to_tensors, read_model_file,
+    ROOT_NOISE_MM, check_model_fits, check_weights, normaliser_from_tensors, normaliser_to_tensors, read_model_file,
     torch_generator,
 )
 from priors.contrastive import balanced_starts, minibatches, momentum_step, window_index
@@ -363,13 +363,8 @@ def _from_document(doc: dict, path: Path, device: str) -> FCRBMModel:
                 raise InputError(f"FCRBM weight {k} must be 2-D, got shape {tuple(params[k].shape)}", path)
         K, H, F, L = params["Wv"].shape[0], params["Wh"].shape[0], params["Wv"].shape[1], params["Z"].shape[0]
         net = FCRBM(K, H, cfg.order, len(labels), L, F, device=device)
-        for k, shape in net.shapes().items():
-            if tuple(params[k].shape) != shape:
-                raise InputError(f"FCRBM weight {k} has shape {tuple(params[k].shape)}; order {cfg.order} with {K} "
-                                 f"visible, {H} hidden units, {F} factors, {L} features and {len(labels)} labels "
-                                 f"needs {shape}", path)
-            if not torch.all(torch.isfinite(params[k])):
-                raise InputError(f"FCRBM weight {k} contains NaN or infinite values", path)
+        check_weights(params, net.shapes(), "FCRBM weight", f"order {cfg.order} with {K} visible, {H} hidden units, "
+                      f"{F} factors, {L} features and {len(labels)} labels", path)
         net.load_state_dict(params)
         normaliser = normaliser_from_tensors(doc["normaliser"], path)
         if normaliser.n_kept != K:
