@@ -221,6 +221,29 @@ def checked_data_settings(d: dict, kind: str, source=None) -> tuple[float, str, 
     return float(fps), body, list(dofs), list(sources), step.numpy()
 
 
+def checked_time_warp(value, kind: str, source=None) -> list[float]:
+    """A model file's ``time_warp`` (the playback speeds its training clips were replayed at; files written
+    before the option have none: ``[1.0]``), checked like the option; a bad one is an :class:`InputError`
+    naming the file."""
+    from tracker.core.timewarp import parse_speeds
+
+    if value is None:
+        return [1.0]
+    if not isinstance(value, (list, tuple)) or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                       for v in value):
+        raise InputError(f"{kind} model file's time_warp must be a list of playback speeds, got {value!r}", source)
+    try:
+        return list(parse_speeds(list(value), f"{kind} model file's time_warp"))
+    except InputError as exc:
+        raise InputError(exc.reason, source) from None
+
+
+def time_warp_note(speeds: Sequence[float]) -> str:
+    """The part of a model's one-line summary that says at which speeds its clips were replayed ("" for 1)."""
+    speeds = list(speeds)
+    return "" if speeds == [1.0] else f", clips replayed at speeds {', '.join(f'{s:g}' for s in speeds)}"
+
+
 def torch_save_atomic(doc: dict, path: Path) -> None:
     """``torch.save(doc, path)`` through a temporary file beside ``path`` and an atomic rename, so ``path`` is
     never half-written (a training checkpoint interrupted while saving keeps the one before)."""

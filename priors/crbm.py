@@ -45,7 +45,7 @@ from priors.common import (
     ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS, add_ground_diffusion, add_heading_diffusion, check_model_fits,
     check_weights, drift_log_pace, mix_in_random_walk, normaliser_from_tensors, normaliser_to_tensors,
     read_model_file, robust_share, scale_ground_steps, start_log_pace, steps_taken, torch_generator,
-    torch_save_atomic,
+    torch_save_atomic, checked_time_warp, time_warp_note,
 )
 from tracker.core.errors import InputError
 from tracker.core.representation import (
@@ -218,6 +218,8 @@ class CRBMModel:
     #: Lower-order CRBMs trained with this one on the same data, that grow the history from the known
     #: frames until this model's order is reached (Taylor 2009, Sec. 6.4); saved in the same file.
     growth: list["CRBMModel"] = field(default_factory=list)
+    #: Playback speeds the training clips were replayed at (``train --time-warp``; [1.0]: as given).
+    time_warp: list[float] = field(default_factory=lambda: [1.0])
 
     @property
     def order(self) -> int:
@@ -228,8 +230,8 @@ class CRBMModel:
         errs = self.reconstruction_errors
         fit = f"reconstruction error {errs[0]:.4f} (epoch 1) -> {errs[-1]:.4f} (epoch {len(errs)}), " if errs else ""
         grow = f" (grows from order {', '.join(str(g.order) for g in self.growth)})" if self.growth else ""
-        return (f"CRBM order {self.order}{grow}, {self.crbm.n_hidden} hidden units: {fit}"
-                f"{self.training_seconds:.1f} s")
+        return (f"CRBM order {self.order}{grow}, {self.crbm.n_hidden} hidden units{time_warp_note(self.time_warp)}: "
+                f"{fit}{self.training_seconds:.1f} s")
 
     def save(self, path: str | Path) -> None:
         Path(path).parent.mkdir(parents=True, exist_ok=True)
@@ -244,7 +246,7 @@ class CRBMModel:
             "normaliser": normaliser_to_tensors(self.normaliser),
             "reconstruction_errors": [float(e) for e in self.reconstruction_errors],
             "training_seconds": float(self.training_seconds),
-            "growth": [g.to_document() for g in self.growth],
+            "growth": [g.to_document() for g in self.growth], "time_warp": [float(s) for s in self.time_warp],
         }
 
     def check_compatible(self, body_model: str, dof_names: Sequence[str], fps: float | None,
@@ -297,7 +299,8 @@ def _model_from_document(doc: dict, path: Path, device: str) -> CRBMModel:
         growth = [_model_from_document(g, path, device) for g in doc.get("growth", [])]
         return CRBMModel(crbm, normaliser, cfg, float(fps), str(doc["body_model"]), [str(n) for n in doc["dof_names"]],
                          [str(n) for n in doc["sources"]], step.numpy(), [float(e) for e in doc["reconstruction_errors"]],
-                         float(doc["training_seconds"]), growth)
+                         float(doc["training_seconds"]), growth,
+                         checked_time_warp(doc.get("time_warp"), "CRBM", path))
     except InputError:
         raise
     except KeyError as exc:
@@ -578,6 +581,8 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
         if i < len(grow):
             done.append(model)
     model.growth = done
+    for m in [model, *done]:
+        m.time_warp = list(data.time_warp)
     if checkpoint is not None:
         checkpoint.unlink(missing_ok=True)
     return model

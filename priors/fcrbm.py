@@ -50,7 +50,7 @@ import torch
 
 from priors.common import (
     ROOT_NOISE_MM, check_model_fits, check_weights, normaliser_from_tensors, normaliser_to_tensors, read_model_file,
-    torch_generator,
+    torch_generator, checked_time_warp, time_warp_note,
 )
 from priors.contrastive import balanced_starts, minibatches, momentum_step, window_index
 from priors.crbm import CRBMPrior, _growth_orders, bernoulli, history_noise_scale, make_windows
@@ -287,6 +287,8 @@ class FCRBMModel:
     #: Lower-order FCRBMs trained with this one on the same clips and labels, which grow the history from the
     #: known frames (as the CRBM's, Taylor 2009 Sec. 6.4); saved in the same file.
     growth: list["FCRBMModel"] = field(default_factory=list)
+    #: Playback speeds the training clips were replayed at (``train --time-warp``; [1.0]: as given).
+    time_warp: list[float] = field(default_factory=lambda: [1.0])
 
     @property
     def order(self) -> int:
@@ -297,7 +299,8 @@ class FCRBMModel:
         fit = f"reconstruction error {errs[0]:.4f} (epoch 1) -> {errs[-1]:.4f} (epoch {len(errs)}), " if errs else ""
         grow = f" (grows from order {', '.join(str(g.order) for g in self.growth)})" if self.growth else ""
         return (f"FCRBM order {self.order}{grow}, {self.fcrbm.n_hidden} hidden units, {self.fcrbm.n_factors} "
-                f"factors, labels {', '.join(self.labels)}: {fit}{self.training_seconds:.1f} s")
+                f"factors, labels {', '.join(self.labels)}{time_warp_note(self.time_warp)}: {fit}"
+                f"{self.training_seconds:.1f} s")
 
     def save(self, path: str | Path) -> None:
         Path(path).parent.mkdir(parents=True, exist_ok=True)
@@ -313,6 +316,7 @@ class FCRBMModel:
             "normaliser": normaliser_to_tensors(self.normaliser),
             "reconstruction_errors": [float(e) for e in self.reconstruction_errors],
             "training_seconds": float(self.training_seconds), "growth": [g.to_document() for g in self.growth],
+            "time_warp": [float(s) for s in self.time_warp],
         }
 
     def check_compatible(self, body_model: str, dof_names: Sequence[str], fps: float | None,
@@ -383,7 +387,8 @@ def _from_document(doc: dict, path: Path, device: str) -> FCRBMModel:
         return FCRBMModel(net, labels, normaliser, cfg, float(fps), str(doc["body_model"]),
                           [str(n) for n in doc["dof_names"]], [str(n) for n in doc["sources"]], clip_labels,
                           step.numpy(), [float(e) for e in doc["reconstruction_errors"]],
-                          float(doc["training_seconds"]), growth)
+                          float(doc["training_seconds"]), growth,
+                          checked_time_warp(doc.get("time_warp"), "FCRBM", path))
     except InputError:
         raise
     except KeyError as exc:
@@ -656,7 +661,9 @@ def train_fcrbm_prior(data: TrainingData, options: dict, rng: np.random.Generato
     if options["labels"] is None:
         raise InputError("the FCRBM needs one label per training clip: --labels walk,walk,run (labels = "
                          "\"walk,walk,run\" in an experiment's train options)")
-    clip_labels = parse_labels(options["labels"], data.sources or [f"clip {i + 1}" for i in range(len(data.clips))])
+    given = data.given_sources if data.origins else data.sources
+    clip_labels = parse_labels(options["labels"], given or [f"clip {i + 1}" for i in range(data.n_given)])
+    clip_labels = [clip_labels[data.origin_of(i)] for i in range(len(data.clips))]  # time-warped copies
     noise = options["history_noise"]
     if noise != "auto":
         try:
@@ -680,6 +687,8 @@ def train_fcrbm_prior(data: TrainingData, options: dict, rng: np.random.Generato
         models.append(train_fcrbm(list(data.clips), clip_labels, replace(config, order=order), data.fps,
                                   data.body_model.dof_names, data.body_model.name, list(data.sources), report,
                                   rng=rng, labels=labels))
+    for m in models:
+        m.time_warp = list(data.time_warp)
     model = models[-1]
     model.growth = models[:-1]
     return model

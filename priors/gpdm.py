@@ -51,7 +51,7 @@ import torch
 from priors.common import (
     ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS, check_model_fits, check_weights, checked_data_settings,
     mix_in_random_walk, normaliser_from_tensors, normaliser_to_tensors, read_model_file, robust_share,
-    scale_ground_steps, start_log_pace, steps_taken, torch_save_atomic,
+    scale_ground_steps, start_log_pace, steps_taken, torch_save_atomic, checked_time_warp, time_warp_note,
 )
 from tracker.core.errors import InputError
 from tracker.core.representation import (
@@ -835,13 +835,16 @@ class GPDMPriorModel:
     dof_names: list[str]
     sources: list[str]
     pose_step_rms: np.ndarray
+    #: Playback speeds the training clips were replayed at (``train --time-warp``; [1.0]: as given).
+    time_warp: list[float] = field(default_factory=lambda: [1.0])
 
     def save(self, path: str | Path) -> None:
         save_gpdm(path, self.gpdm, {
             "fps": float(self.fps), "body_model": self.body_model, "dof_names": list(self.dof_names),
             "sources": list(self.sources), "pose_step_rms": torch.tensor(self.pose_step_rms),
             "normaliser": normaliser_to_tensors(self.normaliser),
-            "training_seconds": float(self.gpdm.training_seconds)})
+            "training_seconds": float(self.gpdm.training_seconds),
+            "time_warp": [float(s) for s in self.time_warp]})
 
     def summary(self) -> str:
         """One line on how training went."""
@@ -849,8 +852,8 @@ class GPDMPriorModel:
         fit = f"objective {h[0]:.1f} -> {h[-1]:.1f}, " if h else ""
         g = self.gpdm
         size = (f"{len(g.Y)} frames, {len(g.active)} inducing" if g.sparse else f"{len(g.Y)} frames, exact")
-        return (f"{c.latent_dim}D GPDM ({c.dynamics} dynamics, order {c.order}; {size}): {fit}"
-                f"{g.training_seconds:.1f} s")
+        return (f"{c.latent_dim}D GPDM ({c.dynamics} dynamics, order {c.order}; {size}"
+                f"{time_warp_note(self.time_warp)}): {fit}{g.training_seconds:.1f} s")
 
     def check_compatible(self, body_model: str, dof_names: Sequence[str], fps: float | None,
                          source: str | Path | None = None) -> None:
@@ -884,7 +887,8 @@ def load_gpdm_prior(path: str | Path) -> GPDMPriorModel:
     fps, body_model, dof_names, sources, step = checked_data_settings(extra, "GPDM", path)
     seconds = extra.get("training_seconds", 0.0)
     gpdm.training_seconds = float(seconds) if isinstance(seconds, (int, float)) else 0.0
-    return GPDMPriorModel(gpdm, norm, fps, body_model, dof_names, sources, step)
+    return GPDMPriorModel(gpdm, norm, fps, body_model, dof_names, sources, step,
+                          checked_time_warp(extra.get("time_warp"), "GPDM", path))
 
 
 class GPDMPrior(MotionPrior):
@@ -1014,6 +1018,7 @@ def train_gpdm_from_data(data: TrainingData, options: dict, rng: np.random.Gener
     model = train_gpdm_prior(list(data.clips), config, data.fps, data.body_model.dof_names, data.body_model.name,
                              list(data.sources), report, (save, every) if checkpoint is not None and every else None,
                              saved)
+    model.time_warp = list(data.time_warp)
     if checkpoint is not None:
         checkpoint.unlink(missing_ok=True)
     return model

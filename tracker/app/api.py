@@ -183,7 +183,9 @@ def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
 
     Each AMC pairs with its own skeleton (``skeletons``: one for all or one per file; default
     ``<subject>.asf`` beside it). ``options`` are the prior's training options (see
-    ``python -m tracker train --help``). Returns the trained model; ``model.save(path)`` writes its file.
+    ``python -m tracker train --help``), among them ``time_warp`` (every learned prior's: the clips are also
+    replayed at these playback speeds, :mod:`tracker.core.timewarp`). Returns the trained model;
+    ``model.save(path)`` writes its file.
     With ``checkpoint`` (a file path) and the prior's ``checkpoint_every`` option, training state is saved as
     it goes; ``resume=True`` continues from it to the model an uninterrupted run gives.
     """
@@ -206,7 +208,9 @@ def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
         clips, sources, fps = items, [c.source for c in items], rates[0]
     else:
         clips, sources = load_training_clips(items, skeletons, fps), [str(f) for f in items]
-    data = TrainingData(tuple(c.poses for c in clips), fps, clips[0].model, tuple(sources))
+    # Pace augmentation (the time_warp option every learned prior takes): the clips replayed at each speed.
+    data = TrainingData(tuple(c.poses for c in clips), fps, clips[0].model, tuple(sources)).time_warped(
+        resolved["time_warp"])
     extra = {}
     if resume:
         if not entry.resumable:
