@@ -34,6 +34,7 @@ from data_tools.sequence import read_sequence  # noqa: E402
 from data_tools.synth import SynthConfig, synthesize  # noqa: E402
 from likelihoods.edge_silhouette import EdgeSilhouetteLikelihood  # noqa: E402
 from tracker import train, track  # noqa: E402
+from tracker.core.arrays import torch_device  # noqa: E402
 from tracker.core.representation import step_rms  # noqa: E402
 
 
@@ -51,6 +52,22 @@ def timed(fn, repeats: int, sync) -> float:
     return statistics.median(times)
 
 
+def profile_call(scorer, truth: np.ndarray, rng: np.random.Generator, device: torch.device, P: int = 64000) -> None:
+    """torch.profiler over one call of ``scorer`` on ``P`` poses near ``truth``: operators by device time."""
+    from torch.profiler import ProfilerActivity, profile
+
+    poses = truth + rng.standard_normal((P, truth.size)) * np.r_[[50.0] * 3, [0.05] * (truth.size - 3)]
+    scorer(poses)
+    activities = [ProfilerActivity.CPU] + ([ProfilerActivity.CUDA] if device.type == "cuda" else [])
+    with profile(activities=activities) as prof:
+        scorer(poses)
+        if device.type == "cuda":
+            torch.cuda.synchronize()
+    key = "cuda_time_total" if device.type == "cuda" else "cpu_time_total"
+    print(f"\nprofile of one call, {P} particles x 4 views, operators by {key}:")
+    print(prof.key_averages().table(sort_by=key, row_limit=18, max_name_column_width=40))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--device", default="cuda")
@@ -58,9 +75,12 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=60, help="frames of the tracking runs (default 60)")
     ap.add_argument("--seeds", type=int, default=2)
     ap.add_argument("--compile", action="store_true", help="also time the device work under torch.compile")
+    ap.add_argument("--profile", action="store_true",
+                    help="profile one 64,000-particle call with torch.profiler (the kernels by device time)")
+    ap.add_argument("--likelihood-only", action="store_true", help="skip the tracking runs (parts 2 and 3)")
     args = ap.parse_args()
     torch.set_num_threads(1)
-    device = torch.device(args.device)
+    device = torch_device(args.device)
     sync = torch.cuda.synchronize if device.type == "cuda" else (lambda: None)
     mocap = Path(args.shared) / "mocap" / "cmu" / "07"
     tmp = Path(tempfile.mkdtemp())
@@ -104,6 +124,10 @@ def main() -> None:
         print(f"| {P} | {t_call * 1e3:.2f} ms = {pv / t_call:.3g} particle-views/s | {t_work * 1e3:.2f} ms = "
               f"{pv / t_work:.3g} /s | {t_cpu * 1e3:.1f} ms = {pv / t_cpu:.3g} /s | {diff:.2g} |{extra}")
 
+    if args.profile:
+        profile_call(dev, truth, rng, device)
+    if args.likelihood_only:
+        return
     std = step_rms([retarget(asf_amc_clip(mocap / "07.asf", mocap / f"07_{i}.amc"), fps=60).poses
                     for i in ("01", "02")])
     print(f"\n2. tracking 07_11 ({args.frames} frames, 4 views), zero-velocity prior, seeds 0..{args.seeds - 1}")

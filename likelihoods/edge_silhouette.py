@@ -28,10 +28,10 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from tracker.core.arrays import device as device_of, namespace, torch_device
 from threadpoolctl import ThreadpoolController
 
 from likelihoods.observations import DEFAULT_OBSERVATION, BackgroundPlate, ObservationConfig, Observations, observe
+from tracker.core.arrays import device as device_of, namespace, torch_device
 from tracker.core.body import BodyModel
 from tracker.core.cameras import CameraRig
 from tracker.core.cones import contour_corners
@@ -65,7 +65,13 @@ class LikelihoodTerms:
 
 
 class EdgeSilhouetteLikelihood(Likelihood):
-    """Log-likelihood of body poses given one frame's images from the cameras of ``rig``."""
+    """Log-likelihood of body poses given one frame's images from the cameras of ``rig``.
+
+    ``device`` None (the default) scores with numpy on the CPU, the faster path there; a torch device
+    (``"cuda"``, ``"cuda:N"``, or ``"cpu"`` to run the torch path on the CPU, as the tests do) scores with torch
+    tensors on it. The registered builder maps the run's device ``cpu`` to None (``--device``,
+    ``track(device=...)``), so ``cpu`` means the numpy path there.
+    """
 
     name = "edge-silhouette"
 
@@ -145,14 +151,22 @@ class EdgeSilhouetteLikelihood(Likelihood):
         return LikelihoodTerms(edge=edge, silhouette=sil, coverage=cover, log_likelihood=ll)
 
     def _device_terms(self, poses: np.ndarray, maps: "_CostMaps") -> LikelihoodTerms:
-        """:meth:`terms` on the device: every pose scored in blocks of :data:`DEVICE_BLOCK` (those outside the
-        limits too, then masked, so nothing is gathered on the host), one copy in and one out."""
+        """:meth:`terms` on the device: every pose scored in blocks of :data:`DEVICE_BLOCK` (poses outside the
+        limits, or not finite, as the model's rest pose, then masked, so nothing is gathered on the host), one
+        copy in and one out."""
         import torch
 
+        P, V = len(poses), len(self.rig)
+        if P == 0:
+            empty = np.ones((0, V))
+            return LikelihoodTerms(empty, empty.copy(), empty.copy() if self.config.bidirectional else None,
+                                   np.zeros(0))
+        block = DEVICE_BLOCK_BIDIRECTIONAL if self.config.bidirectional else DEVICE_BLOCK
         with torch.no_grad():
             x = torch.as_tensor(np.asarray(poses, float)).to(self.device, non_blocking=True)
             valid = self.model.within_limits(x)
-            parts = [self._block_costs(x[i:i + DEVICE_BLOCK], maps) for i in range(0, len(x), DEVICE_BLOCK)]
+            x = torch.where(valid[:, None], x, torch.as_tensor(self.model.rest_pose(), device=self.device))
+            parts = [self._block_costs(x[i:i + block], maps) for i in range(0, P, block)]
             edge, sil, cover = (None if part[0] is None else torch.where(valid[:, None], torch.cat(part), 1.0)
                                 for part in zip(*parts))
             terms = self._combine(valid, edge.double(), sil.double(), None if cover is None else cover.double())
@@ -230,8 +244,12 @@ def _sample_weights(n_along: int, n_across: int) -> np.ndarray:
 
 #: Particles per block (see ``terms``).
 BLOCK = 256
-#: Particles per block on a device: about 2 GB of intermediates at 15 cones x 4 views.
-DEVICE_BLOCK = 65536
+#: Particles per block on a device: about 1.5 GB of intermediates at 15 cones x 4 views, so that a GPU of 4 GB
+#: holds a block.
+DEVICE_BLOCK = 32768
+#: The same with the bidirectional term, whose point-in-quadrilateral test holds ``p x S x 4 x F`` arrays
+#: (about 150 MB each at 4096 particles, 15 cones, 150 foreground pixels).
+DEVICE_BLOCK_BIDIRECTIONAL = 4096
 
 
 @lru_cache(maxsize=1)
@@ -336,5 +354,6 @@ def _uncovered(u, v, foreground: list):
                     "also penalise foreground the model does not cover (for monocular tracking)")))
 def build_edge_silhouette(context: LikelihoodContext, options: dict) -> EdgeSilhouetteLikelihood:
     config = EdgeSilhouetteConfig(sharpness=options["sharpness"], bidirectional=options["bidirectional"])
-    device = None if context.device == "cpu" else context.device  # the CPU path is the numpy one (faster there)
+    # On the CPU the numpy path (faster there); "cpu:0" too.
+    device = None if torch_device(context.device).type == "cpu" else context.device
     return EdgeSilhouetteLikelihood(context.body_model, context.rig, config, device=device)

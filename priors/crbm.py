@@ -407,7 +407,8 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
 #: Default Gibbs steps per sample of the CRBM prior. Chosen on the tuning folds of the leave-one-subject-out
 #: protocol (folds 2 and 7, CRBM-3, 1000 particles, 5 seeds; benchmarks/experiments/leave_one_subject_out/gibbs/,
 #: docs/tracking.md): 30, 10 and 5 steps gave the same error with 4 views (mean ratio to zero-velocity 0.66 each)
-#: and 1.51, 1.46, 1.35 with one view, and 5 steps samples 5x faster than 30 (the CRBM's largest cost).
+#: and 1.51, 1.46, 1.35 with one view (within the seeds' spread; only order 3 was measured), and 5 steps sample about
+#: 5x faster than 30 (the CRBM's largest cost).
 GIBBS_STEPS = 5
 
 

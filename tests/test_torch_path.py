@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import torch
 
+import likelihoods.edge_silhouette as edge_silhouette
 from likelihoods.edge_silhouette import EdgeSilhouetteConfig, EdgeSilhouetteLikelihood
 from tracker.app.api import build_likelihood, track
 from tracker.core.body import fifteen_cone_model
@@ -15,7 +16,6 @@ from tracker.core.kinematics import forward_kinematics
 from tracker.core.torch_kinematics import exp_map_to_matrix_torch, torch_kinematics
 from tracker.core.rotations import exp_map_to_matrix
 
-torch.set_num_threads(1)
 DEVICES = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
 
 
@@ -52,20 +52,32 @@ def test_torch_kinematics_equal_the_compiled_kinematics(device, rng, bodytrack_d
         np.testing.assert_allclose(ot.cpu().numpy(), o, atol=1e-9)  # mm
 
 
+@pytest.fixture(autouse=True)
+def one_torch_thread():
+    """Torch on one thread for these tests (restored after), so a busy machine does not slow them tenfold."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
 @pytest.mark.parametrize("bidirectional", [False, True])
 @pytest.mark.parametrize("device", DEVICES)
-def test_device_likelihood_equals_the_cpu_path(walk_32_frames, rng, device, bidirectional):
+def test_device_likelihood_equals_the_cpu_path(walk_32_frames, rng, device, bidirectional, monkeypatch):
+    monkeypatch.setattr(edge_silhouette, "DEVICE_BLOCK", 256)  # several blocks on the device too
+    monkeypatch.setattr(edge_silhouette, "DEVICE_BLOCK_BIDIRECTIONAL", 256)
     seq = walk_32_frames
     k = 12
     truth = seq.groundtruth.poses[k]
     poses = np.concatenate([_around(truth, rng, 600), _random_poses(seq.model, rng, 50),
                             truth[None] + np.r_[[0.0] * 6, [9.0] * (truth.size - 6)]])  # the last outside the limits
-    poses[-2, :3] = seq.rig[0].centre  # a pose around camera 0's centre: cones behind it read cost 1
+    poses[-2, :3] = seq.rig[0].centre - 3000.0 * seq.rig[0].R[2]  # 3 m behind camera 0: every cone reads cost 1
     config = EdgeSilhouetteConfig(bidirectional=bidirectional)
     frame = seq.frame(k, range(4))
     cpu = EdgeSilhouetteLikelihood(seq.model, seq.rig, config).prepare(frame).terms(poses)
     dev = EdgeSilhouetteLikelihood(seq.model, seq.rig, config, device=device).prepare(frame).terms(poses)
     assert np.isneginf(cpu.log_likelihood[-1]) and np.isneginf(dev.log_likelihood[-1])
+    assert np.all(cpu.edge[-2, 0] == 1.0) and np.all(dev.edge[-2, 0] == 1.0)  # every cone behind camera 0
     ok = np.isfinite(cpu.log_likelihood)
     assert np.array_equal(ok, np.isfinite(dev.log_likelihood))
     # float32 from the camera frames on in both; a different summation order moves pixels by ~1e-5 px
@@ -89,17 +101,36 @@ def test_tracking_on_the_device_path_gives_the_cpu_errors(walk_32_frames, random
     np.testing.assert_allclose(runs["torch path"].errors, runs["cpu path"].errors, atol=0.01)  # mm
 
 
+@pytest.mark.parametrize("device", DEVICES)
+def test_impossible_poses_and_empty_batches_on_the_device(walk_32_frames, device):
+    seq = walk_32_frames
+    scorer = EdgeSilhouetteLikelihood(seq.model, seq.rig, device=device).prepare(seq.frame(3, range(4)))
+    cpu = EdgeSilhouetteLikelihood(seq.model, seq.rig).prepare(seq.frame(3, range(4)))
+    truth = seq.groundtruth.poses[3]
+    poses = np.repeat(truth[None], 4, axis=0)
+    poses[1, 7] = np.nan
+    poses[2, 0] = np.inf  # the root position's limits are infinite: still no pose
+    poses[3, 1] = -np.inf
+    for s in (scorer, cpu):
+        ll = s(poses)
+        assert np.isfinite(ll[0]) and np.all(np.isneginf(ll[1:]))
+        assert s(poses[:0]).shape == (0,)
+    terms = scorer.terms(poses[:0])
+    assert terms.edge.shape == (0, 4) and terms.log_likelihood.shape == (0,)
+
+
 def test_bad_devices_are_one_line_errors(walk_32_frames):
-    with pytest.raises(InputError, match="unknown device"):
-        build_likelihood("edge-silhouette", walk_32_frames, device="gpu0")
-    with pytest.raises(InputError, match="not supported"):
-        build_likelihood("edge-silhouette", walk_32_frames, device="meta")
+    cases = [("gpu0", "unknown device 'gpu0'; use cpu, cuda or cuda:N"), ("meta", "not supported")]
     if not torch.cuda.is_available():
-        with pytest.raises(InputError, match="no CUDA device"):
-            build_likelihood("edge-silhouette", walk_32_frames, device="cuda")
+        cases.append(("cuda", "no CUDA device"))
+    for name, expected in cases:
+        with pytest.raises(InputError, match=expected) as err:
+            build_likelihood("edge-silhouette", walk_32_frames, device=name)
+        assert "\n" not in str(err.value)
 
 
 def test_the_device_is_recorded_and_cpu_keeps_the_numpy_path(walk_32_frames):
     assert build_likelihood("edge-silhouette", walk_32_frames).device is None
+    assert build_likelihood("edge-silhouette", walk_32_frames, device="cpu:0").device is None
     lik = EdgeSilhouetteLikelihood(walk_32_frames.model, walk_32_frames.rig, device="cpu")
     assert lik.settings()["device"] == "cpu"

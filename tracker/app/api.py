@@ -274,7 +274,7 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
         "annealing_layers": config.annealing_layers, "resampling": config.resampling,
         "prior_settings": prior_obj.settings(), "prior_models": [str(m) for m in models],
         "likelihood": likelihood if isinstance(likelihood, str) else lik_obj.name,
-        "likelihood_settings": lik_obj.settings(),
+        "likelihood_settings": lik_obj.settings(), "device": str(torch_device(device)),
     }
     try:
         result = run_tracking(seq, prior_obj, lik_obj, config, rng, views, frames, known_frames, init, record,

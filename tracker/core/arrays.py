@@ -28,8 +28,8 @@ def torch_device(name: str):
 
     try:
         dev = torch.device(name)
-    except (RuntimeError, TypeError) as exc:
-        raise InputError(f"unknown device {name!r} ({exc}); use cpu, cuda or cuda:N") from None
+    except (RuntimeError, TypeError):
+        raise InputError(f"unknown device {name!r}; use cpu, cuda or cuda:N") from None
     if dev.type == "cuda":
         if not torch.cuda.is_available():
             raise InputError(f"device {name!r} asked for, but torch finds no CUDA device on this machine")
@@ -38,4 +38,6 @@ def torch_device(name: str):
                              "CUDA device(s)")
     elif dev.type != "cpu":
         raise InputError(f"device {name!r} is not supported; use cpu, cuda or cuda:N")
+    if dev.type == "cuda" and dev.index is None:  # the same GPU from every thread (a bare "cuda" is per thread)
+        dev = torch.device("cuda", torch.cuda.current_device())
     return dev

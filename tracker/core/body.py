@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
+
 import numpy as np
 
 from tracker.core.arrays import device, is_torch_array, namespace
@@ -143,14 +144,15 @@ class BodyModel:
         return q
 
     def within_limits(self, poses):
-        """Boolean ``(...)``: every number of each pose ``(..., n_dofs)`` within its limits (numpy arrays, or
-        torch tensors on any device)."""
+        """Boolean ``(...)``: every number of each pose ``(..., n_dofs)`` finite and within its limits (numpy
+        arrays, or torch tensors on any device)."""
         if not is_torch_array(poses):
             poses = np.asarray(poses, float)
         xp, dev = namespace(poses), device(poses)
         lower = xp.asarray(self.lower, dtype=poses.dtype, device=dev)
         upper = xp.asarray(self.upper, dtype=poses.dtype, device=dev)
-        return xp.all((poses >= lower) & (poses <= upper), axis=-1)
+        # an infinite root position is within its limits (they are infinite) but no pose
+        return xp.all((poses >= lower) & (poses <= upper) & xp.isfinite(poses), axis=-1)
 
     def clip_to_limits(self, poses: np.ndarray) -> np.ndarray:
         return np.clip(poses, self.lower, self.upper)

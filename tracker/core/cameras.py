@@ -19,8 +19,8 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
-from tracker.core.arrays import device, namespace
 
+from tracker.core.arrays import device, namespace
 from tracker.core.errors import InputError
 from tracker.core.rotations import exp_map_to_matrix
 

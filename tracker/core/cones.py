@@ -10,8 +10,8 @@ All lengths are millimetres.
 from __future__ import annotations
 
 import numpy as np
-from tracker.core.arrays import device, namespace
 
+from tracker.core.arrays import device, namespace
 from tracker.core.body import BodyModel
 
 
