@@ -62,14 +62,14 @@ def stage_times(seq, P: int = 1000, repeats: int = 20) -> None:
     poses = seq.groundtruth.poses[10] + rng.normal(0, 0.02, (P, seq.model.n_dofs))
     model, rig = seq.model, seq.rig
     rotations, origins = forward_kinematics(model, poses).segment_rotations()
-    axes, cam_origins = rig.frames_in_cameras(rotations, origins)
+    axes, cam_origins = rig.frames_in_cameras(rotations, origins, np.float32)
     X, Y, Z = contour_corners(model, axes, cam_origins)
     stages = {
         "observations (decode 4 views)": lambda: seq.frame(10, range(V)),
         "observations (silhouettes + edge maps)": lambda: lik.prepare(frame),
         "kinematics (forward_kinematics + segment_rotations)":
             lambda: forward_kinematics(model, poses).segment_rotations(),
-        "segment frames in the cameras (frames_in_cameras)": lambda: rig.frames_in_cameras(rotations, origins),
+        "segment frames in the cameras (frames_in_cameras)": lambda: rig.frames_in_cameras(rotations, origins, np.float32),
         "contour solve and end points (contour_corners)": lambda: contour_corners(model, axes, cam_origins),
         "projection (pixels)": lambda: rig.pixels(X, Y, Z),
         "whole likelihood": lambda: scorer(poses),

@@ -3,7 +3,9 @@
 1. Synthetic 15-cone sequence (CMU 07_11 rendered into 4 views), 1000 particles, zero-velocity prior:
    frames per second of the whole loop (observations + prior + likelihood + resampling) and likelihood
    evaluations per second (particle-views per second), with a per-stage breakdown.
-2. The real PARSEC bodytrack frame with its 10-cone model: 4000 particles x 5 annealing layers,
+2. The same sequence tracked with a CRBM-3 prior, 1000 particles x 4 views: frames per second at 30 Gibbs steps
+   and at the default (issue 14's target: 20), and the CRBM's sampling time alone at orders 1, 3, 6.
+3. The real PARSEC bodytrack frame with its 10-cone model: 4000 particles x 5 annealing layers,
    milliseconds per frame, against PARSEC's ~100 ms (2 threads, C++).
 """
 from __future__ import annotations
@@ -61,8 +63,31 @@ def synthetic(tmp: Path) -> None:
           f"observations (4 views): {best_ms(lambda: lik.prepare(seq.frame(20, range(V)))):.1f} ms")
 
 
+def crbm_tracking(tmp: Path) -> None:
+    """Issue 14's CRBM target: 15-cone model, 1000 particles x 4 views, synthetic 07_11, CRBM prior (order 3
+    grown from 1, trained with train's defaults on 07_01, 07_02, 07_09, 07_10), frames per second of the whole
+    loop (observations included), at 30 Gibbs steps (the default before issue 14) and at the default."""
+    from priors.crbm import GIBBS_STEPS
+    from tracker import train
+
+    mocap = SHARED / "mocap" / "cmu" / "07"
+    model = train("crbm", [mocap / f"07_{i}.amc" for i in ("01", "02", "09", "10")], order=3)
+    model.save(tmp / "crbm3.pt")
+    seq = read_sequence(tmp / "walk")
+    for steps in (30, GIBBS_STEPS):
+        runs = [track(seq, "crbm", models=[tmp / "crbm3.pt"], particles=1000, seed=seed,
+                      prior_options={"gibbs_steps": steps}) for seed in range(3)]
+        per_frame = np.median([r.seconds_per_frame for r in runs])
+        wait = np.median([np.median(r.records["load_seconds"] + r.records["observe_seconds"]) for r in runs])
+        filt = np.median([np.median(r.records["filter_seconds"]) for r in runs])
+        print(f"CRBM-3 tracking, 1000 particles x 4 views, {steps} Gibbs steps: {per_frame * 1000:.0f} ms per frame "
+              f"= {1 / per_frame:.1f} frames/s (median of 3 seeds; per frame, medians: waiting for observations "
+              f"{wait * 1000:.0f} ms, filter {filt * 1000:.0f} ms); mean errors "
+              f"{', '.join(f'{r.mean_error:.1f}' for r in runs)} mm")
+
+
 def crbm_sampling() -> None:
-    """CRBM prior: time to sample the next pose of 1000 particles (30 Gibbs steps), orders 1, 3, 6."""
+    """CRBM prior: time to sample the next pose of 1000 particles (the default Gibbs steps), orders 1, 3, 6."""
     from priors.crbm import CRBMConfig, CRBMPrior, train_crbm
     from tracker.core.body import DOF_NAMES
 
@@ -107,5 +132,6 @@ def bodytrack() -> None:
 if __name__ == "__main__":
     with tempfile.TemporaryDirectory() as d:
         synthetic(Path(d))
+        crbm_tracking(Path(d))
     crbm_sampling()
     bodytrack()

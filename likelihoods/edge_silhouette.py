@@ -31,6 +31,7 @@ import numpy as np
 from threadpoolctl import ThreadpoolController
 
 from likelihoods.observations import DEFAULT_OBSERVATION, BackgroundPlate, ObservationConfig, Observations, observe
+from tracker.core.arrays import device as device_of, namespace, torch_device
 from tracker.core.body import BodyModel
 from tracker.core.cameras import CameraRig
 from tracker.core.cones import contour_corners
@@ -64,14 +65,21 @@ class LikelihoodTerms:
 
 
 class EdgeSilhouetteLikelihood(Likelihood):
-    """Log-likelihood of body poses given one frame's images from the cameras of ``rig``."""
+    """Log-likelihood of body poses given one frame's images from the cameras of ``rig``.
+
+    ``device`` None (the default) scores with numpy on the CPU, the faster path there; a torch device
+    (``"cuda"``, ``"cuda:N"``, or ``"cpu"`` to run the torch path on the CPU, as the tests do) scores with torch
+    tensors on it. The registered builder maps the run's device ``cpu`` to None (``--device``,
+    ``track(device=...)``), so ``cpu`` means the numpy path there.
+    """
 
     name = "edge-silhouette"
 
     def __init__(self, model: BodyModel, rig: CameraRig, config: EdgeSilhouetteConfig = EdgeSilhouetteConfig(),
-                 observation: ObservationConfig = DEFAULT_OBSERVATION):
+                 observation: ObservationConfig = DEFAULT_OBSERVATION, device: str | None = None):
         if config.n_along < 2 or config.n_across < 1 or not config.sharpness > 0:
             raise InputError(f"need n_along >= 2, n_across >= 1 and a positive sharpness, got {config}")
+        self.device = None if device is None else torch_device(device)
         self.model = model
         self.rig = rig
         self.config = config
@@ -82,7 +90,8 @@ class EdgeSilhouetteLikelihood(Likelihood):
         self._plates: dict[int, BackgroundPlate] = {}  # per view: the last plate seen, prepared once
 
     def settings(self) -> dict:
-        return {"sharpness": self.config.sharpness, "bidirectional": self.config.bidirectional}
+        out = {"sharpness": self.config.sharpness, "bidirectional": self.config.bidirectional}
+        return out if self.device is None else {**out, "device": str(self.device)}
 
     def prepare(self, frame: Frame) -> "PreparedFrame":
         """Silhouettes and edge maps of the frame's images (provided masks where the frame has them).
@@ -109,9 +118,12 @@ class EdgeSilhouetteLikelihood(Likelihood):
         if obs.n_views != V:
             raise InputError(f"observations have {obs.n_views} views but the rig has {V} cameras")
         n_fg = self.config.n_foreground if self.config.bidirectional else 0
-        return PreparedFrame(self, _CostMaps.of(obs, n_fg))
+        maps = _CostMaps.of(obs, n_fg)
+        return PreparedFrame(self, maps if self.device is None else maps.to(self.device))
 
     def terms(self, poses: np.ndarray, maps: "_CostMaps") -> LikelihoodTerms:
+        if self.device is not None:
+            return self._device_terms(poses, maps)
         poses = np.asarray(poses, float)
         P, V = len(poses), len(self.rig)
         valid = self.model.within_limits(poses)
@@ -129,35 +141,80 @@ class EdgeSilhouetteLikelihood(Likelihood):
                     edge[block][ok], sil[block][ok] = e, s
                     if cover is not None:
                         cover[block][ok] = c
+        return self._combine(valid, edge, sil, cover)
+
+    def _combine(self, valid, edge, sil, cover) -> LikelihoodTerms:
+        """The terms from costs ``P x V`` (numpy arrays or tensors; 1 where a pose is outside the limits)."""
+        xp = namespace(edge)
         total = edge + sil + (cover if cover is not None else 0.0)
-        ll = np.where(valid, -self.config.sharpness * total.sum(axis=1), -np.inf)
+        ll = xp.where(valid, -self.config.sharpness * xp.sum(total, axis=1), -float("inf"))
         return LikelihoodTerms(edge=edge, silhouette=sil, coverage=cover, log_likelihood=ll)
 
-    def _block_costs(self, poses: np.ndarray, maps: "_CostMaps"):
-        """Edge, silhouette and (optional) coverage costs ``p x V`` of poses within the limits.
+    def _device_terms(self, poses: np.ndarray, maps: "_CostMaps") -> LikelihoodTerms:
+        """:meth:`terms` on the device: every pose scored in blocks of :data:`DEVICE_BLOCK` (poses outside the
+        limits, or not finite, as the model's rest pose, then masked, so nothing is gathered on the host), one
+        copy in and one out."""
+        import torch
 
+        P, V = len(poses), len(self.rig)
+        if P == 0:
+            empty = np.ones((0, V))
+            return LikelihoodTerms(empty, empty.copy(), empty.copy() if self.config.bidirectional else None,
+                                   np.zeros(0))
+        block = DEVICE_BLOCK_BIDIRECTIONAL if self.config.bidirectional else DEVICE_BLOCK
+        with torch.no_grad():
+            x = torch.as_tensor(np.asarray(poses, float)).to(self.device, non_blocking=True)
+            valid = self.model.within_limits(x)
+            x = torch.where(valid[:, None], x, torch.as_tensor(self.model.rest_pose(), device=self.device))
+            parts = [self._block_costs(x[i:i + block], maps) for i in range(0, P, block)]
+            edge, sil, cover = (None if part[0] is None else torch.where(valid[:, None], torch.cat(part), 1.0)
+                                for part in zip(*parts))
+            terms = self._combine(valid, edge.double(), sil.double(), None if cover is None else cover.double())
+            return LikelihoodTerms(*(None if t is None else t.cpu().numpy() for t in (
+                terms.edge, terms.silhouette, terms.coverage, terms.log_likelihood)))
+
+    def _segment_frames(self, poses):
+        """Segment rotations ``p x S x 3 x 3`` and origins ``p x S x 3`` (mm) of poses ``p x D``: the compiled
+        kinematics for numpy arrays, :mod:`tracker.core.torch_kinematics` for torch tensors."""
+        if isinstance(poses, np.ndarray):
+            return forward_kinematics(self.model, poses).segment_rotations()
+        from tracker.core.torch_kinematics import torch_kinematics
+
+        return torch_kinematics(self.model, poses.device, poses.dtype)(poses)
+
+    def _block_costs(self, poses, maps: "_CostMaps"):
+        """Edge, silhouette and (optional) coverage costs ``p x V`` of poses ``p x D`` within the limits.
+
+        One implementation for numpy arrays (the CPU path) and torch tensors on a device (``maps`` there too).
         float32 from the camera frames on (sub-pixel error about 1e-4 px), components on the leading axis and
         the views next, so every step runs over long contiguous arrays ``V x p x S (x 4 or N)``.
         """
-        fk = forward_kinematics(self.model, poses)
-        rotations, origins = fk.segment_rotations()  # p S 3 3, p S 3
-        axes, origins = self.rig.frames_in_cameras(rotations, origins, np.float32)  # 3 3 V p S, 3 V p S
+        rotations, origins = self._segment_frames(poses)  # p S 3 3, p S 3
+        xp = namespace(rotations)
+        axes, origins = self.rig.frames_in_cameras(rotations, origins, xp.float32)  # 3 3 V p S, 3 V p S
         X, Y, Z = contour_corners(self.model, axes, origins)  # each V p S 4: line 0 proximal, distal; line 1
         u, v = self.rig.pixels(X, Y, Z)
-        behind = np.any(Z <= 0, axis=-1)
+        behind = xp.any(Z <= 0, axis=-1)
         u[behind] = -1e6  # reads the border of the cost maps: cost 1
         v[behind] = -1e6
         # Every sample is a fixed affine combination of the 4 corners: contour points spaced evenly along
         # each projected line (a ruling projects to a straight segment; with lens distortion a sub-pixel
         # approximation on a limb), then the grid between the lines. One matrix product per coordinate.
         V, p, S = Z.shape[:3]
-        flat = maps.flat_index(u.reshape(-1, 4) @ self.weights, v.reshape(-1, 4) @ self.weights)
-        flat = flat.reshape(V, p, S, -1)
+        weights = xp.asarray(self.weights, device=device_of(u))
+        flat = maps.flat_index(xp.reshape(u, (-1, 4)) @ weights, xp.reshape(v, (-1, 4)) @ weights)
+        flat = xp.reshape(flat, (V, p, S, -1))
         nc = self.n_contour
-        edge = maps.edge.take(flat[..., :nc]).reshape(V, p, -1).mean(axis=-1).T
-        sil = maps.silhouette.take(flat[..., nc:]).reshape(V, p, -1).mean(axis=-1).T
+        edge = xp.mean(xp.reshape(_take(maps.edge, flat[..., :nc]), (V, p, -1)), axis=-1)
+        sil = xp.mean(xp.reshape(_take(maps.silhouette, flat[..., nc:]), (V, p, -1)), axis=-1)
         cover = _uncovered(u, v, maps.foreground) if self.config.bidirectional else None
-        return edge, sil, cover
+        return xp.permute_dims(edge, (1, 0)), xp.permute_dims(sil, (1, 0)), cover
+
+
+def _take(values, index):
+    """``values[index]`` for a flat array and an integer index array of any shape (numpy's ``take``, faster than
+    its fancy indexing; a torch tensor's indexing)."""
+    return values.take(index) if isinstance(values, np.ndarray) else values[index]
 
 
 class PreparedFrame(FrameLikelihood):
@@ -187,6 +244,12 @@ def _sample_weights(n_along: int, n_across: int) -> np.ndarray:
 
 #: Particles per block (see ``terms``).
 BLOCK = 256
+#: Particles per block on a device: about 1.5 GB of intermediates at 15 cones x 4 views, so that a GPU of 4 GB
+#: holds a block.
+DEVICE_BLOCK = 32768
+#: The same with the bidirectional term, whose point-in-quadrilateral test holds ``p x S x 4 x F`` arrays
+#: (about 150 MB each at 4096 particles, 15 cones, 150 foreground pixels).
+DEVICE_BLOCK_BIDIRECTIONAL = 4096
 
 
 @lru_cache(maxsize=1)
@@ -207,14 +270,12 @@ PAD = 32
 
 class _CostMaps:
     """Per-frame cost maps ``(1 - edge)^2`` and ``(1 - silhouette)^2``, padded with cost 1, flattened, and
-    (for the bidirectional term) a fixed sample of foreground pixels per view."""
+    (for the bidirectional term) a fixed sample of foreground pixels per view: numpy arrays, or torch tensors
+    on a device after :meth:`to`."""
 
-    def __init__(self, edge: np.ndarray, silhouette: np.ndarray, foreground: list[np.ndarray]):
-        V, self.Hp, self.Wp = edge.shape
-        self.foreground = foreground
-        self.edge = edge.reshape(-1)
-        self.silhouette = silhouette.reshape(-1)
-        self.view_offset = np.arange(V, dtype=np.int32) * (self.Hp * self.Wp)
+    def __init__(self, edge, silhouette, foreground: list, view_offset, Hp: int, Wp: int):
+        self.edge, self.silhouette, self.foreground = edge, silhouette, foreground
+        self.view_offset, self.Hp, self.Wp = view_offset, Hp, Wp
 
     @classmethod
     def of(cls, obs: Observations, n_foreground: int = 0) -> "_CostMaps":
@@ -225,21 +286,35 @@ class _CostMaps:
             np.square(np.subtract(1.0, m, out=inner), out=inner)
             return out
         fg = [foreground_sample(sil, n_foreground) for sil in obs.silhouettes] if n_foreground else []
-        return cls(padded(obs.edges), padded(obs.silhouettes), fg)
+        edge, sil = padded(obs.edges), padded(obs.silhouettes)
+        V, Hp, Wp = edge.shape
+        return cls(edge.reshape(-1), sil.reshape(-1), fg, np.arange(V, dtype=np.int32) * (Hp * Wp), Hp, Wp)
 
-    def flat_index(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    def to(self, device) -> "_CostMaps":
+        """The same maps as torch tensors on ``device``."""
+        import torch
+
+        def move(a: np.ndarray):
+            return torch.as_tensor(a).to(device)
+        return _CostMaps(move(self.edge), move(self.silhouette), [move(f) for f in self.foreground],
+                         move(self.view_offset.astype(np.int64)), self.Hp, self.Wp)
+
+    def flat_index(self, x, y):
         """Flat indices of the nearest pixels to ``(x, y)``, each ``(V * n) x N`` float32 with views leading
-        (clamped to the border)."""
-        V = len(self.view_offset)
-        ix = np.add(x, np.float32(PAD + 0.5), out=x)
-        iy = np.add(y, np.float32(PAD + 0.5), out=y)
-        ix = np.clip(ix, 0, self.Wp - 1, out=ix).astype(np.int32)
-        iy = np.clip(iy, 0, self.Hp - 1, out=iy).astype(np.int32)
+        (clamped to the border; ``x`` and ``y`` are used as scratch)."""
+        xp = namespace(x)
+        V = self.view_offset.shape[0]
+        x += PAD + 0.5
+        y += PAD + 0.5
+        # int32 for numpy's take; torch indexes with int64 (an int32 index is converted, one more pass)
+        index = xp.int32 if xp is np else xp.int64
+        ix = xp.astype(xp.clip(x, 0, self.Wp - 1), index)
+        iy = xp.astype(xp.clip(y, 0, self.Hp - 1), index)
         iy *= self.Wp
         iy += ix
-        per_view = iy.reshape(V, -1)
+        per_view = xp.reshape(iy, (V, -1))
         per_view += self.view_offset[:, None]
-        return iy
+        return per_view
 
 
 def foreground_sample(silhouette: np.ndarray, n: int) -> np.ndarray:
@@ -251,22 +326,23 @@ def foreground_sample(silhouette: np.ndarray, n: int) -> np.ndarray:
     return np.stack([xs[idx], ys[idx]], axis=1).astype(np.float32)
 
 
-def _uncovered(u: np.ndarray, v: np.ndarray, foreground: list[np.ndarray]) -> np.ndarray:
+def _uncovered(u, v, foreground: list):
     """Fraction ``p x V`` of the sampled foreground pixels (``F x 2`` per view) outside every projected cone (a
     cone's projection is taken as the quadrilateral of its contour lines' end points, pixel coordinates
-    ``u``, ``v`` ``V x p x S x 4``)."""
+    ``u``, ``v`` ``V x p x S x 4``). numpy arrays, or torch tensors on one device."""
+    xp = namespace(u)
     V, p = u.shape[:2]
-    out = np.zeros((p, V))
+    out = xp.zeros((p, V), dtype=xp.float64, device=device_of(u))
     around = [0, 1, 3, 2]  # the quadrilateral's corners in order
     for view in range(V):  # views only; particles, segments and pixels are batched
         fg = foreground[view]
-        if len(fg) == 0:
+        if fg.shape[0] == 0:
             continue
         qx, qy = u[view][..., around], v[view][..., around]  # p S 4
-        ex, ey = np.roll(qx, -1, axis=2) - qx, np.roll(qy, -1, axis=2) - qy
+        ex, ey = xp.roll(qx, -1, axis=2) - qx, xp.roll(qy, -1, axis=2) - qy
         cross = ex[..., None] * (fg[:, 1] - qy[..., None]) - ey[..., None] * (fg[:, 0] - qx[..., None])  # p S 4 F
-        inside = np.all(cross >= 0, axis=2) | np.all(cross <= 0, axis=2)  # p S F
-        out[:, view] = 1.0 - inside.any(axis=1).mean(axis=1)
+        inside = xp.all(cross >= 0, axis=2) | xp.all(cross <= 0, axis=2)  # p S F
+        out[:, view] = 1.0 - xp.mean(xp.astype(xp.any(inside, axis=1), xp.float64), axis=1)
     return out
 
 
@@ -278,4 +354,6 @@ def _uncovered(u: np.ndarray, v: np.ndarray, foreground: list[np.ndarray]) -> np
                     "also penalise foreground the model does not cover (for monocular tracking)")))
 def build_edge_silhouette(context: LikelihoodContext, options: dict) -> EdgeSilhouetteLikelihood:
     config = EdgeSilhouetteConfig(sharpness=options["sharpness"], bidirectional=options["bidirectional"])
-    return EdgeSilhouetteLikelihood(context.body_model, context.rig, config)
+    # On the CPU the numpy path (faster there); "cpu:0" too.
+    device = None if torch_device(context.device).type == "cpu" else context.device
+    return EdgeSilhouetteLikelihood(context.body_model, context.rig, config, device=device)

@@ -407,6 +407,14 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
 # As a tracking prior
 # ---------------------------------------------------------------------------
 
+#: Default Gibbs steps per sample of the CRBM prior. Chosen on the tuning folds of the leave-one-subject-out
+#: protocol (folds 2 and 7, CRBM-3, 1000 particles, 5 seeds; benchmarks/experiments/leave_one_subject_out/gibbs/,
+#: docs/tracking.md): 30, 10 and 5 steps gave the same error with 4 views (mean ratio to zero-velocity 0.66 each)
+#: and 1.51, 1.46, 1.35 with one view (within the seeds' spread; only order 3 was measured), and 5 steps sample about
+#: 5x faster than 30 (the CRBM's largest cost).
+GIBBS_STEPS = 5
+
+
 class CRBMPrior(MotionPrior):
     """Samples every particle's next pose from its own history with a CRBM (one batch, torch).
 
@@ -426,7 +434,7 @@ class CRBMPrior(MotionPrior):
 
     name = "crbm"
 
-    def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = 30,
+    def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = GIBBS_STEPS,
                  device: str = "cpu", mode: str = "gibbs", root_noise_mm: float = ROOT_NOISE_MM,
                  robust_fraction: float = 0.0, heading_noise: float = 0.0, robust_adaptive: bool = False,
                  pace_spread: float = 0.0, pace_drift: float = 0.0):
@@ -622,8 +630,8 @@ CRBM_TRAIN_OPTIONS = (
 @register_prior(
     "crbm", summary="Conditional RBM (Taylor 2009); several model files of increasing order grow the history",
     model_files="several", train=train_crbm_prior, train_options=CRBM_TRAIN_OPTIONS, resumable=True,
-    options=(Option("gibbs_steps", int, 30, "alternating Gibbs steps per sample (default 30)", minimum=1,
-                    maximum=10000),
+    options=(Option("gibbs_steps", int, GIBBS_STEPS, f"alternating Gibbs steps per sample (default {GIBBS_STEPS})",
+                    minimum=1, maximum=10000),
              Option("root_noise", float, ROOT_NOISE_MM, "ground-plane diffusion of each sample in mm (default 5)",
                     minimum=0.0, maximum=1000.0),
              *UNLEARNED_MOTION_OPTIONS,

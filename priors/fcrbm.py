@@ -514,17 +514,40 @@ def generate(model: FCRBMModel, start: np.ndarray, styles: np.ndarray, rng: np.r
 # As a tracking prior
 # ---------------------------------------------------------------------------
 
-def _with_style(crbm_state: PriorState, style: np.ndarray) -> dict:
+def _with_style(crbm_state: PriorState, style: np.ndarray, clock: np.ndarray) -> dict:
     """The FCRBM prior's per-particle state: the CRBM prior's (a dict of arrays, or one array kept as
-    ``'crbm'``) with the ``'style'`` labels ``(P,)`` added."""
+    ``'crbm'``) with the ``'style'`` labels ``(P,)`` and the ``'clock'`` ``(P,)`` (the sequence frame the next
+    sample is for, which a style schedule reads) added."""
     base = dict(crbm_state) if isinstance(crbm_state, dict) else {"crbm": crbm_state}
-    return {**base, "style": style}
+    return {**base, "style": style, "clock": clock}
 
 
 def _without_style(state: dict) -> PriorState:
     """The CRBM prior's part of the FCRBM prior's state (inverse of :func:`_with_style`)."""
-    rest = {k: v for k, v in state.items() if k != "style"}
+    rest = {k: v for k, v in state.items() if k not in ("style", "clock")}
     return rest["crbm"] if set(rest) == {"crbm"} else rest
+
+
+def parse_style_schedule(text: str, labels: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """The ``style`` option: one label (``run``) for every frame, or a schedule ``walk,run@120`` (a label from
+    frame 0, then each ``label@frame`` from that sequence frame on) for an oracle that knows when the person
+    changes activity. Returns the first frames ``(K,)`` (increasing, starting at 0) and label indices ``(K,)``."""
+    frames, indices = [], []
+    for i, part in enumerate(str(text).split(",")):
+        label, at, frame = part.strip().partition("@")
+        if label not in labels:
+            raise InputError(f"style {label!r} is not a label of this FCRBM (its labels: {', '.join(labels)})")
+        if i == 0 and at:
+            raise InputError(f"style schedule {text!r}: the first label holds from frame 0 (write 'walk,run@120')")
+        if i > 0:
+            if not at or not frame.strip().isdigit():
+                raise InputError(f"style schedule {text!r}: after the first label each entry is label@frame "
+                                 "(e.g. run@120)")
+            if int(frame) <= frames[-1]:
+                raise InputError(f"style schedule {text!r}: the frames must increase")
+        frames.append(int(frame) if at else 0)
+        indices.append(labels.index(label))
+    return np.array(frames, np.int64), np.array(indices, np.int64)
 
 
 @dataclass
@@ -585,7 +608,8 @@ class FCRBMPrior(CRBMPrior):
             if not ok:
                 raise InputError(f"FCRBM prior: bad {what} {value!r}")
         self.labels = list(first.labels)
-        self.fixed = None if style in (None, "") else first.label_index(style)
+        self.style = None if style in (None, "") else str(style)
+        self.schedule = None if self.style is None else parse_style_schedule(self.style, self.labels)
         self.style_switch = float(style_switch)
         # CRBMPrior.__init__ is not called: it moves ``m.crbm`` weights (an FCRBM model has ``fcrbm``) and checks
         # no labels. Every attribute CRBMPrior.start/sample/model_for/settings read is set here instead; the
@@ -602,7 +626,7 @@ class FCRBMPrior(CRBMPrior):
 
     def settings(self) -> dict:
         return {"orders": [m.order for m in self.models], "gibbs_steps": self.gibbs_steps, "labels": self.labels,
-                "style": None if self.fixed is None else self.labels[self.fixed], "style_switch": self.style_switch,
+                "style": self.style, "style_switch": self.style_switch,
                 "root_noise_mm": self.root_noise_mm, "heading_noise_rad": self.heading_noise}
 
     def model_for(self, available: int) -> Drawer:  # type: ignore[override]
@@ -613,17 +637,31 @@ class FCRBMPrior(CRBMPrior):
         return f"fcrbm order {self.model_for(available).order}"
 
     def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
-        """The pending step of the last known frame, and every particle's label: the fixed ``style``, else drawn
-        uniformly over the labels."""
+        """The pending step of the last known frame, and every particle's label: the ``style`` (schedule) given,
+        else drawn uniformly over the labels. The clock starts at the first tracked frame, ``len(known)``."""
         crbm_state = super().start(known, n_particles, rng)
-        style = np.full(n_particles, self.fixed) if self.fixed is not None else \
+        clock = np.full(n_particles, len(known), np.int64)
+        style = self.scheduled(clock) if self.schedule is not None else \
             rng.integers(len(self.labels), size=n_particles)
-        return _with_style(crbm_state, style.astype(np.int64))
+        return _with_style(crbm_state, style.astype(np.int64), clock)
+
+    def restart(self, state: PriorState, recent: np.ndarray, n_particles: int,
+                rng: np.random.Generator) -> PriorState:
+        """:meth:`start` from ``recent``, the clock carried on past the lost frame."""
+        new = self.start(recent, n_particles, rng)
+        clock = np.full(n_particles, int(np.asarray(state["clock"])[0]) + 1, np.int64)
+        style = self.scheduled(clock) if self.schedule is not None else new["style"]
+        return {**new, "clock": clock, "style": style}
+
+    def scheduled(self, clock: np.ndarray) -> np.ndarray:
+        """The labels ``(P,)`` the ``style`` schedule gives at frames ``clock`` ``(P,)``."""
+        frames, indices = self.schedule
+        return indices[np.searchsorted(frames, clock, side="right") - 1]
 
     def switch(self, style: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Labels ``(P,)`` after one frame's switching (each to another label with probability ``style_switch``)."""
         L = len(self.labels)
-        if self.fixed is not None or L < 2 or self.style_switch == 0:
+        if L < 2 or self.style_switch == 0:
             return style
         flip = rng.random(len(style)) < self.style_switch
         return np.where(flip, (style + rng.integers(1, L, size=len(style))) % L, style)
@@ -639,10 +677,11 @@ class FCRBMPrior(CRBMPrior):
 
     def sample(self, history: np.ndarray, available: int, state: PriorState,
                rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
-        style = self.switch(np.asarray(state["style"]), rng)
+        clock = np.asarray(state["clock"])
+        style = self.scheduled(clock) if self.schedule is not None else self.switch(np.asarray(state["style"]), rng)
         onehot = np.eye(len(self.labels), dtype=np.float32)[style]
         poses, crbm_state = self.sample_styled(history, available, _without_style(state), onehot, rng)
-        return poses, _with_style(crbm_state, style)
+        return poses, _with_style(crbm_state, style, clock + 1)
 
     def summarize(self, state: PriorState, weights: np.ndarray) -> np.ndarray:
         """The posterior over the labels ``(L,)``: the normalised ``weights`` ``(P,)`` summed per label."""
@@ -730,8 +769,9 @@ FCRBM_TRAIN_OPTIONS = (
                     minimum=0.0, maximum=math.pi),
              Option("style_switch", float, 0.05, "probability per frame that a particle's style label switches to "
                                                  "another label (default 0.05)", minimum=0.0, maximum=1.0),
-             Option("style", str, None, "give every particle this label and never switch (the oracle); "
-                                        "default: inferred")))
+             Option("style", str, None, "give every particle this label and never switch (the oracle), or a "
+                                        "schedule walk,run@120 (label per sequence frame, for an activity "
+                                        "change); default: inferred")))
 def build_fcrbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> FCRBMPrior:
     model = load_fcrbm(model_files[0], device=context.device)
     model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, model_files[0])

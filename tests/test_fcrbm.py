@@ -127,6 +127,27 @@ def test_prior_sampling_is_deterministic_and_styles_switch(model, clips):
         FCRBMPrior([model], style="jump")
 
 
+def test_a_style_schedule_gives_each_frame_its_label_and_survives_a_restart(model, clips):
+    oracle = FCRBMPrior([model], gibbs_steps=2, style="walk,run@14,walk@16")
+    rng = np.random.default_rng(0)
+    state = oracle.start(clips[0][:12], 20, rng)  # the first tracked frame is 12
+    hist = np.repeat(clips[0][None, 10:12], 20, axis=0)
+    labels = []
+    for _ in range(5):  # frames 12..16
+        _, state = oracle.sample(hist, 2, state, rng)
+        labels.append(oracle.labels[int(state["style"][0])])
+        assert np.all(state["style"] == state["style"][0])
+    assert labels == ["walk", "walk", "run", "run", "walk"] and np.all(state["clock"] == 17)
+    # the filter lost the person at frame 17: the clock goes on to 18 (a plain start would restart it at 2)
+    restarted = oracle.restart(state, clips[0][15:17], 20, rng)
+    assert np.all(restarted["clock"] == 18) and oracle.labels[int(restarted["style"][0])] == "walk"
+    assert oracle.settings()["style"] == "walk,run@14,walk@16"
+    for bad, expected in [("walk@3", "holds from frame 0"), ("walk,run", "label@frame"), ("walk,run@x", "label@frame"),
+                          ("walk,run@5,walk@5", "must increase"), ("walk,jump@4", "not a label")]:
+        with pytest.raises(InputError, match=expected):
+            FCRBMPrior([model], style=bad)
+
+
 def test_generation_with_fixed_styles_and_a_transition(model, clips):
     start = clips[0][:3]
     walk = generate(model, start, transition_styles(2, 0, 0, 40, 0, 1), np.random.default_rng(0), gibbs_steps=10)

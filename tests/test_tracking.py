@@ -93,6 +93,12 @@ def test_track_bodytrack_without_ground_truth(bodytrack_dir, tmp_path):
         assert z["poses"].shape == (1, 31) and np.all(np.isfinite(z["poses"]))
 
 
+def torch_has_cuda() -> bool:
+    import torch
+
+    return torch.cuda.is_available()
+
+
 def test_track_bad_inputs_exit_2(walk_32_frames, tmp_path):
     root = str(walk_32_frames.root)
     np.savez(tmp_path / "bad_init.npz", poses=np.zeros((2, 31)))
@@ -104,7 +110,8 @@ def test_track_bad_inputs_exit_2(walk_32_frames, tmp_path):
         (["--init", str(tmp_path / "missing.npz")], "cannot read initial poses"),
         (["--prior", "hmm"], "invalid choice"),
         (["--prior", "gpdm"], "needs a model file"),
-    ]
+        (["--device", "gpu"], "unknown device 'gpu'"),
+    ] + ([] if torch_has_cuda() else [(["--device", "cuda"], "torch finds no CUDA device")])
     for extra, expected in cases:
         args = ["track", root, "--out", str(tmp_path / "o"), "--particles", "50", "--frames", "4"]
         if "--prior" not in extra:

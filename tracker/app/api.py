@@ -31,6 +31,7 @@ from tracker.app.plugins import load_plugins
 from tracker.app.tracking import (
     TrackingInterrupted, TrackingResult, check_views, run_tracking, seed_description,
 )
+from tracker.core.arrays import torch_device
 from tracker.core.errors import InputError
 from tracker.core.representation import step_rms
 from tracker.engine.filter import FilterConfig
@@ -149,7 +150,8 @@ def build_prior(name: str, sequence: Sequence, models: Seq[str | Path] = (), *,
     """The registered prior ``name`` for ``sequence``, from its model files (learned priors) and options.
 
     Random-walk priors take their scale from ``step_std`` ``(D,)`` if given, else from ``train_mocap``
-    clips (default: the shipped walks) or the bodytrack folder (:func:`random_walk_scale`).
+    clips (default: the shipped walks) or the bodytrack folder (:func:`random_walk_scale`). Learned priors
+    with a torch path sample on ``device`` (``"cpu"``, ``"cuda"``, ``"cuda:N"``).
     """
     entry = prior_entry(name)
     models = [Path(m) for m in models]
@@ -161,16 +163,19 @@ def build_prior(name: str, sequence: Sequence, models: Seq[str | Path] = (), *,
         raise InputError(f"prior {name} takes one model file, got {len(models)}")
     resolved = resolve_options(f"prior {name}", entry.options, options)
     source = (lambda: step_std) if step_std is not None else (lambda: random_walk_scale(sequence, train_mocap))
-    context = PriorContext(sequence.model, sequence.fps, device, str(sequence.root), source)
+    context = PriorContext(sequence.model, sequence.fps, str(torch_device(device)), str(sequence.root), source)
     return entry.build(context, models, resolved)
 
 
-def build_likelihood(name: str, sequence: Sequence, views: Iterable[int] | None = None, **options) -> Likelihood:
-    """The registered likelihood ``name`` for the cameras ``views`` (default all) of ``sequence``."""
+def build_likelihood(name: str, sequence: Sequence, views: Iterable[int] | None = None, *, device: str = "cpu",
+                     **options) -> Likelihood:
+    """The registered likelihood ``name`` for the cameras ``views`` (default all) of ``sequence``, scoring on
+    the torch ``device`` (``"cpu"``, the default, is the CPU path; ``"cuda"`` the GPU path)."""
     entry = likelihood_entry(name)
     views = check_views(views, sequence.n_views, sequence.root)
     resolved = resolve_options(f"likelihood {name}", entry.options, options)
-    return entry.build(LikelihoodContext(sequence.model, sequence.rig.subset(views)), resolved)
+    device = str(torch_device(device))
+    return entry.build(LikelihoodContext(sequence.model, sequence.rig.subset(views), device), resolved)
 
 
 # -- training -------------------------------------------------------------------------------------------------
@@ -263,7 +268,7 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
             raise InputError("models and prior_options apply to a prior given by name, not to a prior object")
         prior_obj = prior
     if isinstance(likelihood, str):
-        lik_obj = build_likelihood(likelihood, seq, views, **dict(likelihood_options or {}))
+        lik_obj = build_likelihood(likelihood, seq, views, device=device, **dict(likelihood_options or {}))
     else:
         lik_obj = likelihood
     settings = {
@@ -273,7 +278,7 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
         "annealing_layers": config.annealing_layers, "resampling": config.resampling,
         "prior_settings": prior_obj.settings(), "prior_models": [str(m) for m in models],
         "likelihood": likelihood if isinstance(likelihood, str) else lik_obj.name,
-        "likelihood_settings": lik_obj.settings(),
+        "likelihood_settings": lik_obj.settings(), "device": str(torch_device(device)),
     }
     try:
         result = run_tracking(seq, prior_obj, lik_obj, config, rng, views, frames, known_frames, init, record,

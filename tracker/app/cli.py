@@ -180,6 +180,9 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--train-mocap", nargs="+", default=None, metavar="FILE",
                    help="mocap clips whose frame-to-frame changes set the random-walk scale (default: the shipped "
                         "subject-7 walks 07_01 and 07_02); bodytrack folders use PoseParameters.txt")
+    t.add_argument("--device", default="cpu", metavar="DEVICE",
+                   help="where particles are scored: cpu (default: the numpy path) or cuda, cuda:N (the GPU path: "
+                        "the likelihood's kinematics, projection and image lookups, and the CRBM family's sampling)")
     t.add_argument("--out", help="output folder (required)")
     t.add_argument("--video", help="also write an overlay video of the estimates (.mp4)")
     t.add_argument("--checkpoint-every", type=_non_negative_int, default=25, metavar="K",
@@ -496,8 +499,9 @@ def cmd_track(args: argparse.Namespace) -> int:
     prior_options = _given_options(args, "prior", args.prior, prior_entry(args.prior).options, priors)
     lik_options = _given_options(args, "likelihood", args.likelihood, likelihood_entry(args.likelihood).options,
                                  likelihoods)
-    prior = build_prior(args.prior, seq, args.model or (), train_mocap=args.train_mocap, **prior_options)
-    likelihood = build_likelihood(args.likelihood, seq, views, **lik_options)
+    prior = build_prior(args.prior, seq, args.model or (), train_mocap=args.train_mocap, device=args.device,
+                        **prior_options)
+    likelihood = build_likelihood(args.likelihood, seq, views, device=args.device, **lik_options)
     init = read_poses_file(args.init, "initial poses", seq.model) if args.init else None
     T = args.frames or seq.n_frames
     given = len(init) if init is not None else 0 if seq.groundtruth is None else len(seq.groundtruth.poses)
@@ -526,6 +530,7 @@ def cmd_track(args: argparse.Namespace) -> int:
         run = track(seq, prior, likelihood=likelihood, particles=args.particles, views=views,
                     frames=args.frames, seed=args.seed, annealing_layers=args.annealing_layers,
                     resampling=args.resampling, known_frames=args.known_frames, init=init, on_frame=on_frame,
+                    device=args.device,
                     checkpoint=out / "checkpoint.npz", checkpoint_every=args.checkpoint_every,
                     resume=bool(args.resume))
     except TrackingInterrupted as stop:

@@ -17,8 +17,10 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
+
 import numpy as np
 
+from tracker.core.arrays import device, is_torch_array, namespace
 from tracker.core.errors import InputError
 
 # ---------------------------------------------------------------------------
@@ -141,10 +143,16 @@ class BodyModel:
             q[root.dofs[2]] = self.rest_root_height
         return q
 
-    def within_limits(self, poses: np.ndarray) -> np.ndarray:
-        """Boolean ``(...)``: every number of each pose ``(..., n_dofs)`` within its limits."""
-        poses = np.asarray(poses, float)
-        return np.all((poses >= self.lower) & (poses <= self.upper), axis=-1)
+    def within_limits(self, poses):
+        """Boolean ``(...)``: every number of each pose ``(..., n_dofs)`` finite and within its limits (numpy
+        arrays, or torch tensors on any device)."""
+        if not is_torch_array(poses):
+            poses = np.asarray(poses, float)
+        xp, dev = namespace(poses), device(poses)
+        lower = xp.asarray(self.lower, dtype=poses.dtype, device=dev)
+        upper = xp.asarray(self.upper, dtype=poses.dtype, device=dev)
+        # an infinite root position is within its limits (they are infinite) but no pose
+        return xp.all((poses >= lower) & (poses <= upper) & xp.isfinite(poses), axis=-1)
 
     def clip_to_limits(self, poses: np.ndarray) -> np.ndarray:
         return np.clip(poses, self.lower, self.upper)

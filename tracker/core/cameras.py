@@ -20,6 +20,7 @@ from typing import Sequence
 
 import numpy as np
 
+from tracker.core.arrays import device, namespace
 from tracker.core.errors import InputError
 from tracker.core.rotations import exp_map_to_matrix
 
@@ -149,19 +150,23 @@ class CameraRig:
         Xc = np.einsum("vij,...kj->...vki", self.R, X) + self.t[:, None, :]
         return self.camera_to_pixels(Xc)
 
-    def frames_in_cameras(self, rotations: np.ndarray, origins: np.ndarray,
-                          dtype: type = np.float32) -> tuple[np.ndarray, np.ndarray]:
+    def frames_in_cameras(self, rotations, origins, dtype=None):
         """Frames (rotations ``B... x 3 x 3`` world from frame, origins ``B... x 3`` mm, any batch shape ``B``)
         in every camera's coordinates, components leading: axes ``3 x 3 x V x B...`` (``[k, i]``: component
-        ``i`` of axis ``k``) and origins ``3 x V x B...``, as ``dtype`` (one matrix product each)."""
-        batch = rotations.shape[:-2]
+        ``i`` of axis ``k``) and origins ``3 x V x B...``, as ``dtype`` (a dtype of the inputs' array library;
+        default the rotations' own), one matrix product each. numpy arrays or torch tensors on any device."""
+        xp, dev = namespace(rotations), device(rotations)
+        dtype = rotations.dtype if dtype is None else dtype
+        batch = tuple(rotations.shape[:-2])
         V = len(self)
-        cam = self.R.transpose(1, 0, 2).reshape(3 * V, 3).astype(dtype)  # rows (i, v), columns j
-        rot = np.ascontiguousarray(rotations.reshape(-1, 3, 3).transpose(2, 1, 0), dtype=dtype)  # k, j, batch
-        axes = np.matmul(cam, rot)  # k x (i v) x batch
-        org = cam @ origins.astype(dtype, copy=False).reshape(-1, 3).T  # (i v) x batch
-        org += self.t.T.reshape(3 * V, 1).astype(dtype)
-        return axes.reshape((3, 3, V) + batch), org.reshape((3, V) + batch)
+        cam = xp.asarray(self.R.transpose(1, 0, 2).reshape(3 * V, 3), dtype=dtype, device=dev)  # rows (i, v)
+        rot = xp.permute_dims(xp.reshape(rotations, (-1, 3, 3)), (2, 1, 0))  # k, j, batch
+        # numpy's matmul is faster on a contiguous stack: one copy converts and lays it out.
+        rot = np.ascontiguousarray(rot, dtype=dtype) if xp is np else xp.astype(rot, dtype)
+        axes = xp.matmul(cam, rot)  # k x (i v) x batch
+        org = xp.matmul(cam, xp.permute_dims(xp.reshape(xp.astype(origins, dtype), (-1, 3)), (1, 0)))
+        org = org + xp.asarray(self.t.T.reshape(3 * V, 1), dtype=dtype, device=dev)
+        return xp.reshape(axes, (3, 3, V) + batch), xp.reshape(org, (3, V) + batch)
 
     def camera_to_pixels(self, Xc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Camera coordinates ``(..., V, K, 3)`` (mm, view ``v`` in camera ``v``) -> pixels and depths."""
@@ -169,17 +174,19 @@ class CameraRig:
         u, v = self.pixels(x, y, z)
         return np.stack([np.moveaxis(u, 0, -2), np.moveaxis(v, 0, -2)], axis=-1), Xc[..., 2]
 
-    def pixels(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def pixels(self, x, y, z):
         """Pixel coordinates ``(u, v)`` of camera coordinates given as components ``x, y, z`` ``V x ...`` (mm, view
-        ``v`` in camera ``v``), in their dtype (float32 or float64). Points behind a camera (``z <= 0``) get
-        meaningless pixels; callers mask them."""
-        dt = z.dtype if z.dtype in (np.float32, np.float64) else np.dtype(np.float64)
+        ``v`` in camera ``v``), in their dtype (float32 or float64; numpy arrays or torch tensors on any device).
+        Points behind a camera (``z <= 0``) get meaningless pixels; callers mask them."""
+        xp, dev = namespace(z), device(z)
+        if not xp.isdtype(z.dtype, "real floating"):
+            x, y, z = (xp.astype(a, xp.float64) for a in (x, y, z))
         shape = (len(self),) + (1,) * (z.ndim - 1)
 
-        def per_view(values: np.ndarray) -> np.ndarray:
-            return values.astype(dt).reshape(shape)
+        def per_view(values: np.ndarray):
+            return xp.reshape(xp.asarray(values, dtype=z.dtype, device=dev), shape)
 
-        z_safe = np.where(np.abs(z) < 1e-9, dt.type(1e-9), z)
+        z_safe = xp.where(xp.abs(z) < 1e-9, 1e-9, z)
         x = x / z_safe
         y = y / z_safe
         if self.has_distortion:

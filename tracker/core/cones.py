@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from tracker.core.arrays import device, namespace
 from tracker.core.body import BodyModel
 
 
@@ -77,7 +78,9 @@ def contour_corners(model: BodyModel, axes: np.ndarray, origins: np.ndarray) -> 
     Coordinates are the camera's (mm), components on the leading axis so that every elementwise step runs
     over long contiguous arrays: ``axes`` ``3 x 3 x B... x S`` (``axes[k, i]``: component ``i`` of the
     segment's axis ``k`` -- width, depth, cone axis), ``origins`` ``3 x B... x S`` (the segments' proximal
-    centres), any batch shape ``B``, in the dtype of the result. Returns ``3 x B... x S x 4``: the corners
+    centres), any batch shape ``B``, in the dtype of the result: numpy arrays, or torch tensors on any device
+    (one implementation for the CPU and device paths, written against the array API through
+    ``array_api_compat``). Returns ``3 x B... x S x 4``: the corners
     line 0 proximal, line 0 distal, line 1 proximal, line 1 distal.
 
     A ruling at angle ``phi`` is a contour line when the tangent plane along it contains the camera centre
@@ -88,22 +91,22 @@ def contour_corners(model: BodyModel, axes: np.ndarray, origins: np.ndarray) -> 
     straight ruling ``o + s L u_z + r(s) (cos phi u_x + d sin phi u_y)``, ``s`` = 0 and 1.
     """
     t = segment_table(model)
-    dt = origins.dtype.type
-    L, d, r0, r1 = (t[k].astype(dt) for k in ("length", "depth", "r0", "r1"))
+    xp, dev = namespace(origins), device(origins)
+    L, d, r0, r1 = (xp.asarray(t[k], dtype=origins.dtype, device=dev) for k in ("length", "depth", "r0", "r1"))
     # The camera centre in segment coordinates: -axes^T @ origin.
     cx, cy, cz = (-(axes[k, 0] * origins[0] + axes[k, 1] * origins[1] + axes[k, 2] * origins[2]) for k in range(3))
     A = (d * L) * cx
     B = L * cy
     C = d * (L * r0 + (r1 - r0) * cz)
-    norm = np.sqrt(A * A + B * B)
-    inv = 1.0 / np.maximum(norm, dt(1e-12))
-    cos_b = np.where(norm > 0, A * inv, dt(1.0))  # atan2(0, 0) = 0
+    norm = xp.sqrt(A * A + B * B)
+    inv = 1.0 / xp.maximum(norm, 1e-12)
+    cos_b = xp.where(norm > 0, A * inv, 1.0)  # atan2(0, 0) = 0
     sin_b = B * inv
-    ratio = np.clip(C * inv, -1.0, 1.0)
-    seen = np.abs(C) < norm
-    cos_h = np.where(seen, ratio, dt(0.0))  # half the angle between the lines: acos(ratio), else pi / 2
-    sin_h = np.where(seen, np.sqrt(1.0 - ratio * ratio), dt(1.0))
-    out = np.empty(origins.shape + (4,), origins.dtype)
+    ratio = xp.clip(C * inv, -1.0, 1.0)
+    seen = xp.abs(C) < norm
+    cos_h = xp.where(seen, ratio, 0.0)  # half the angle between the lines: acos(ratio), else pi / 2
+    sin_h = xp.where(seen, xp.sqrt(1.0 - ratio * ratio), 1.0)
+    out = xp.empty(tuple(origins.shape) + (4,), dtype=origins.dtype, device=dev)
     for line, sign in ((0, -1.0), (1, 1.0)):  # phi = base - half, base + half
         cos_p = cos_b * cos_h - sign * (sin_b * sin_h)
         dsin_p = d * (sin_b * cos_h + sign * (cos_b * sin_h))

@@ -170,7 +170,7 @@ class ParticleFilter:
         recovered = not weights.any_finite
         if recovered:
             x, history, weights = self._recover(state, frame_lik)
-            prior_state = self.prior.start(state.recent_estimates, cfg.n_particles, self.rng)
+            prior_state = self.prior.restart(state.prior_state, state.recent_estimates, cfg.n_particles, self.rng)
         W = weights.normalised
         mean = W @ x
         best = x[int(np.argmax(W))]

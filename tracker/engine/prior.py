@@ -61,6 +61,13 @@ class MotionPrior(ABC):
         order (Taylor 2009, Sec. 6.4: "growing" the history).
         """
 
+    def restart(self, state: PriorState, recent: np.ndarray, n_particles: int,
+                rng: np.random.Generator) -> PriorState:
+        """Per-particle state after the filter lost the person and re-diffused around its last estimates
+        ``recent`` ``N x D``; ``state`` is the state the lost frame started from. By default :meth:`start` from
+        ``recent``; a prior whose state counts frames (e.g. a schedule of style labels) carries the count on."""
+        return self.start(recent, n_particles, rng)
+
     def reindex(self, state: PriorState, idx: np.ndarray) -> PriorState:
         """Per-particle state after resampling picked particles ``idx``."""
         return reindex_state(state, idx)

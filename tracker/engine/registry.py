@@ -201,10 +201,12 @@ TRAINING_DATA_OPTIONS = (
 
 @dataclass(frozen=True)
 class LikelihoodContext:
-    """What a likelihood builder needs: the body model and the calibrated cameras of the tracked views."""
+    """What a likelihood builder needs: the body model, the calibrated cameras of the tracked views, and the torch
+    device to score on (``"cpu"``: the CPU path; ``"cuda"``, ``"cuda:N"``: a likelihood's device path)."""
 
     body_model: BodyModel
     rig: CameraRig
+    device: str = "cpu"
 
 
 @dataclass(frozen=True)
