@@ -36,10 +36,10 @@ def rollout(prior, past: np.ndarray, horizon: int) -> np.ndarray:
     """Predictions ``S x horizon x D`` from pasts ``S x HISTORY x D`` (each start is one batch row)."""
     n = prior.order
     hist = past[:, -n:]
-    # Each start's own pending step: the step between its last two true frames.
-    state = poses_to_invariant(past[:, -2:])[:, -1, list(STEP_FEATURES)]
-    out = []
     rng = np.random.default_rng(0)
+    state = prior.start(past[0], len(past), rng)  # the prior's state layout; then each start's own pending step,
+    state["step"] = poses_to_invariant(past[:, -2:])[:, -1, list(STEP_FEATURES)]  # between its last two frames
+    out = []
     for _ in range(horizon):
         x, state = prior.sample(hist, n, state, rng)
         hist = np.concatenate([hist[:, 1:], x[:, None]], axis=1)
