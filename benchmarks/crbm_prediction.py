@@ -25,26 +25,11 @@ from priors.crbm import CRBMConfig, CRBMPrior, train_crbm  # noqa: E402
 from tracker.core.body import DOF_NAMES  # noqa: E402
 from tracker.core.kinematics import markers  # noqa: E402
 from tracker.core.metrics import marker_error  # noqa: E402
-from tracker.core.representation import STEP_FEATURES, poses_to_invariant  # noqa: E402
+from rollout_error import rollout  # noqa: E402  (the benchmarks folder is the script's own)
 
 MOCAP = REPO.parent / "shared" / "mocap" / "cmu" / "07"
 HORIZON = 20
 HISTORY = 7
-
-
-def rollout(prior, past: np.ndarray, horizon: int) -> np.ndarray:
-    """Predictions ``S x horizon x D`` from pasts ``S x HISTORY x D`` (each start is one batch row)."""
-    n = prior.order
-    hist = past[:, -n:]
-    rng = np.random.default_rng(0)
-    state = prior.start(past[0], len(past), rng)  # the prior's state layout; then each start's own pending step,
-    state["step"] = poses_to_invariant(past[:, -2:])[:, -1, list(STEP_FEATURES)]  # between its last two frames
-    out = []
-    for _ in range(horizon):
-        x, state = prior.sample(hist, n, state, rng)
-        hist = np.concatenate([hist[:, 1:], x[:, None]], axis=1)
-        out.append(x)
-    return np.stack(out, axis=1)
 
 
 def main() -> None:
@@ -67,8 +52,9 @@ def main() -> None:
         m = train_crbm(train, CRBMConfig(order=order, hidden=150, epochs=500, cd_k=10), 60.0, DOF_NAMES,
                        rng=np.random.default_rng(0))
         print(f"order {order}: trained in {m.training_seconds:.1f} s", flush=True)
-        results[f"CRBM-{order} Gibbs"] = rollout(CRBMPrior([m], gibbs_steps=30, root_noise_mm=0.0), past, HORIZON)
-        results[f"CRBM-{order} free energy"] = rollout(CRBMPrior([m], mode="free-energy", root_noise_mm=0.0), past, HORIZON)
+        results[f"CRBM-{order} Gibbs"] = rollout(CRBMPrior([m], gibbs_steps=30, root_noise_mm=0.0), past, HORIZON, seed=0)
+        results[f"CRBM-{order} free energy"] = rollout(CRBMPrior([m], mode="free-energy", root_noise_mm=0.0), past, HORIZON,
+                                                       seed=0)
     table = {name: marker_error(markers(model, pred), truth).mean(axis=0) for name, pred in results.items()}
     steps = [1, 2, 3, 5, 10, 15, 20]
     print("M-step-ahead prediction error on 07_11 (mm, mean over", len(starts), "start frames)")

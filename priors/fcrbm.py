@@ -53,7 +53,7 @@ from priors.common import (
     torch_generator, checked_time_warp, time_warp_note,
 )
 from priors.contrastive import balanced_starts, minibatches, momentum_step, window_index
-from priors.crbm import CRBMPrior, _growth_orders, bernoulli, history_noise_scale, make_windows
+from priors.crbm import CRBM_TRAIN_OPTIONS, CRBMPrior, _growth_orders, bernoulli, history_noise_scale, make_windows
 from tracker.core.errors import InputError
 from tracker.core.representation import FeatureNormaliser, step_rms
 from tracker.engine.prior import PriorState
@@ -733,27 +733,28 @@ def train_fcrbm_prior(data: TrainingData, options: dict, rng: np.random.Generato
     return model
 
 
+def _crbm_option(name: str, **changes) -> Option:
+    """The CRBM's training option ``name`` (the settings the two share are declared once), with ``changes``."""
+    return replace(next(o for o in CRBM_TRAIN_OPTIONS if o.name == name), **changes)
+
+
 FCRBM_TRAIN_OPTIONS = (
     Option("labels", str, None, "one style label per training clip, in clip order, comma-separated "
                                 "(e.g. walk,walk,run)"),
-    Option("order", int, FCRBMConfig.order, "order N (default 3)", minimum=1, maximum=100),
-    Option("hidden", int, FCRBMConfig.hidden, "hidden units (default 150)", minimum=1, maximum=100000),
+    _crbm_option("order", default=FCRBMConfig.order, help=f"order N (default {FCRBMConfig.order})"),
+    _crbm_option("hidden", default=FCRBMConfig.hidden, help=f"hidden units (default {FCRBMConfig.hidden})"),
     Option("factors", int, FCRBMConfig.factors, "factors per sub-model (default 100)", minimum=1,
            maximum=100000),
     Option("features", int, FCRBMConfig.features, "real-valued style features (default 20)", minimum=1,
            maximum=100000),
-    Option("epochs", int, FCRBMConfig.epochs, "passes through the data (default 300)", minimum=1,
-           maximum=1000000),
-    Option("cd_k", int, 10, "Gibbs steps of contrastive divergence (default 10)", minimum=1,
-           maximum=10000),
-    Option("batch_size", int, 100, "windows per mini-batch (default 100)", minimum=1,
-           maximum=1000000),
+    _crbm_option("epochs", default=FCRBMConfig.epochs, help=f"passes through the data (default {FCRBMConfig.epochs})"),
+    _crbm_option("cd_k"),
+    _crbm_option("batch_size"),
     Option("learning_rate", float, FCRBMConfig.learning_rate, "learning rate (default 1e-2)", minimum=0.0),
     Option("autoregressive_learning_rate", float, FCRBMConfig.autoregressive_learning_rate,
            "learning rate of the autoregressive and label-to-feature weights (default 1e-3)", minimum=0.0),
-    Option("history_noise", str, "auto",
-           "std of the noise added to the history in training (normalised units), or 'auto' (default)"),
-    Option("grow_from", str, "1", "lower orders trained alongside and saved in the same file (default 1)"),
+    _crbm_option("history_noise"),
+    _crbm_option("grow_from"),
 )
 
 
