@@ -145,11 +145,12 @@ UNLEARNED_MOTION_OPTIONS = (
     Option("robust_adaptive", bool, False,
            "let the random walk's share follow the posterior mass its samples earned on the last frame, between "
            f"robust_fraction and {ROBUST_CAP} (default off)"),
-    Option("pace_spread", float, 0.0, "std of each particle's log pace, the factor between its ground steps and the "
-                                      "model's, at the start (default 0: the model's pace)", minimum=0.0,
-           maximum=3.0),
-    Option("pace_drift", float, 0.0, "std of the change of each particle's log pace per frame (default 0)",
-           minimum=0.0, maximum=1.0),
+    Option("pace_spread", float, None, "std of each particle's log pace at the start: the log factor between its "
+                                       "ground steps and the model's (default 0: the model's pace), or, for a CRBM "
+                                       "trained with --pace-input, around the known frames' pace (default 0.3)",
+           minimum=0.0, maximum=3.0),
+    Option("pace_drift", float, None, "std of the change of each particle's log pace per frame (default 0; 0.05 "
+                                      "for a CRBM trained with --pace-input)", minimum=0.0, maximum=1.0),
 )
 
 

@@ -49,7 +49,8 @@ from priors.common import (
 )
 from tracker.core.errors import InputError
 from tracker.core.representation import (
-    STEP_FEATURES, FeatureNormaliser, clip_features, next_poses, pending_step, poses_to_invariant, step_rms,
+    PACE_FLOOR_MM, STEP_FEATURES, FeatureNormaliser, clip_features, clip_log_pace, log_pace, next_poses, pending_step,
+    poses_to_invariant, step_rms,
 )
 from tracker.engine.prior import MotionPrior, PriorState
 from tracker.engine.registry import Option, PriorContext, TrainingData, register_prior
@@ -73,6 +74,9 @@ class CRBMConfig:
     history_noise: float | str = "auto"
     sparsity_target: float | None = None
     sparsity_cost: float = 0.1
+    #: Condition on each frame's pace (:func:`~tracker.core.representation.clip_log_pace`, one extra input before
+    #: the history), so that one model walks at every pace it was shown, at the pace the tracker gives it.
+    pace_input: bool = False
 
     def check(self) -> "CRBMConfig":
         for name in ("order", "hidden", "epochs", "cd_k", "batch_size"):
@@ -93,17 +97,21 @@ def bernoulli(p: torch.Tensor, generator: torch.Generator | None) -> torch.Tenso
 
 
 class CRBM:
-    """Parameters and inference of one CRBM (float32 tensors on one device)."""
+    """Parameters and inference of one CRBM (float32 tensors on one device).
+
+    With ``n_context`` > 0 the conditioning input is ``n_context`` numbers (the pace) followed by the history,
+    ``B x (n_context + N K)``; they drive the dynamic biases through the first rows of ``A`` and ``B``."""
 
     def __init__(self, n_visible: int, n_hidden: int, order: int, generator: torch.Generator | None = None,
-                 device: str | torch.device = "cpu"):
-        self.n_visible, self.n_hidden, self.order = n_visible, n_hidden, order
+                 device: str | torch.device = "cpu", n_context: int = 0):
+        self.n_visible, self.n_hidden, self.order, self.n_context = n_visible, n_hidden, order, n_context
         self.device = torch.device(device)
         g = generator
         kw = {"device": self.device, "dtype": torch.float32}
+        inputs = n_context + order * n_visible
         self.W = 0.01 * torch.randn(n_visible, n_hidden, generator=g, **kw)
-        self.A = 0.01 * torch.randn(order * n_visible, n_visible, generator=g, **kw)
-        self.B = 0.01 * torch.randn(order * n_visible, n_hidden, generator=g, **kw)
+        self.A = 0.01 * torch.randn(inputs, n_visible, generator=g, **kw)
+        self.B = 0.01 * torch.randn(inputs, n_hidden, generator=g, **kw)
         self.a = torch.zeros(n_visible, **kw)
         self.b = torch.zeros(n_hidden, **kw)
 
@@ -117,7 +125,8 @@ class CRBM:
             setattr(self, k, state[k].to(self.device, torch.float32))
 
     def biases(self, history: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Dynamic biases ``a_hat`` ``B x K`` and ``b_hat`` ``B x H`` from histories ``B x (N K)``."""
+        """Dynamic biases ``a_hat`` ``B x K`` and ``b_hat`` ``B x H`` from histories ``B x (C + N K)`` (the context
+        first, see the class docstring)."""
         return self.a + history @ self.A, self.b + history @ self.B
 
     def hidden_probabilities(self, v: torch.Tensor, b_hat: torch.Tensor) -> torch.Tensor:
@@ -175,11 +184,15 @@ class WindowData:
     frames: torch.Tensor
     starts: torch.Tensor
     normaliser: FeatureNormaliser
+    #: Each frame's log pace ``(T,)`` (:func:`~tracker.core.representation.clip_log_pace`), when asked for.
+    pace: np.ndarray | None = None
 
 
 def make_windows(clips: Sequence[np.ndarray], order: int, dof_names: Sequence[str],
-                 normaliser: FeatureNormaliser | None = None) -> WindowData:
+                 normaliser: FeatureNormaliser | None = None, pace_window: int | None = None) -> WindowData:
+    """The training windows of ``clips``; with ``pace_window`` (frames) also every frame's log pace."""
     normed, normaliser = clip_features(clips, dof_names, normaliser)
+    pace = None if pace_window is None else np.concatenate([clip_log_pace(c, pace_window) for c in clips])
     starts, offset = [], 0
     for f in normed:
         n = len(f) - order
@@ -189,7 +202,7 @@ def make_windows(clips: Sequence[np.ndarray], order: int, dof_names: Sequence[st
     if not starts:
         raise InputError(f"the training clips are too short for order {order} (need more than {order + 2} frames)")
     return WindowData(torch.tensor(np.concatenate(normed), dtype=torch.float32),
-                      torch.tensor(np.concatenate(starts)), normaliser)
+                      torch.tensor(np.concatenate(starts)), normaliser, pace)
 
 
 def history_noise_scale(data: WindowData) -> torch.Tensor:
@@ -220,17 +233,28 @@ class CRBMModel:
     growth: list["CRBMModel"] = field(default_factory=list)
     #: Playback speeds the training clips were replayed at (``train --time-warp``; [1.0]: as given).
     time_warp: list[float] = field(default_factory=lambda: [1.0])
+    #: With ``config.pace_input``: the mean and std of the training frames' log pace, which normalise the pace
+    #: input (:func:`~tracker.core.representation.clip_log_pace`); None otherwise.
+    pace_label: tuple[float, float] | None = None
 
     @property
     def order(self) -> int:
         return self.crbm.order
+
+    def pace_input(self, log_paces: np.ndarray) -> np.ndarray:
+        """The normalised pace input ``(P, 1)`` for log paces ``(P,)``."""
+        mean, std = self.pace_label
+        return ((np.asarray(log_paces, float) - mean) / std)[:, None]
 
     def summary(self) -> str:
         """One line on how training went."""
         errs = self.reconstruction_errors
         fit = f"reconstruction error {errs[0]:.4f} (epoch 1) -> {errs[-1]:.4f} (epoch {len(errs)}), " if errs else ""
         grow = f" (grows from order {', '.join(str(g.order) for g in self.growth)})" if self.growth else ""
-        return (f"CRBM order {self.order}{grow}, {self.crbm.n_hidden} hidden units{time_warp_note(self.time_warp)}: "
+        pace = "" if self.pace_label is None else \
+            f", paced (training paces {np.exp(self.pace_label[0]) - PACE_FLOOR_MM:.1f} mm/frame typical)"
+        return (f"CRBM order {self.order}{grow}, {self.crbm.n_hidden} hidden units{time_warp_note(self.time_warp)}"
+                f"{pace}: "
                 f"{fit}{self.training_seconds:.1f} s")
 
     def save(self, path: str | Path) -> None:
@@ -247,6 +271,7 @@ class CRBMModel:
             "reconstruction_errors": [float(e) for e in self.reconstruction_errors],
             "training_seconds": float(self.training_seconds),
             "growth": [g.to_document() for g in self.growth], "time_warp": [float(s) for s in self.time_warp],
+            "pace_label": None if self.pace_label is None else [float(x) for x in self.pace_label],
         }
 
     def check_compatible(self, body_model: str, dof_names: Sequence[str], fps: float | None,
@@ -281,9 +306,12 @@ def _model_from_document(doc: dict, path: Path, device: str) -> CRBMModel:
             raise InputError(f"CRBM weight W must be 2-D, got shape {tuple(params['W'].shape)}", path)
         K, H = params["W"].shape
         N = cfg.order
-        expected = {"W": (K, H), "A": (N * K, K), "B": (N * K, H), "a": (K,), "b": (H,)}
-        check_weights(params, expected, "CRBM weight", f"order {N} with {K} visible and {H} hidden units", path)
-        crbm = CRBM(K, H, N, device=device)
+        pace_label = _checked_pace_label(doc.get("pace_label"), cfg.pace_input, path)
+        C = int(cfg.pace_input)
+        expected = {"W": (K, H), "A": (C + N * K, K), "B": (C + N * K, H), "a": (K,), "b": (H,)}
+        check_weights(params, expected, "CRBM weight", f"order {N} with {K} visible and {H} hidden units"
+                      f"{' and a pace input' if C else ''}", path)
+        crbm = CRBM(K, H, N, device=device, n_context=C)
         crbm.load_state_dict(params)
         normaliser = normaliser_from_tensors(doc["normaliser"], path)
         if normaliser.n_kept != K:
@@ -300,13 +328,28 @@ def _model_from_document(doc: dict, path: Path, device: str) -> CRBMModel:
         return CRBMModel(crbm, normaliser, cfg, float(fps), str(doc["body_model"]), [str(n) for n in doc["dof_names"]],
                          [str(n) for n in doc["sources"]], step.numpy(), [float(e) for e in doc["reconstruction_errors"]],
                          float(doc["training_seconds"]), growth,
-                         checked_time_warp(doc.get("time_warp"), "CRBM", path))
+                         checked_time_warp(doc.get("time_warp"), "CRBM", path), pace_label)
     except InputError:
         raise
     except KeyError as exc:
         raise InputError(f"CRBM model file lacks {exc.args[0]!r}", path) from None
     except (TypeError, ValueError, AttributeError, RuntimeError) as exc:
         raise InputError(f"CRBM model file is malformed ({type(exc).__name__}: {str(exc)[:100]})", path) from None
+
+
+def _checked_pace_label(value, pace_input: bool, path: Path) -> tuple[float, float] | None:
+    """A model file's ``pace_label`` (mean and std of the training log paces), present exactly when the model
+    was trained with a pace input; anything else is an InputError naming the file."""
+    if not pace_input:
+        if value is not None:
+            raise InputError("CRBM model file has a pace_label but was not trained with a pace input", path)
+        return None
+    if not isinstance(value, (list, tuple)) or len(value) != 2 or not all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in value) \
+            or not value[1] > 0:
+        raise InputError(f"CRBM model file's pace_label must be [mean, std > 0] of the training log paces, "
+                         f"got {value!r}", path)
+    return float(value[0]), float(value[1])
 
 
 # ---------------------------------------------------------------------------
@@ -327,20 +370,24 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
     cfg = config.check()
     t0 = time.perf_counter()
     g = torch_generator(rng, device)
-    data = make_windows(clips, cfg.order, dof_names)
+    data = make_windows(clips, cfg.order, dof_names, pace_window=pace_window(fps) if cfg.pace_input else None)
     frames = data.frames.to(device)
-    K, N, H = frames.shape[1], cfg.order, cfg.hidden
-    crbm = CRBM(K, H, N, generator=g, device=device)
+    K, N, H, C = frames.shape[1], cfg.order, cfg.hidden, int(cfg.pace_input)
+    crbm = CRBM(K, H, N, generator=g, device=device, n_context=C)
     noise = history_noise_scale(data).to(device) if cfg.history_noise == "auto" else \
         torch.full((K,), float(cfg.history_noise), device=device)
-    noise = noise.repeat(N)
+    noise = torch.cat([torch.zeros(C, device=device), noise.repeat(N)])  # the pace input is given, not noisy
+    pace_label, pace = None, None
+    if cfg.pace_input:
+        pace_label = (float(np.mean(data.pace)), max(float(np.std(data.pace)), 1e-3))
+        pace = torch.tensor((data.pace - pace_label[0]) / pace_label[1], dtype=torch.float32, device=device)
     steps = torch.arange(N + 1, device=device)
     velocity = {k: torch.zeros_like(getattr(crbm, k)) for k in CRBM.PARAMS}
     rates = {"W": cfg.learning_rate, "A": cfg.autoregressive_learning_rate, "B": cfg.learning_rate,
              "a": cfg.learning_rate, "b": cfg.learning_rate}
     activity = torch.full((H,), cfg.sparsity_target or 0.0, device=device)
     model = CRBMModel(crbm, data.normaliser, cfg, fps, body_model, list(dof_names), list(sources),
-                      step_rms(clips))
+                      step_rms(clips), pace_label=pace_label)
     starts = data.starts.to(device)
     first_epoch, seconds_before = 0, 0.0
     if resume is not None:
@@ -359,6 +406,8 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
             window = frames[idx]
             v0 = window[:, -1]
             hist = window[:, :-1].reshape(len(idx), N * K)
+            if pace is not None:  # the pace of the frame to predict
+                hist = torch.cat([pace[idx[:, -1], None], hist], dim=1)
             if cfg.history_noise:
                 hist = hist + torch.randn(hist.shape, generator=g, device=device) * noise
             a_hat, b_hat = crbm.biases(hist)
@@ -403,6 +452,11 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
     return model
 
 
+def pace_window(fps: float) -> int:
+    """Frames of the centred window a training frame's pace is averaged over: one second."""
+    return max(int(round(fps)), 1)
+
+
 # ---------------------------------------------------------------------------
 # As a tracking prior
 # ---------------------------------------------------------------------------
@@ -413,6 +467,13 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
 #: and 1.51, 1.46, 1.35 with one view (within the seeds' spread; only order 3 was measured), and 5 steps sample about
 #: 5x faster than 30 (the CRBM's largest cost).
 GIBBS_STEPS = 5
+
+#: Defaults of ``pace_spread`` and ``pace_drift`` for a model trained with a pace input (``train --pace-input``):
+#: the std of each particle's initial log pace around the known frames' pace, and of its change per frame.
+#: Chosen a priori, before any tracking run: 0.3 covers a pace 0.55-1.8 times the known frames' within two
+#: standard deviations; 0.05 per frame lets the pace move by about 0.4 (a factor 1.5) in a second at 60 Hz, the
+#: time over which the training labels average.
+PACED_SPREAD, PACED_DRIFT = 0.3, 0.05
 
 
 class CRBMPrior(MotionPrior):
@@ -426,7 +487,10 @@ class CRBMPrior(MotionPrior):
     a dict of ``step`` ``P x 3``, the pending step (:data:`~tracker.core.representation.STEP_FEATURES`) of
     the newest history frame, which the previous sample chose; ``log_pace`` ``(P,)``, the log factor between
     the particle's ground steps and the model's (``pace_spread``/``pace_drift``, see
-    :func:`priors.common.scale_ground_steps`); and ``walked`` ``(P,)``, whether its latest sample came from
+    :func:`priors.common.scale_ground_steps`); for models trained with a pace input instead ``pace`` ``(P,)``,
+    the particle's own log pace (:func:`~tracker.core.representation.log_pace`), which the model is given and
+    which starts at the known frames' pace with std ``pace_spread`` and drifts by ``pace_drift`` per frame
+    (``log_pace`` then stays 0); and ``walked`` ``(P,)``, whether its latest sample came from
     the robust option's random walk (``robust_fraction``, adapted to the posterior when ``robust_adaptive``,
     see :func:`priors.common.robust_share`). Each sample's torch generator is seeded from the filter's
     generator.
@@ -437,7 +501,7 @@ class CRBMPrior(MotionPrior):
     def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = GIBBS_STEPS,
                  device: str = "cpu", mode: str = "gibbs", root_noise_mm: float = ROOT_NOISE_MM,
                  robust_fraction: float = 0.0, heading_noise: float = 0.0, robust_adaptive: bool = False,
-                 pace_spread: float = 0.0, pace_drift: float = 0.0):
+                 pace_spread: float | None = None, pace_drift: float | None = None):
         if not models:
             raise InputError("the CRBM prior needs at least one model")
         by_order = {m.order: m for m in models}
@@ -449,6 +513,13 @@ class CRBMPrior(MotionPrior):
         for m in self.models[1:]:
             if m.dof_names != first.dof_names or abs(m.fps - first.fps) > 1e-6 or m.body_model != first.body_model:
                 raise InputError("CRBM models for one prior must share body model, pose layout and frame rate")
+            if (m.pace_label is None) != (first.pace_label is None):
+                raise InputError("CRBM models for one prior must all have a pace input or none")
+        self.paced = first.pace_label is not None
+        if self.paced:
+            self.summary_names = ("pace (mm/frame)",)
+        pace_spread = (PACED_SPREAD if self.paced else 0.0) if pace_spread is None else pace_spread
+        pace_drift = (PACED_DRIFT if self.paced else 0.0) if pace_drift is None else pace_drift
         if gibbs_steps < 1:
             raise InputError(f"Gibbs steps must be at least 1, got {gibbs_steps}")
         if mode not in ("gibbs", "free-energy"):
@@ -497,9 +568,13 @@ class CRBMPrior(MotionPrior):
         each particle's log pace, and no random-walk samples yet. Refuses known frames too few for every model
         (a higher order never runs on a padded history)."""
         self.model_for(min(len(np.atleast_2d(known)), self.order))
-        return {"step": np.repeat(pending_step(known)[None], n_particles, axis=0),
-                "log_pace": start_log_pace(n_particles, self.pace_spread, rng),
-                "walked": np.zeros(n_particles, bool)}
+        step = pending_step(known)
+        state = {"step": np.repeat(step[None], n_particles, axis=0),
+                 "log_pace": start_log_pace(n_particles, 0.0 if self.paced else self.pace_spread, rng),
+                 "walked": np.zeros(n_particles, bool)}
+        if self.paced:
+            state["pace"] = log_pace(step) + start_log_pace(n_particles, self.pace_spread, rng)
+        return state
 
     def sample(self, history: np.ndarray, available: int, state: PriorState,
                rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
@@ -511,8 +586,12 @@ class CRBMPrior(MotionPrior):
         feats[:, -1, step] = state["step"]
         previous = feats[:, -1].copy()  # the newest frame's features with the step the particle takes
         scale_ground_steps(feats, np.exp(-state["log_pace"]))  # the history at the model's pace
-        z = model.normaliser.transform(feats)  # P x n x K
-        hist = torch.tensor(z.reshape(len(z), -1), dtype=torch.float32, device=self.device)
+        z = model.normaliser.transform(feats).reshape(len(feats), -1)  # P x (n K)
+        pace = None
+        if self.paced:  # the model is told each particle's pace, which drifts first
+            pace = drift_log_pace(state["pace"], self.pace_drift, rng)
+            z = np.concatenate([model.pace_input(pace), z], axis=1)
+        hist = torch.tensor(z, dtype=torch.float32, device=self.device)
         generator = torch_generator(rng, self.device)
         if self.mode == "free-energy":  # the deterministic best guess (eq. 4.19)
             v = model.crbm.best_guess(hist)
@@ -520,7 +599,7 @@ class CRBMPrior(MotionPrior):
             if self.mode == "gibbs":
                 v = model.crbm.gibbs(hist, self.gibbs_steps, generator)
         f_next = model.normaliser.inverse(v.cpu().double().numpy())
-        log_pace = drift_log_pace(state["log_pace"], self.pace_drift, rng)
+        log_pace = state["log_pace"] if self.paced else drift_log_pace(state["log_pace"], self.pace_drift, rng)
         scale_ground_steps(f_next, np.exp(log_pace))  # the predicted step at the particle's pace
         poses = add_ground_diffusion(next_poses(history[:, -1], previous, f_next), self.root_noise_mm, rng)
         add_heading_diffusion(poses, history[:, -1], self.heading_noise, rng)
@@ -528,7 +607,16 @@ class CRBMPrior(MotionPrior):
         share = robust_share(state["walked"], self.robust_fraction, self.robust_adaptive)
         walked = mix_in_random_walk(poses, history[:, -1], model.pose_step_rms, share, rng)
         pending[walked] = steps_taken(history[walked, -1], poses[walked])
-        return poses, {"step": pending, "log_pace": log_pace, "walked": walked}
+        new = {"step": pending, "log_pace": log_pace, "walked": walked}
+        if pace is not None:
+            new["pace"] = pace
+        return poses, new
+
+    def summarize(self, state: PriorState, weights: np.ndarray) -> np.ndarray | None:
+        """With a pace input: the posterior mean pace ``(1,)`` in mm/frame (ground speed); else None."""
+        if not self.paced:
+            return None
+        return np.array([float(np.sum(weights * (np.exp(state["pace"]) - PACE_FLOOR_MM)))])
 
     def diffusion_std(self) -> np.ndarray:
         return self.models[-1].pose_step_rms
@@ -552,7 +640,7 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
             raise InputError(f"history noise must lie in [0, 100] (normalised units), got {noise!r}")
     config = CRBMConfig(order=options["order"], hidden=options["hidden"], epochs=options["epochs"],
                         cd_k=options["cd_k"], batch_size=options["batch_size"], history_noise=noise,
-                        sparsity_target=options["sparsity"]).check()
+                        sparsity_target=options["sparsity"], pace_input=options["pace_input"]).check()
     grow = _growth_orders(options["grow_from"], config.order)
     every = options["checkpoint_every"] or 0
     orders = grow + [config.order]
@@ -624,6 +712,9 @@ CRBM_TRAIN_OPTIONS = (
     Option("checkpoint_every", int, None, "also save the model every this many epochs", minimum=1),
     Option("grow_from", str, "1", "lower orders trained alongside and saved in the same file, which grow the "
                                   "history from the known frames (Taylor 2009, Sec. 6.4); 'none' to skip (default 1)"),
+    Option("pace_input", bool, False, "condition the model on each frame's pace (log ground speed averaged over one "
+                                      "second), which each particle carries while tracking; train it on clips of "
+                                      "several paces, e.g. with --time-warp (default off)"),
 )
 
 

@@ -287,7 +287,7 @@ def train_deep_crbm_prior(data: TrainingData, options: dict, rng: np.random.Gene
     return DeepCRBMModel(bottom, top, top_cfg, errors, time.perf_counter() - t0)
 
 
-DEEP_TRAIN_OPTIONS = tuple(o for o in CRBM_TRAIN_OPTIONS if o.name != "checkpoint_every") + (
+DEEP_TRAIN_OPTIONS = tuple(o for o in CRBM_TRAIN_OPTIONS if o.name not in ("checkpoint_every", "pace_input")) + (
     Option("top_order", int, TopConfig.order, "order M of the second layer (default 2)", minimum=1, maximum=100),
     Option("top_hidden", int, TopConfig.hidden, "hidden units of the second layer (default 100)", minimum=1,
            maximum=100000),

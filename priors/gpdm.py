@@ -1066,7 +1066,7 @@ def build_gpdm(context: PriorContext, model_files: Sequence[Path], options: dict
     try:
         return GPDMPrior(model, noise_scale=options["latent_noise"], root_noise_mm=options["root_noise"],
                          robust_fraction=options["robust_fraction"], robust_adaptive=options["robust_adaptive"],
-                         pace_spread=options["pace_spread"], pace_drift=options["pace_drift"])
+                         pace_spread=options["pace_spread"] or 0.0, pace_drift=options["pace_drift"] or 0.0)
     except InputError as exc:  # a kernel matrix of the file's hyperparameters that is not positive definite
         if exc.path is not None:
             raise

@@ -237,6 +237,32 @@ def pending_step(known: np.ndarray) -> np.ndarray:
     return poses_to_invariant(known[-2:])[-1, list(STEP_FEATURES)]
 
 
+#: Ground speed (mm/frame) added before taking the log of a pace, so a standing person's pace stays finite.
+PACE_FLOOR_MM = 2.0
+
+
+def log_pace(step: np.ndarray) -> np.ndarray:
+    """The log pace ``log(PACE_FLOOR_MM + ground speed)`` of root steps ``(..., 2+)`` whose first two numbers are
+    the forward and lateral step (mm/frame, :data:`ROOT_FEATURE_NAMES`)."""
+    step = np.asarray(step, float)
+    return np.log(PACE_FLOOR_MM + np.hypot(step[..., 0], step[..., 1]))
+
+
+def clip_log_pace(poses: np.ndarray, window: int) -> np.ndarray:
+    """Each frame's pace ``(T - 1,)`` of a clip ``T x D`` (one per frame that :func:`clip_features` keeps): the log
+    of :data:`PACE_FLOOR_MM` plus the ground speed (mm/frame) averaged over ``window`` frames centred on the frame
+    (fewer at the clip's ends). The label a pace-conditioned prior learns its gait speed from: it follows a
+    start, a stop or a change of pace over about ``window`` frames, and not the speed's rise and fall within one
+    stride."""
+    feats = poses_to_invariant(np.asarray(poses, float))[:-1]
+    speed = np.hypot(feats[:, 0], feats[:, 1])
+    half = max(int(window), 1) // 2
+    csum = np.concatenate([[0.0], np.cumsum(speed)])
+    idx = np.arange(len(speed))
+    lo, hi = np.maximum(idx - half, 0), np.minimum(idx + half + 1, len(speed))
+    return np.log(PACE_FLOOR_MM + (csum[hi] - csum[lo]) / (hi - lo))
+
+
 def step_rms(clips: Sequence[np.ndarray]) -> np.ndarray:
     """RMS frame-to-frame change ``(D,)`` over pose sequences (each ``T x D``, T >= 2): the random-walk scale
     of the hand-made priors and the one-step diffusion scale of the learned ones (mm or rad per frame)."""

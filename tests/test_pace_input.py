@@ -1,0 +1,120 @@
+"""The CRBM's pace input (``train --pace-input``): the pace label of training frames, a model whose gait speed
+follows the pace it is given, the per-particle pace while tracking, and the model file's checks."""
+import numpy as np
+import pytest
+import torch
+
+from priors.crbm import CRBMConfig, CRBMPrior, PACED_DRIFT, PACED_SPREAD, load_crbm, train_crbm
+from tracker.core.body import DOF_NAMES, fifteen_cone_model
+from tracker.core.errors import InputError
+from tracker.core.representation import PACE_FLOOR_MM, clip_log_pace, poses_to_invariant
+from tracker.core.timewarp import exp_map_triples, time_warp_clip
+
+TRIPLES = exp_map_triples(fifteen_cone_model())
+
+
+@pytest.fixture(scope="module")
+def walk_07_01(mocap_dir):
+    from data_tools.asf_amc import asf_amc_clip
+    from data_tools.retarget import retarget
+
+    torch.set_num_threads(1)
+    return retarget(asf_amc_clip(mocap_dir / "07" / "07.asf", mocap_dir / "07" / "07_01.amc"), fps=60).poses
+
+
+@pytest.fixture(scope="module")
+def paced(walk_07_01):
+    """A paced CRBM-3 (with its order-1 growth model) on 07_01 replayed at speeds 0.5, 1 and 1.5."""
+    clips = [time_warp_clip(walk_07_01, s, TRIPLES) for s in (0.5, 1.0, 1.5)]
+    cfg = CRBMConfig(order=3, hidden=100, epochs=150, pace_input=True)
+    rng = np.random.default_rng(3)
+    model = train_crbm(clips, cfg, 60.0, DOF_NAMES, rng=rng)
+    model.growth = [train_crbm(clips, CRBMConfig(order=1, hidden=100, epochs=150, pace_input=True), 60.0,
+                               DOF_NAMES, rng=rng)]
+    return model
+
+
+def test_the_pace_label_is_the_log_of_the_smoothed_ground_speed(walk_07_01):
+    pace = clip_log_pace(walk_07_01, 60)
+    slow = clip_log_pace(time_warp_clip(walk_07_01, 0.5, TRIPLES), 60)
+    feats = poses_to_invariant(walk_07_01)[:-1]
+    speed = np.hypot(feats[:, 0], feats[:, 1])
+    assert pace.shape == (len(walk_07_01) - 1,)
+    assert np.exp(pace[80]) - PACE_FLOOR_MM == pytest.approx(speed[50:111].mean())  # centred window of 61 frames
+    # Half the playback speed, half the ground speed (the middles of both clips: the same part of the walk).
+    ratio = (np.exp(slow[len(slow) // 2]) - PACE_FLOOR_MM) / (np.exp(pace[len(pace) // 2]) - PACE_FLOOR_MM)
+    assert ratio == pytest.approx(0.5, abs=0.05)
+    standing = np.repeat(walk_07_01[:1], 20, axis=0)
+    assert np.allclose(clip_log_pace(standing, 60), np.log(PACE_FLOOR_MM))  # finite for a person standing still
+
+
+def test_the_model_walks_at_the_pace_it_is_given(paced, walk_07_01):
+    """Rolled out for 90 frames from the same real history, the ground speed follows the pace input: the
+    slower the pace given, the slower the walk, whatever the history's own speed."""
+    prior = CRBMPrior([paced], gibbs_steps=5, pace_spread=0.0, pace_drift=0.0, root_noise_mm=0.0)
+    rng = np.random.default_rng(0)
+    speeds = []
+    for mm_per_frame in (8.0, 16.0, 24.0):
+        history = np.repeat(walk_07_01[None, 57:60], 20, axis=0)
+        state = prior.start(walk_07_01[:60], 20, rng)
+        state["pace"][:] = np.log(PACE_FLOOR_MM + mm_per_frame)
+        for _ in range(90):
+            poses, state = prior.sample(history, 3, state, rng)
+            history = np.concatenate([history[:, 1:], poses[:, None]], axis=1)
+        speeds.append(np.mean(np.hypot(*(history[:, -1, :2] - walk_07_01[59, :2]).T)) / 90)
+    assert speeds[1] > 1.15 * speeds[0] and speeds[2] > 1.15 * speeds[1], speeds  # mm/frame
+
+
+def test_each_particle_starts_at_the_known_pace_and_drifts(paced, walk_07_01):
+    prior = CRBMPrior([paced])
+    assert (prior.pace_spread, prior.pace_drift) == (PACED_SPREAD, PACED_DRIFT)
+    rng = np.random.default_rng(1)
+    state = prior.start(walk_07_01[:60], 4000, rng)
+    step = poses_to_invariant(walk_07_01[58:60])[-1]
+    known = np.log(PACE_FLOOR_MM + np.hypot(step[0], step[1]))
+    assert np.mean(state["pace"]) == pytest.approx(known, abs=0.02)
+    assert np.std(state["pace"]) == pytest.approx(PACED_SPREAD, rel=0.05)
+    assert np.all(state["log_pace"] == 0)  # a paced model's ground steps are its own, never rescaled
+    history = np.repeat(walk_07_01[None, 57:60], 4000, axis=0)
+    _, after = prior.sample(history, 3, state, rng)
+    assert np.std(after["pace"] - state["pace"]) == pytest.approx(PACED_DRIFT, rel=0.05)
+    weights = np.full(4000, 1 / 4000)
+    assert prior.summarize(after, weights)[0] == pytest.approx(np.mean(np.exp(after["pace"]) - PACE_FLOOR_MM))
+    assert prior.summary_names == ("pace (mm/frame)",)
+
+
+def test_a_paced_model_file_round_trips_and_samples_alike(paced, walk_07_01, tmp_path):
+    path = tmp_path / "paced.pt"
+    paced.save(path)
+    loaded = load_crbm(path)
+    assert loaded.pace_label == pytest.approx(paced.pace_label)
+    assert [g.pace_label for g in loaded.growth] == [pytest.approx(paced.growth[0].pace_label)]
+    history = np.repeat(walk_07_01[None, 57:60], 8, axis=0)
+    draws = []
+    for model in (paced, loaded):
+        prior = CRBMPrior([model])
+        rng = np.random.default_rng(5)
+        draws.append(prior.sample(history, 3, prior.start(walk_07_01[:60], 8, rng), rng)[0])
+    assert np.allclose(draws[0], draws[1], atol=1e-9)
+
+
+def test_paced_model_files_are_checked(paced, tmp_path):
+    doc = paced.to_document()
+    for change, message in (({"pace_label": None}, "pace_label must be"),
+                            ({"pace_label": [2.0, 0.0]}, "pace_label must be"),
+                            ({"pace_label": [float("nan"), 0.3]}, "pace_label must be"),
+                            ({"config": {**doc["config"], "pace_input": False}}, "not trained with a pace input")):
+        path = tmp_path / "bad.pt"
+        torch.save({**doc, **change}, path)
+        with pytest.raises(InputError, match=message) as err:
+            load_crbm(path)
+        assert str(path) in str(err.value)
+
+
+def test_paced_and_unpaced_models_do_not_mix(paced, walk_07_01):
+    plain = train_crbm([walk_07_01], CRBMConfig(order=1, hidden=20, epochs=2), 60.0, DOF_NAMES,
+                       rng=np.random.default_rng(0))
+    with pytest.raises(InputError, match="pace input or none"):
+        CRBMPrior([plain, paced])
+    assert CRBMPrior([plain]).pace_spread == 0.0  # the unpaced defaults are unchanged
+    assert plain.to_document()["pace_label"] is None
