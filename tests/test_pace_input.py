@@ -118,3 +118,27 @@ def test_paced_and_unpaced_models_do_not_mix(paced, walk_07_01):
         CRBMPrior([plain, paced])
     assert CRBMPrior([plain]).pace_spread == 0.0  # the unpaced defaults are unchanged
     assert plain.to_document()["pace_label"] is None
+
+
+def test_train_and_track_a_paced_model_from_the_command_line(mocap_dir, walk_32_frames, tmp_path):
+    """``train --pace-input --time-warp`` writes a paced model file; ``track`` with it records the posterior mean
+    pace per frame in result.json and draws it."""
+    import json
+    import subprocess
+    import sys
+
+    model = tmp_path / "paced.pt"
+    r = subprocess.run([sys.executable, "-m", "tracker", "train", "--prior", "crbm", "--mocap",
+                        str(mocap_dir / "07" / "07_01.amc"), "--order", "2", "--epochs", "5", "--hidden", "20",
+                        "--pace-input", "--time-warp", "0.7,1", "--out", str(model)], capture_output=True, text=True)
+    assert r.returncode == 0 and "paced" in r.stdout, r.stderr[-500:]
+    out = tmp_path / "t"
+    r = subprocess.run([sys.executable, "-m", "tracker", "track", str(walk_32_frames.root), "--prior", "crbm",
+                        "--model", str(model), "--particles", "100", "--frames", "6", "--out", str(out)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-500:]
+    result = json.loads((out / "result.json").read_text())
+    summary = result["prior_summary"]
+    assert summary["names"] == ["pace (mm/frame)"] and len(summary["per_frame"]) == result["frames"]
+    assert all(0 < row[0] < 100 for row in summary["per_frame"])  # a walker's ground speed, mm per frame
+    assert (out / "prior_summary.png").stat().st_size > 0

@@ -90,14 +90,17 @@ class TrackingResult:
     @property
     def prior_summary(self) -> dict[str, Any] | None:
         """The prior's per-frame summary as written to ``result.json``: ``names``, ``first_frame``, ``per_frame``
-        (one row per tracked frame) and ``most_probable`` (the name of each row's largest entry); None without."""
+        (one row per tracked frame) and, for a posterior over several names, ``most_probable`` (the name of each
+        row's largest entry); None without."""
         rows = self.records.get("prior_summary")
         if not self.summary_names or rows is None:
             return None
         rows = np.asarray(rows, float).reshape(-1, len(self.summary_names))
-        return {"names": list(self.summary_names), "first_frame": self.first_tracked,
-                "per_frame": [[round(float(x), 4) for x in r] for r in rows],
-                "most_probable": [self.summary_names[int(k)] for k in np.argmax(rows, axis=1)]}
+        out = {"names": list(self.summary_names), "first_frame": self.first_tracked,
+               "per_frame": [[round(float(x), 4) for x in r] for r in rows]}
+        if len(self.summary_names) > 1:
+            out["most_probable"] = [self.summary_names[int(k)] for k in np.argmax(rows, axis=1)]
+        return out
 
     def to_dict(self) -> dict[str, Any]:
         """The content of ``result.json``."""
