@@ -452,6 +452,16 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
     return model
 
 
+def shift_height(features: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """Invariant features ``P x ... x K`` with the root height (mm) of every frame moved by ``offset`` ``(P,)``
+    mm, in place. The CRBM predicts the absolute root height of the people it was trained on; a shorter or
+    taller person's heights, moved to the training subjects' mean before the model sees them and back after,
+    keep the person's own height (``relative_height``)."""
+    shape = (len(offset),) + (1,) * (features.ndim - 1)
+    features[..., 2:3] += np.asarray(offset, float).reshape(shape)
+    return features
+
+
 def pace_window(fps: float) -> int:
     """Frames of the centred window a training frame's pace is averaged over: one second."""
     return max(int(round(fps)), 1)
@@ -490,7 +500,9 @@ class CRBMPrior(MotionPrior):
     :func:`priors.common.scale_ground_steps`); for models trained with a pace input instead ``pace`` ``(P,)``,
     the particle's own log pace (:func:`~tracker.core.representation.log_pace`), which the model is given and
     which starts at the known frames' pace with std ``pace_spread`` and drifts by ``pace_drift`` per frame
-    (``log_pace`` then stays 0); and ``walked`` ``(P,)``, whether its latest sample came from
+    (``log_pace`` then stays 0); with ``relative_height``, ``height`` ``(P,)``, the known frames' mean root
+    height (mm), by which the model's heights are shifted (see :func:`shift_height`); and ``walked`` ``(P,)``,
+    whether its latest sample came from
     the robust option's random walk (``robust_fraction``, adapted to the posterior when ``robust_adaptive``,
     see :func:`priors.common.robust_share`). Each sample's torch generator is seeded from the filter's
     generator.
@@ -501,7 +513,7 @@ class CRBMPrior(MotionPrior):
     def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = GIBBS_STEPS,
                  device: str = "cpu", mode: str = "gibbs", root_noise_mm: float = ROOT_NOISE_MM,
                  robust_fraction: float = 0.0, heading_noise: float = 0.0, robust_adaptive: bool = False,
-                 pace_spread: float | None = None, pace_drift: float | None = None):
+                 pace_spread: float | None = None, pace_drift: float | None = None, relative_height: bool = False):
         if not models:
             raise InputError("the CRBM prior needs at least one model")
         by_order = {m.order: m for m in models}
@@ -538,6 +550,7 @@ class CRBMPrior(MotionPrior):
         if not (pace_spread >= 0 and pace_drift >= 0):
             raise InputError(f"pace spread and drift must be non-negative (log units), got {pace_spread}, {pace_drift}")
         self.pace_spread, self.pace_drift = float(pace_spread), float(pace_drift)
+        self.relative_height = bool(relative_height)
         self.order = self.models[-1].order
         self.gibbs_steps = gibbs_steps
         self.device = torch.device(device)
@@ -549,7 +562,8 @@ class CRBMPrior(MotionPrior):
         return {"orders": [m.order for m in self.models], "gibbs_steps": self.gibbs_steps,
                 "root_noise_mm": self.root_noise_mm, "mode": self.mode, "robust_fraction": self.robust_fraction,
                 "robust_adaptive": self.robust_adaptive, "heading_noise_rad": self.heading_noise,
-                "pace_spread": self.pace_spread, "pace_drift": self.pace_drift}
+                "pace_spread": self.pace_spread, "pace_drift": self.pace_drift,
+                "relative_height": self.relative_height}
 
     def model_for(self, available: int) -> CRBMModel:
         """The highest-order model whose history is all real poses (never a padded history)."""
@@ -574,6 +588,8 @@ class CRBMPrior(MotionPrior):
                  "walked": np.zeros(n_particles, bool)}
         if self.paced:
             state["pace"] = log_pace(step) + start_log_pace(n_particles, self.pace_spread, rng)
+        if self.relative_height:
+            state["height"] = np.full(n_particles, float(np.mean(np.atleast_2d(known)[:, 2])))
         return state
 
     def sample(self, history: np.ndarray, available: int, state: PriorState,
@@ -585,6 +601,8 @@ class CRBMPrior(MotionPrior):
                                    np.concatenate([history[:, :1], history], axis=1))[:, -n:]
         feats[:, -1, step] = state["step"]
         previous = feats[:, -1].copy()  # the newest frame's features with the step the particle takes
+        if self.relative_height:  # the history at the training subjects' height
+            shift_height(feats, model.normaliser.mean[2] - state["height"])
         scale_ground_steps(feats, np.exp(-state["log_pace"]))  # the history at the model's pace
         z = model.normaliser.transform(feats).reshape(len(feats), -1)  # P x (n K)
         pace = None
@@ -601,6 +619,8 @@ class CRBMPrior(MotionPrior):
         f_next = model.normaliser.inverse(v.cpu().double().numpy())
         log_pace = state["log_pace"] if self.paced else drift_log_pace(state["log_pace"], self.pace_drift, rng)
         scale_ground_steps(f_next, np.exp(log_pace))  # the predicted step at the particle's pace
+        if self.relative_height:  # and the prediction at the person's
+            shift_height(f_next, state["height"] - model.normaliser.mean[2])
         poses = add_ground_diffusion(next_poses(history[:, -1], previous, f_next), self.root_noise_mm, rng)
         add_heading_diffusion(poses, history[:, -1], self.heading_noise, rng)
         pending = f_next[:, step]
@@ -610,6 +630,8 @@ class CRBMPrior(MotionPrior):
         new = {"step": pending, "log_pace": log_pace, "walked": walked}
         if pace is not None:
             new["pace"] = pace
+        if self.relative_height:
+            new["height"] = state["height"]
         return poses, new
 
     def summarize(self, state: PriorState, weights: np.ndarray) -> np.ndarray | None:
@@ -728,7 +750,10 @@ CRBM_TRAIN_OPTIONS = (
              *UNLEARNED_MOTION_OPTIONS,
              Option("heading_noise", float, 0.0, "diffusion of each sample's heading in rad per frame, so that the "
                                                  "likelihood can correct an integrated heading (default 0)",
-                    minimum=0.0, maximum=math.pi)))
+                    minimum=0.0, maximum=math.pi),
+             Option("relative_height", bool, False, "keep the person's own root height: the model's heights are "
+                                                    "moved by the known frames' mean root height minus the "
+                                                    "training frames' (default off)")))
 def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> CRBMPrior:
     models = [load_crbm(m, device=context.device) for m in model_files]
     for path, m in zip(model_files, models):
@@ -736,4 +761,5 @@ def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict
     return CRBMPrior(models, gibbs_steps=options["gibbs_steps"], root_noise_mm=options["root_noise"],
                      device=context.device, robust_fraction=options["robust_fraction"],
                      heading_noise=options["heading_noise"], robust_adaptive=options["robust_adaptive"],
-                     pace_spread=options["pace_spread"], pace_drift=options["pace_drift"])
+                     pace_spread=options["pace_spread"], pace_drift=options["pace_drift"],
+                     relative_height=options["relative_height"])

@@ -142,3 +142,21 @@ def test_train_and_track_a_paced_model_from_the_command_line(mocap_dir, walk_32_
     assert summary["names"] == ["pace (mm/frame)"] and len(summary["per_frame"]) == result["frames"]
     assert all(0 < row[0] < 100 for row in summary["per_frame"])  # a walker's ground speed, mm per frame
     assert (out / "prior_summary.png").stat().st_size > 0
+
+
+def test_relative_height_keeps_a_shorter_persons_own_height(paced, walk_07_01):
+    """The same walk 100 mm lower (a shorter person): with ``relative_height`` the sampled root heights follow
+    the person's, without it the model pulls them back up toward the training subject's."""
+    lowered = walk_07_01.copy()
+    lowered[:, 2] -= 100.0
+    errors = {}
+    for relative in (False, True):
+        prior = CRBMPrior([paced], pace_spread=0.0, pace_drift=0.0, relative_height=relative)
+        rng = np.random.default_rng(2)
+        history = np.repeat(lowered[None, 57:60], 50, axis=0)
+        state = prior.start(lowered[:60], 50, rng)
+        for t in range(60, 90):
+            poses, state = prior.sample(history, 3, state, rng)
+            history = np.concatenate([history[:, 1:], poses[:, None]], axis=1)
+        errors[relative] = float(np.mean(history[:, -1, 2]) - lowered[89, 2])  # mm above the person's root
+    assert abs(errors[True]) < 25 and errors[False] > 50, errors
