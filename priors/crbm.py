@@ -462,6 +462,20 @@ def shift_height(features: np.ndarray, offset: np.ndarray) -> np.ndarray:
     return features
 
 
+#: Least spread (std of the training frames' log pace) for which ``train`` gives a CRBM a pace input by default:
+#: a 10% spread of paces. One person's walks vary by less (subject 7's four walks: 0.07; one walk: 0.01), and a
+#: model trained on them could not learn what the input means; the walks of three or more of the shared subjects
+#: vary by 0.14-0.58 (set a priori from these spreads, not from tracking results).
+PACE_SPREAD_FOR_INPUT = 0.1
+
+
+def paces_vary(clips: Sequence[np.ndarray], fps: float) -> bool:
+    """Whether the clips' frames (each clip ``T x D`` at ``fps``) vary in pace enough for a pace input
+    (:data:`PACE_SPREAD_FOR_INPUT`)."""
+    paces = np.concatenate([clip_log_pace(c, pace_window(fps)) for c in clips])
+    return bool(np.std(paces) >= PACE_SPREAD_FOR_INPUT)
+
+
 def pace_window(fps: float) -> int:
     """Frames of the centred window a training frame's pace is averaged over: one second."""
     return max(int(round(fps)), 1)
@@ -660,9 +674,12 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
             raise InputError(f"history noise must be 'auto' or a number, got {noise!r}") from None
         if not 0 <= noise <= 100:
             raise InputError(f"history noise must lie in [0, 100] (normalised units), got {noise!r}")
+    pace_input = options["pace_input"]
+    if pace_input is None:  # auto: only clips of several paces can teach the model what a pace means
+        pace_input = paces_vary(data.clips, data.fps)
     config = CRBMConfig(order=options["order"], hidden=options["hidden"], epochs=options["epochs"],
                         cd_k=options["cd_k"], batch_size=options["batch_size"], history_noise=noise,
-                        sparsity_target=options["sparsity"], pace_input=options["pace_input"]).check()
+                        sparsity_target=options["sparsity"], pace_input=pace_input).check()
     grow = _growth_orders(options["grow_from"], config.order)
     every = options["checkpoint_every"] or 0
     orders = grow + [config.order]
@@ -734,9 +751,10 @@ CRBM_TRAIN_OPTIONS = (
     Option("checkpoint_every", int, None, "also save the model every this many epochs", minimum=1),
     Option("grow_from", str, "1", "lower orders trained alongside and saved in the same file, which grow the "
                                   "history from the known frames (Taylor 2009, Sec. 6.4); 'none' to skip (default 1)"),
-    Option("pace_input", bool, False, "condition the model on each frame's pace (log ground speed averaged over one "
-                                      "second), which each particle carries while tracking; train it on clips of "
-                                      "several paces, e.g. with --time-warp (default off)"),
+    Option("pace_input", bool, None, "condition the model on each frame's pace (log ground speed averaged over one "
+                                     "second), which each particle carries while tracking (default: on when the "
+                                     f"clips' paces vary, std of log pace >= {PACE_SPREAD_FOR_INPUT:g}, e.g. the "
+                                     "walks of several people; --no-pace-input to turn it off)"),
 )
 
 

@@ -274,6 +274,7 @@ def train_deep_crbm_prior(data: TrainingData, options: dict, rng: np.random.Gene
     bottom_options = resolve_options("training crbm", CRBM_TRAIN_OPTIONS,
                                      {k: v for k, v in options.items() if k in crbm_options and v is not None})
     bottom_options["checkpoint_every"] = None
+    bottom_options["pace_input"] = False  # the second layer is trained on, and samples through, a plain first layer
     top_cfg = TopConfig(order=options["top_order"], hidden=options["top_hidden"], epochs=options["top_epochs"],
                         cd_k=bottom_options["cd_k"], batch_size=bottom_options["batch_size"]).check()
     stages = 1 + len(_growth_orders(bottom_options["grow_from"], bottom_options["order"]))

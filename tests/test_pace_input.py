@@ -160,3 +160,10 @@ def test_relative_height_keeps_a_shorter_persons_own_height(paced, walk_07_01):
             history = np.concatenate([history[:, 1:], poses[:, None]], axis=1)
         errors[relative] = float(np.mean(history[:, -1, 2]) - lowered[89, 2])  # mm above the person's root
     assert abs(errors[True]) < 25 and errors[False] > 50, errors
+
+
+def test_by_default_a_pace_input_only_for_clips_of_several_paces(walk_07_01):
+    from priors.crbm import paces_vary
+
+    assert not paces_vary([walk_07_01], 60.0)  # one walk: a 1% spread of paces
+    assert paces_vary([walk_07_01, time_warp_clip(walk_07_01, 0.6, TRIPLES)], 60.0)

@@ -246,8 +246,8 @@ def _add_plugin_options(parser: argparse.ArgumentParser, declared: dict[str, tup
             raise InputError(f"plugin option {o.flag} clashes with a flag of the {parser.prog.split()[-1]} command; "
                              "rename the option")
         text = "; ".join(users[name])
-        if o.type is bool:
-            parser.add_argument(o.flag, dest=name, action="store_true", default=None, help=text)
+        if o.type is bool:  # --flag and --no-flag: a setting that is on by default can be turned off
+            parser.add_argument(o.flag, dest=name, action=argparse.BooleanOptionalAction, default=None, help=text)
         else:
             parser.add_argument(o.flag, dest=name, type=_option_type(o), default=None,
                                 metavar=o.name.upper(), help=text)
