@@ -498,6 +498,11 @@ GIBBS_STEPS = 5
 #: standard deviations; 0.05 per frame lets the pace move by about 0.4 (a factor 1.5) in a second at 60 Hz, the
 #: time over which the training labels average.
 PACED_SPREAD, PACED_DRIFT = 0.3, 0.05
+#: Default ``pace_jump`` of a paced model: the probability per frame that a particle's pace is drawn afresh from
+#: the training frames' paces. Added after test fold 131 (a start, a walk and a stop), where the particles' paces
+#: settled at standing while the person started slowly and stayed there when he walked on; a particle that jumps
+#: can pick up a start or a stop within a few frames (20 of 1000 particles try a new pace every frame).
+PACED_JUMP = 0.02
 
 
 class CRBMPrior(MotionPrior):
@@ -513,8 +518,9 @@ class CRBMPrior(MotionPrior):
     the particle's ground steps and the model's (``pace_spread``/``pace_drift``, see
     :func:`priors.common.scale_ground_steps`); for models trained with a pace input instead ``pace`` ``(P,)``,
     the particle's own log pace (:func:`~tracker.core.representation.log_pace`), which the model is given and
-    which starts at the known frames' pace with std ``pace_spread`` and drifts by ``pace_drift`` per frame
-    (``log_pace`` then stays 0); with ``relative_height``, ``height`` ``(P,)``, the known frames' mean root
+    which starts at the known frames' pace with std ``pace_spread``, drifts by ``pace_drift`` per frame, is drawn
+    afresh from the training paces with probability ``pace_jump`` per frame and never falls below standing
+    still (``log_pace`` then stays 0); with ``relative_height``, ``height`` ``(P,)``, the known frames' mean root
     height (mm), by which the model's heights are shifted (see :func:`shift_height`); and ``walked`` ``(P,)``,
     whether its latest sample came from
     the robust option's random walk (``robust_fraction``, adapted to the posterior when ``robust_adaptive``,
@@ -527,7 +533,8 @@ class CRBMPrior(MotionPrior):
     def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = GIBBS_STEPS,
                  device: str = "cpu", mode: str = "gibbs", root_noise_mm: float = ROOT_NOISE_MM,
                  robust_fraction: float = 0.0, heading_noise: float = 0.0, robust_adaptive: bool = False,
-                 pace_spread: float | None = None, pace_drift: float | None = None, relative_height: bool = False):
+                 pace_spread: float | None = None, pace_drift: float | None = None, relative_height: bool = False,
+                 pace_jump: float | None = None):
         if not models:
             raise InputError("the CRBM prior needs at least one model")
         by_order = {m.order: m for m in models}
@@ -546,6 +553,10 @@ class CRBMPrior(MotionPrior):
             self.summary_names = ("pace (mm/frame)",)
         pace_spread = (PACED_SPREAD if self.paced else 0.0) if pace_spread is None else pace_spread
         pace_drift = (PACED_DRIFT if self.paced else 0.0) if pace_drift is None else pace_drift
+        pace_jump = (PACED_JUMP if self.paced else 0.0) if pace_jump is None else pace_jump
+        if not 0.0 <= pace_jump <= 1.0:
+            raise InputError(f"pace jump must be a probability in [0, 1], got {pace_jump}")
+        self.pace_jump = float(pace_jump)
         if gibbs_steps < 1:
             raise InputError(f"Gibbs steps must be at least 1, got {gibbs_steps}")
         if mode not in ("gibbs", "free-energy"):
@@ -577,7 +588,7 @@ class CRBMPrior(MotionPrior):
                 "root_noise_mm": self.root_noise_mm, "mode": self.mode, "robust_fraction": self.robust_fraction,
                 "robust_adaptive": self.robust_adaptive, "heading_noise_rad": self.heading_noise,
                 "pace_spread": self.pace_spread, "pace_drift": self.pace_drift,
-                "relative_height": self.relative_height}
+                "relative_height": self.relative_height, "pace_jump": self.pace_jump}
 
     def model_for(self, available: int) -> CRBMModel:
         """The highest-order model whose history is all real poses (never a padded history)."""
@@ -601,7 +612,8 @@ class CRBMPrior(MotionPrior):
                  "log_pace": start_log_pace(n_particles, 0.0 if self.paced else self.pace_spread, rng),
                  "walked": np.zeros(n_particles, bool)}
         if self.paced:
-            state["pace"] = log_pace(step) + start_log_pace(n_particles, self.pace_spread, rng)
+            state["pace"] = np.maximum(log_pace(step) + start_log_pace(n_particles, self.pace_spread, rng),
+                                       np.log(PACE_FLOOR_MM))
         if self.relative_height:
             state["height"] = np.full(n_particles, float(np.mean(np.atleast_2d(known)[:, 2])))
         return state
@@ -620,8 +632,8 @@ class CRBMPrior(MotionPrior):
         scale_ground_steps(feats, np.exp(-state["log_pace"]))  # the history at the model's pace
         z = model.normaliser.transform(feats).reshape(len(feats), -1)  # P x (n K)
         pace = None
-        if self.paced:  # the model is told each particle's pace, which drifts first
-            pace = drift_log_pace(state["pace"], self.pace_drift, rng)
+        if self.paced:  # the model is told each particle's pace, which drifts (and may jump) first
+            pace = self.next_pace(model, state["pace"], rng)
             z = np.concatenate([model.pace_input(pace), z], axis=1)
         hist = torch.tensor(z, dtype=torch.float32, device=self.device)
         generator = torch_generator(rng, self.device)
@@ -647,6 +659,17 @@ class CRBMPrior(MotionPrior):
         if self.relative_height:
             new["height"] = state["height"]
         return poses, new
+
+    def next_pace(self, model: CRBMModel, pace: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Each particle's log pace ``(P,)`` one frame on: a random-walk step of ``pace_drift``, with probability
+        ``pace_jump`` a fresh draw from the training frames' paces (Gaussian, ``model.pace_label``), never below
+        standing still (``log(PACE_FLOOR_MM)``)."""
+        pace = np.array(drift_log_pace(pace, self.pace_drift, rng), float)
+        if self.pace_jump > 0:
+            jump = rng.random(len(pace)) < self.pace_jump
+            mean, std = model.pace_label
+            pace[jump] = mean + std * rng.standard_normal(int(jump.sum()))
+        return np.maximum(pace, np.log(PACE_FLOOR_MM))
 
     def summarize(self, state: PriorState, weights: np.ndarray) -> np.ndarray | None:
         """With a pace input: the posterior mean pace ``(1,)`` in mm/frame (ground speed); else None."""
@@ -769,6 +792,9 @@ CRBM_TRAIN_OPTIONS = (
              Option("heading_noise", float, 0.0, "diffusion of each sample's heading in rad per frame, so that the "
                                                  "likelihood can correct an integrated heading (default 0)",
                     minimum=0.0, maximum=math.pi),
+             Option("pace_jump", float, None, "probability per frame that a particle's pace is drawn afresh from "
+                                              f"the training paces (CRBMs trained with a pace input; default "
+                                              f"{PACED_JUMP:g})", minimum=0.0, maximum=1.0),
              Option("relative_height", bool, False, "keep the person's own root height: the model's heights are "
                                                     "moved by the known frames' mean root height minus the "
                                                     "training frames' (default off)")))
@@ -780,4 +806,4 @@ def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict
                      device=context.device, robust_fraction=options["robust_fraction"],
                      heading_noise=options["heading_noise"], robust_adaptive=options["robust_adaptive"],
                      pace_spread=options["pace_spread"], pace_drift=options["pace_drift"],
-                     relative_height=options["relative_height"])
+                     relative_height=options["relative_height"], pace_jump=options["pace_jump"])

@@ -616,7 +616,7 @@ class FCRBMPrior(CRBMPrior):
         # sampling options this prior leaves at the CRBM prior's defaults (pose step, see class docstring):
         self.mode, self.robust_fraction, self.robust_adaptive, self.pace_spread, self.pace_drift, self.paced = \
             "gibbs", 0.0, False, 0.0, 0.0, False
-        self.relative_height = False
+        self.relative_height, self.pace_jump = False, 0.0
         self.root_noise_mm, self.heading_noise = float(root_noise_mm), float(heading_noise)
         self.gibbs_steps, self.order = int(gibbs_steps), self.models[-1].order
         self.device = torch.device(device)

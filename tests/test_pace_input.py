@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from priors.crbm import CRBMConfig, CRBMPrior, PACED_DRIFT, PACED_SPREAD, load_crbm, train_crbm
+from priors.crbm import CRBMConfig, CRBMPrior, PACED_DRIFT, PACED_JUMP, PACED_SPREAD, load_crbm, train_crbm
 from tracker.core.body import DOF_NAMES, fifteen_cone_model
 from tracker.core.errors import InputError
 from tracker.core.representation import PACE_FLOOR_MM, clip_log_pace, poses_to_invariant
@@ -51,7 +51,7 @@ def test_the_pace_label_is_the_log_of_the_smoothed_ground_speed(walk_07_01):
 def test_the_model_walks_at_the_pace_it_is_given(paced, walk_07_01):
     """Rolled out for 90 frames from the same real history, the ground speed follows the pace input: the
     slower the pace given, the slower the walk, whatever the history's own speed."""
-    prior = CRBMPrior([paced], gibbs_steps=5, pace_spread=0.0, pace_drift=0.0, root_noise_mm=0.0)
+    prior = CRBMPrior([paced], gibbs_steps=5, pace_spread=0.0, pace_drift=0.0, pace_jump=0.0, root_noise_mm=0.0)
     rng = np.random.default_rng(0)
     speeds = []
     for mm_per_frame in (8.0, 16.0, 24.0):
@@ -77,7 +77,10 @@ def test_each_particle_starts_at_the_known_pace_and_drifts(paced, walk_07_01):
     assert np.all(state["log_pace"] == 0)  # a paced model's ground steps are its own, never rescaled
     history = np.repeat(walk_07_01[None, 57:60], 4000, axis=0)
     _, after = prior.sample(history, 3, state, rng)
-    assert np.std(after["pace"] - state["pace"]) == pytest.approx(PACED_DRIFT, rel=0.05)
+    moved = after["pace"] - state["pace"]
+    jumped = np.abs(moved) > 5 * PACED_DRIFT  # the jumps: fresh draws from the training paces
+    assert np.mean(jumped) == pytest.approx(PACED_JUMP, abs=0.01)
+    assert np.std(moved[~jumped]) == pytest.approx(PACED_DRIFT, rel=0.05)
     weights = np.full(4000, 1 / 4000)
     assert prior.summarize(after, weights)[0] == pytest.approx(np.mean(np.exp(after["pace"]) - PACE_FLOOR_MM))
     assert prior.summary_names == ("pace (mm/frame)",)
@@ -151,7 +154,7 @@ def test_relative_height_keeps_a_shorter_persons_own_height(paced, walk_07_01):
     lowered[:, 2] -= 100.0
     errors = {}
     for relative in (False, True):
-        prior = CRBMPrior([paced], pace_spread=0.0, pace_drift=0.0, relative_height=relative)
+        prior = CRBMPrior([paced], pace_spread=0.0, pace_drift=0.0, pace_jump=0.0, relative_height=relative)
         rng = np.random.default_rng(2)
         history = np.repeat(lowered[None, 57:60], 50, axis=0)
         state = prior.start(lowered[:60], 50, rng)
@@ -167,3 +170,18 @@ def test_by_default_a_pace_input_only_for_clips_of_several_paces(walk_07_01):
 
     assert not paces_vary([walk_07_01], 60.0)  # one walk: a 1% spread of paces
     assert paces_vary([walk_07_01, time_warp_clip(walk_07_01, 0.6, TRIPLES)], 60.0)
+
+
+def test_a_pace_never_falls_below_standing_and_jumps_come_from_the_training_paces(paced, walk_07_01):
+    prior = CRBMPrior([paced], pace_drift=0.5, pace_jump=0.5)
+    rng = np.random.default_rng(4)
+    low = np.full(20000, np.log(PACE_FLOOR_MM) - 0.2)
+    out = prior.next_pace(paced, low, rng)
+    assert out.min() == pytest.approx(np.log(PACE_FLOOR_MM))  # a negative ground speed means nothing
+    fresh = prior.next_pace(paced, np.full(20000, 10.0), rng)  # far above every training pace
+    drawn = fresh[np.abs(fresh - 10.0) > 3]
+    assert len(drawn) / 20000 == pytest.approx(0.5, abs=0.02)
+    assert np.mean(drawn) == pytest.approx(paced.pace_label[0], abs=0.02)
+    assert np.std(drawn) == pytest.approx(paced.pace_label[1], rel=0.05)
+    with pytest.raises(InputError, match="pace jump"):
+        CRBMPrior([paced], pace_jump=1.5)
