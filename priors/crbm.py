@@ -325,6 +325,8 @@ def _model_from_document(doc: dict, path: Path, device: str) -> CRBMModel:
             raise InputError("CRBM model file's pose_step_rms must be finite, non-negative, one per pose number",
                              path)
         growth = [_model_from_document(g, path, device) for g in doc.get("growth", [])]
+        if any(g.config.pace_input != cfg.pace_input for g in growth):
+            raise InputError("CRBM model file's growth models and main model differ in having a pace input", path)
         return CRBMModel(crbm, normaliser, cfg, float(fps), str(doc["body_model"]), [str(n) for n in doc["dof_names"]],
                          [str(n) for n in doc["sources"]], step.numpy(), [float(e) for e in doc["reconstruction_errors"]],
                          float(doc["training_seconds"]), growth,
@@ -476,6 +478,20 @@ def paces_vary(clips: Sequence[np.ndarray], fps: float) -> bool:
     return bool(np.std(paces) >= PACE_SPREAD_FOR_INPUT)
 
 
+def given_clips(data: TrainingData) -> list[np.ndarray]:
+    """The clips as given, before ``--time-warp`` replayed them: of each given clip, its copy at the speed nearest
+    1 (the clip itself when the speeds include 1). The pace input's default looks at these, so the warp alone
+    does not turn it on."""
+    if not data.origins:
+        return list(data.clips)
+    speeds = [data.time_warp[i % len(data.time_warp)] for i in range(len(data.clips))]
+    best: dict[int, int] = {}
+    for i, origin in enumerate(data.origins):
+        if origin not in best or abs(speeds[i] - 1) < abs(speeds[best[origin]] - 1):
+            best[origin] = i
+    return [data.clips[best[o]] for o in sorted(best)]
+
+
 def pace_window(fps: float) -> int:
     """Frames of the centred window a training frame's pace is averaged over: one second."""
     return max(int(round(fps)), 1)
@@ -530,6 +546,10 @@ class CRBMPrior(MotionPrior):
     """
 
     name = "crbm"
+    #: Class defaults of the settings a subclass that bypasses ``__init__`` (the FCRBM prior) leaves off.
+    paced: bool = False
+    relative_height: bool = False
+    pace_jump: float = 0.0
 
     def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = GIBBS_STEPS,
                  device: str = "cpu", mode: str = "gibbs", root_noise_mm: float = ROOT_NOISE_MM,
@@ -551,12 +571,14 @@ class CRBMPrior(MotionPrior):
                 raise InputError("CRBM models for one prior must all have a pace input or none")
         self.paced = first.pace_label is not None
         if self.paced:
-            self.summary_names = ("pace (mm/frame)",)
+            self.summary_names, self.summary_kind = ("pace (mm/frame)",), "quantity"
         pace_spread = (PACED_SPREAD if self.paced else 0.0) if pace_spread is None else pace_spread
         pace_drift = (PACED_DRIFT if self.paced else 0.0) if pace_drift is None else pace_drift
         pace_jump = (PACED_JUMP if self.paced else 0.0) if pace_jump is None else pace_jump
         if not 0.0 <= pace_jump <= 1.0:
             raise InputError(f"pace jump must be a probability in [0, 1], got {pace_jump}")
+        if pace_jump > 0 and not self.paced:
+            raise InputError("pace jump needs a CRBM trained with a pace input (train --pace-input); this one has none")
         self.pace_jump = float(pace_jump)
         if gibbs_steps < 1:
             raise InputError(f"Gibbs steps must be at least 1, got {gibbs_steps}")
@@ -700,7 +722,7 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
             raise InputError(f"history noise must lie in [0, 100] (normalised units), got {noise!r}")
     pace_input = options["pace_input"]
     if pace_input is None:  # auto: only clips of several paces can teach the model what a pace means
-        pace_input = paces_vary(data.clips, data.fps)
+        pace_input = paces_vary(given_clips(data), data.fps)
     config = CRBMConfig(order=options["order"], hidden=options["hidden"], epochs=options["epochs"],
                         cd_k=options["cd_k"], batch_size=options["batch_size"], history_noise=noise,
                         sparsity_target=options["sparsity"], pace_input=pace_input).check()
@@ -714,8 +736,10 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
         if checkpoint is None or not checkpoint.exists():
             raise InputError("no training checkpoint to resume from", checkpoint)
         doc = read_model_file(checkpoint, CHECKPOINT_FORMAT, "CRBM training checkpoint")
-        if "training_state" not in doc or doc.get("stage_orders") != orders:
-            raise InputError("the checkpoint is not of this training (other orders or a finished model)", checkpoint)
+        if "training_state" not in doc or doc.get("stage_orders") != orders \
+                or bool(doc.get("config", {}).get("pace_input", False)) != config.pace_input:
+            raise InputError("the checkpoint is not of this training (other orders, another pace input or a finished "
+                             "model)", checkpoint)
         done = [_model_from_document(g, checkpoint, "cpu") for g in doc["growth"]]
         state = doc["training_state"]
         for _ in done:  # the draws the finished stages took from rng

@@ -195,6 +195,8 @@ def load_deep_crbm(path: str | Path, device: str = "cpu") -> DeepCRBMModel:
     doc = read_model_file(path, FORMAT, "deep CRBM")
     try:
         bottom = _model_from_document(doc["bottom"], path, device)
+        if bottom.pace_label is not None:
+            raise InputError("deep CRBM's first layer has a pace input, which the deep prior does not use", path)
         unknown = sorted(set(doc["top_config"]) - set(TopConfig.__dataclass_fields__))
         if unknown:
             raise InputError(f"deep CRBM model file has unknown settings {', '.join(unknown)}", path)

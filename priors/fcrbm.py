@@ -614,9 +614,8 @@ class FCRBMPrior(CRBMPrior):
         # CRBMPrior.__init__ is not called: it moves ``m.crbm`` weights (an FCRBM model has ``fcrbm``) and checks
         # no labels. Every attribute CRBMPrior.start/sample/model_for/settings read is set here instead; the
         # sampling options this prior leaves at the CRBM prior's defaults (pose step, see class docstring):
-        self.mode, self.robust_fraction, self.robust_adaptive, self.pace_spread, self.pace_drift, self.paced = \
-            "gibbs", 0.0, False, 0.0, 0.0, False
-        self.relative_height, self.pace_jump = False, 0.0
+        self.mode, self.robust_fraction, self.robust_adaptive, self.pace_spread, self.pace_drift = \
+            "gibbs", 0.0, False, 0.0, 0.0  # the pace input's attributes keep CRBMPrior's class defaults (off)
         self.root_noise_mm, self.heading_noise = float(root_noise_mm), float(heading_noise)
         self.gibbs_steps, self.order = int(gibbs_steps), self.models[-1].order
         self.device = torch.device(device)

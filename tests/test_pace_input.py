@@ -78,9 +78,7 @@ def test_each_particle_starts_at_the_known_pace_and_drifts(paced, walk_07_01):
     history = np.repeat(walk_07_01[None, 57:60], 4000, axis=0)
     _, after = prior.sample(history, 3, state, rng)
     moved = after["pace"] - state["pace"]
-    jumped = np.abs(moved) > 5 * PACED_DRIFT  # the jumps: fresh draws from the training paces
-    assert np.mean(jumped) == pytest.approx(PACED_JUMP, abs=0.01)  # none by default
-    assert np.std(moved[~jumped]) == pytest.approx(PACED_DRIFT, rel=0.05)
+    assert PACED_JUMP == 0 and np.std(moved) == pytest.approx(PACED_DRIFT, rel=0.05)  # no jumps by default
     weights = np.full(4000, 1 / 4000)
     assert prior.summarize(after, weights)[0] == pytest.approx(np.mean(np.exp(after["pace"]) - PACE_FLOOR_MM))
     assert prior.summary_names == ("pace (mm/frame)",)
@@ -101,9 +99,12 @@ def test_a_paced_model_file_round_trips_and_samples_alike(paced, walk_07_01, tmp
     assert np.allclose(draws[0], draws[1], atol=1e-9)
 
 
-def test_paced_model_files_are_checked(paced, tmp_path):
+def test_paced_model_files_are_checked(paced, walk_07_01, tmp_path):
     doc = paced.to_document()
+    growth = train_crbm([walk_07_01], CRBMConfig(order=1, hidden=20, epochs=2), 60.0, DOF_NAMES,
+                        rng=np.random.default_rng(0)).to_document()  # a valid order-1 model without the input
     for change, message in (({"pace_label": None}, "pace_label must be"),
+                            ({"growth": [growth]}, "growth models and main model differ"),
                             ({"pace_label": [2.0, 0.0]}, "pace_label must be"),
                             ({"pace_label": [float("nan"), 0.3]}, "pace_label must be"),
                             ({"config": {**doc["config"], "pace_input": False}}, "not trained with a pace input")):
@@ -166,10 +167,39 @@ def test_relative_height_keeps_a_shorter_persons_own_height(paced, walk_07_01):
 
 
 def test_by_default_a_pace_input_only_for_clips_of_several_paces(walk_07_01):
-    from priors.crbm import paces_vary
+    from priors.crbm import given_clips, paces_vary
+    from tracker.engine.registry import TrainingData
 
     assert not paces_vary([walk_07_01], 60.0)  # one walk: a 1% spread of paces
     assert paces_vary([walk_07_01, time_warp_clip(walk_07_01, 0.6, TRIPLES)], 60.0)
+    # The default looks at the clips as given: --time-warp alone does not make a paced model.
+    data = TrainingData((walk_07_01,), 60.0, fifteen_cone_model(), ("07_01.amc",)).time_warped("0.6,0.9,1.3")
+    assert [len(c) for c in given_clips(data)] == [len(data.clips[1])]  # the copy at 0.9, nearest 1
+    assert not paces_vary(given_clips(data), 60.0)
+
+
+def test_every_experiment_pins_the_pace_input_of_its_crbms():
+    """An experiment's CRBM rows keep measuring what their published table measured whatever train's default."""
+    import tomllib
+    from pathlib import Path
+
+    files = sorted((Path(__file__).parents[1] / "benchmarks" / "experiments").rglob("*.toml"))
+    assert files
+    for f in files:
+        for prior in tomllib.loads(f.read_text()).get("prior", []):
+            if prior.get("name") == "crbm":
+                for entry in prior.get("train", []):
+                    assert "pace_input" in entry.get("options", {}), (f.name, prior.get("label"))
+
+
+def test_a_deep_crbm_file_with_a_paced_first_layer_is_refused(paced, tmp_path):
+    from priors.deep_crbm import load_deep_crbm
+
+    path = tmp_path / "deep.pt"
+    torch.save({"format": "pose-tracker deep-crbm v1", "bottom": paced.to_document()}, path)
+    with pytest.raises(InputError, match="first layer has a pace input") as err:
+        load_deep_crbm(path)
+    assert str(path) in str(err.value)
 
 
 def test_a_pace_never_falls_below_standing_and_jumps_come_from_the_training_paces(paced, walk_07_01):
@@ -185,3 +215,7 @@ def test_a_pace_never_falls_below_standing_and_jumps_come_from_the_training_pace
     assert np.std(drawn) == pytest.approx(paced.pace_label[1], rel=0.05)
     with pytest.raises(InputError, match="pace jump"):
         CRBMPrior([paced], pace_jump=1.5)
+    plain = train_crbm([walk_07_01], CRBMConfig(order=1, hidden=20, epochs=2), 60.0, DOF_NAMES,
+                       rng=np.random.default_rng(0))
+    with pytest.raises(InputError, match="pace input"):  # a setting that would do nothing is refused
+        CRBMPrior([plain], pace_jump=0.1)

@@ -553,7 +553,8 @@ def cmd_track(args: argparse.Namespace) -> int:
     if run.prior_summary is not None:  # e.g. the FCRBM's posterior over style labels, per frame
         from tracker.app.visualize import summary_plot
 
-        summary_plot(out / "prior_summary.png", run.prior_summary, f"{args.prior}: posterior per frame")
+        kind = "posterior" if run.summary_kind == "posterior" else "posterior mean"
+        summary_plot(out / "prior_summary.png", run.prior_summary, f"{args.prior}: {kind} per frame")
     if run.recovered_frames:
         print(f"warning: no particle explained frame(s) {result['recovered_frames']}; the filter re-diffused "
               f"around its last estimate", file=sys.stderr)

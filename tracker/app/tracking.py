@@ -47,6 +47,8 @@ class TrackingResult:
     records: dict[str, np.ndarray]
     settings: dict[str, Any] = field(default_factory=dict)
     summary_names: list[str] = field(default_factory=list)
+    #: The prior's :attr:`~tracker.engine.prior.MotionPrior.summary_kind`.
+    summary_kind: str = "posterior"
 
     @property
     def tracked_frames(self) -> list[int]:
@@ -90,15 +92,15 @@ class TrackingResult:
     @property
     def prior_summary(self) -> dict[str, Any] | None:
         """The prior's per-frame summary as written to ``result.json``: ``names``, ``first_frame``, ``per_frame``
-        (one row per tracked frame) and, for a posterior over several names, ``most_probable`` (the name of each
-        row's largest entry); None without."""
+        (one row per tracked frame), ``kind`` (``"posterior"`` or ``"quantity"``) and, for a posterior,
+        ``most_probable`` (the name of each row's largest entry); None without."""
         rows = self.records.get("prior_summary")
         if not self.summary_names or rows is None:
             return None
         rows = np.asarray(rows, float).reshape(-1, len(self.summary_names))
-        out = {"names": list(self.summary_names), "first_frame": self.first_tracked,
+        out = {"names": list(self.summary_names), "first_frame": self.first_tracked, "kind": self.summary_kind,
                "per_frame": [[round(float(x), 4) for x in r] for r in rows]}
-        if len(self.summary_names) > 1:
+        if self.summary_kind == "posterior":
             out["most_probable"] = [self.summary_names[int(k)] for k in np.argmax(rows, axis=1)]
         return out
 
@@ -220,6 +222,7 @@ def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, conf
     else:  # the result needs these whatever else the caller records
         record = list(record) + [k for k in ("mean_poses", "best_poses") if k not in record]
     names = list(prior.summary_names)
+    summary = (names, prior.summary_kind)
     if names and isinstance(record, dict):
         record.setdefault("prior_summary", lambda s: s.prior_summary)
     elif names and "prior_summary" not in record:
@@ -257,19 +260,19 @@ def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, conf
             recording.values[name] = recording.values[name][:done]
         if checkpoint is not None and last["state"] is not None:
             save_checkpoint(checkpoint, last["state"], recording, last["rng"], fingerprint)
-        partial = _result(seq, known, n0, recording.result(), gt, T, names) if done else None
+        partial = _result(seq, known, n0, recording.result(), gt, T, summary) if done else None
         raise TrackingInterrupted(partial, checkpoint if last["state"] is not None else None) from None
     if checkpoint is not None:
         Path(checkpoint).unlink(missing_ok=True)  # complete: nothing to resume
-    return _result(seq, known, n0, records, gt, T, names)
+    return _result(seq, known, n0, records, gt, T, summary)
 
 
 def _result(seq: Sequence, known: np.ndarray, n0: int, records: dict, gt, T: int,
-            summary_names: Seq[str] = ()) -> TrackingResult:
+            summary: tuple[Seq[str], str] = ((), "posterior")) -> TrackingResult:
     D = seq.model.n_dofs
     poses = np.concatenate([known[:n0], records["mean_poses"].reshape(-1, D)])
     best = np.concatenate([known[:n0], records["best_poses"].reshape(-1, D)])
     est_markers = model_markers(seq.model, poses)
     errors = None if gt is None else marker_error(est_markers[n0:], gt.markers[n0:len(poses)])
     return TrackingResult(poses=poses, markers=est_markers, best_poses=best, first_tracked=n0, errors=errors,
-                          records=records, summary_names=list(summary_names))
+                          records=records, summary_names=list(summary[0]), summary_kind=summary[1])

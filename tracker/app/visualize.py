@@ -236,8 +236,8 @@ def error_plot(path, curves: dict[str, tuple[np.ndarray, np.ndarray]], title: st
 def summary_plot(path, summary: dict, title: str, truth: list[tuple[int, int, str]] | None = None) -> None:
     """The prior's per-frame summary (``TrackingResult.prior_summary``: e.g. the posterior over style labels) as
     stacked areas over the tracked frames, with optional true segments ``(first, last, name)`` drawn as a bar
-    above; a summary of one entry is a quantity (e.g. the paced CRBM's posterior mean pace), drawn as a line
-    with its name on the vertical axis. PNG via matplotlib (a bare Figure, as :func:`error_plot`)."""
+    above; a summary of kind ``"quantity"`` (e.g. the paced CRBM's posterior mean pace) is drawn as lines, its
+    names on the vertical axis. PNG via matplotlib (a bare Figure, as :func:`error_plot`)."""
     from matplotlib.figure import Figure
 
     from data_tools.files import atomic_path
@@ -247,23 +247,19 @@ def summary_plot(path, summary: dict, title: str, truth: list[tuple[int, int, st
     fig = Figure(figsize=(7, 3), dpi=120)
     ax = fig.subplots()
     colours = [f"C{i}" for i in range(len(summary["names"]))]
-    if len(summary["names"]) == 1:
-        ax.plot(frames, rows[:, 0], color=colours[0])
-        ax.set_xlabel("frame")
-        ax.set_ylabel(summary["names"][0])
-        ax.set_ylim(0, max(1.0, 1.1 * float(np.nanmax(rows))) if len(rows) else 1.0)
-        ax.set_title(title)
-        fig.tight_layout()
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp)
-        return
-    ax.stackplot(frames, rows.T, labels=summary["names"], colors=colours, alpha=0.8, step="mid")
-    for first, last, name in truth or []:
-        k = summary["names"].index(name) if name in summary["names"] else 0
-        ax.plot([first, last], [1.04, 1.04], color=colours[k], lw=6, solid_capstyle="butt")
+    if summary.get("kind", "posterior") == "quantity":
+        for k, name in enumerate(summary["names"]):
+            ax.plot(frames, rows[:, k], color=colours[k], label=name)
+        ax.set_ylabel(", ".join(summary["names"]))
+        ax.set_ylim(0, max(1.0, 1.1 * float(np.nanmax(rows))) if rows.size else 1.0)
+    else:
+        ax.stackplot(frames, rows.T, labels=summary["names"], colors=colours, alpha=0.8, step="mid")
+        for first, last, name in truth or []:
+            k = summary["names"].index(name) if name in summary["names"] else 0
+            ax.plot([first, last], [1.04, 1.04], color=colours[k], lw=6, solid_capstyle="butt")
+        ax.set_ylabel("posterior")
+        ax.set_ylim(0, 1.08)
     ax.set_xlabel("frame")
-    ax.set_ylabel("posterior")
-    ax.set_ylim(0, 1.08)
     ax.set_title(title)
     ax.legend(loc="lower left", fontsize=8)
     fig.tight_layout()

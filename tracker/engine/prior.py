@@ -45,6 +45,9 @@ class MotionPrior(ABC):
     name: str = "prior"
     #: Names of the entries of :meth:`summarize`'s vector (none: the prior has no per-frame summary).
     summary_names: tuple[str, ...] = ()
+    #: What the summary is: ``"posterior"`` (probabilities of the names, summing to 1) or ``"quantity"`` (posterior
+    #: means of the named quantities, e.g. a pace in mm/frame).
+    summary_kind: str = "posterior"
 
     def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
         """Per-particle state from the known initial poses ``n0 x D`` (none by default)."""
