@@ -180,6 +180,16 @@ def scale_ground_steps(features: np.ndarray, factor: np.ndarray) -> np.ndarray:
     return features
 
 
+def shift_height(features: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """Invariant features ``P x ... x K`` with the root height (mm) of every frame moved by ``offset`` ``(P,)``
+    mm, in place. The CRBM predicts the absolute root height of the people it was trained on; a shorter or
+    taller person's heights, moved to the training subjects' mean before the model sees them and back after,
+    keep the person's own height (``relative_height``)."""
+    shape = (len(offset),) + (1,) * (features.ndim - 1)
+    features[..., 2:3] += np.asarray(offset, float).reshape(shape)
+    return features
+
+
 def steps_taken(last: np.ndarray, poses: np.ndarray) -> np.ndarray:
     """The root steps ``n x 3`` (:data:`~tracker.core.representation.STEP_FEATURES`) from ``last`` to ``poses``
     (each ``n x D``)."""

@@ -44,12 +44,12 @@ import torch
 from priors.common import (
     ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS, add_ground_diffusion, add_heading_diffusion, check_model_fits,
     check_weights, drift_log_pace, mix_in_random_walk, normaliser_from_tensors, normaliser_to_tensors,
-    read_model_file, robust_share, scale_ground_steps, start_log_pace, steps_taken, torch_generator,
+    read_model_file, robust_share, scale_ground_steps, shift_height, start_log_pace, steps_taken, torch_generator,
     torch_save_atomic, checked_time_warp, time_warp_note,
 )
 from tracker.core.errors import InputError
 from tracker.core.representation import (
-    PACE_FLOOR_MM, STEP_FEATURES, FeatureNormaliser, clip_features, clip_log_pace, log_pace, next_poses, pending_step,
+    PACE_FLOOR_MM, STANDING_LOG_PACE, STEP_FEATURES, FeatureNormaliser, clip_features, clip_log_pace, log_pace, next_poses, pending_step,
     poses_to_invariant, step_rms,
 )
 from tracker.engine.prior import MotionPrior, PriorState
@@ -454,16 +454,6 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
     return model
 
 
-def shift_height(features: np.ndarray, offset: np.ndarray) -> np.ndarray:
-    """Invariant features ``P x ... x K`` with the root height (mm) of every frame moved by ``offset`` ``(P,)``
-    mm, in place. The CRBM predicts the absolute root height of the people it was trained on; a shorter or
-    taller person's heights, moved to the training subjects' mean before the model sees them and back after,
-    keep the person's own height (``relative_height``)."""
-    shape = (len(offset),) + (1,) * (features.ndim - 1)
-    features[..., 2:3] += np.asarray(offset, float).reshape(shape)
-    return features
-
-
 #: Least spread (std of the training frames' log pace) for which ``train`` gives a CRBM a pace input by default:
 #: a 10% spread of paces. One person's walks vary by less (subject 7's four walks: 0.07; one walk: 0.01), and a
 #: model trained on them could not learn what the input means; the walks of three or more of the shared subjects
@@ -484,12 +474,8 @@ def given_clips(data: TrainingData) -> list[np.ndarray]:
     does not turn it on."""
     if not data.origins:
         return list(data.clips)
-    speeds = [data.time_warp[i % len(data.time_warp)] for i in range(len(data.clips))]
-    best: dict[int, int] = {}
-    for i, origin in enumerate(data.origins):
-        if origin not in best or abs(speeds[i] - 1) < abs(speeds[best[origin]] - 1):
-            best[origin] = i
-    return [data.clips[best[o]] for o in sorted(best)]
+    nearest = int(np.argmin(np.abs(np.asarray(data.time_warp) - 1.0)))  # copies run clip by clip, speed by speed
+    return list(data.clips[nearest::len(data.time_warp)])
 
 
 def pace_window(fps: float) -> int:
@@ -538,7 +524,8 @@ class CRBMPrior(MotionPrior):
     which starts at the known frames' pace with std ``pace_spread``, drifts by ``pace_drift`` per frame, is drawn
     afresh from the training paces with probability ``pace_jump`` per frame and never falls below standing
     still (``log_pace`` then stays 0); with ``relative_height``, ``height`` ``(P,)``, the known frames' mean root
-    height (mm), by which the model's heights are shifted (see :func:`shift_height`); and ``walked`` ``(P,)``,
+    height (mm), by which the model's heights are shifted (see :func:`priors.common.shift_height`); and
+    ``walked`` ``(P,)``,
     whether its latest sample came from
     the robust option's random walk (``robust_fraction``, adapted to the posterior when ``robust_adaptive``,
     see :func:`priors.common.robust_share`). Each sample's torch generator is seeded from the filter's
@@ -636,7 +623,7 @@ class CRBMPrior(MotionPrior):
                  "walked": np.zeros(n_particles, bool)}
         if self.paced:
             state["pace"] = np.maximum(log_pace(step) + start_log_pace(n_particles, self.pace_spread, rng),
-                                       np.log(PACE_FLOOR_MM))
+                                       STANDING_LOG_PACE)
         if self.relative_height:
             state["height"] = np.full(n_particles, float(np.mean(np.atleast_2d(known)[:, 2])))
         return state
@@ -686,13 +673,13 @@ class CRBMPrior(MotionPrior):
     def next_pace(self, model: CRBMModel, pace: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Each particle's log pace ``(P,)`` one frame on: a random-walk step of ``pace_drift``, with probability
         ``pace_jump`` a fresh draw from the training frames' paces (Gaussian, ``model.pace_label``), never below
-        standing still (``log(PACE_FLOOR_MM)``)."""
+        standing still (:data:`~tracker.core.representation.STANDING_LOG_PACE`)."""
         pace = np.array(drift_log_pace(pace, self.pace_drift, rng), float)
         if self.pace_jump > 0:
             jump = rng.random(len(pace)) < self.pace_jump
             mean, std = model.pace_label
             pace[jump] = mean + std * rng.standard_normal(int(jump.sum()))
-        return np.maximum(pace, np.log(PACE_FLOOR_MM))
+        return np.maximum(pace, STANDING_LOG_PACE)
 
     def summarize(self, state: PriorState, weights: np.ndarray) -> np.ndarray | None:
         """With a pace input: the posterior mean pace ``(1,)`` in mm/frame (ground speed); else None."""

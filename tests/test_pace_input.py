@@ -34,6 +34,13 @@ def paced(walk_07_01):
     return model
 
 
+@pytest.fixture(scope="module")
+def plain(walk_07_01):
+    """A small order-1 CRBM without the pace input (a model file of the kind trained before it existed)."""
+    return train_crbm([walk_07_01], CRBMConfig(order=1, hidden=20, epochs=2), 60.0, DOF_NAMES,
+                      rng=np.random.default_rng(0))
+
+
 def test_the_pace_label_is_the_log_of_the_smoothed_ground_speed(walk_07_01):
     pace = clip_log_pace(walk_07_01, 60)
     slow = clip_log_pace(time_warp_clip(walk_07_01, 0.5, TRIPLES), 60)
@@ -99,10 +106,9 @@ def test_a_paced_model_file_round_trips_and_samples_alike(paced, walk_07_01, tmp
     assert np.allclose(draws[0], draws[1], atol=1e-9)
 
 
-def test_paced_model_files_are_checked(paced, walk_07_01, tmp_path):
+def test_paced_model_files_are_checked(paced, plain, tmp_path):
     doc = paced.to_document()
-    growth = train_crbm([walk_07_01], CRBMConfig(order=1, hidden=20, epochs=2), 60.0, DOF_NAMES,
-                        rng=np.random.default_rng(0)).to_document()  # a valid order-1 model without the input
+    growth = plain.to_document()  # a valid order-1 model without the input
     for change, message in (({"pace_label": None}, "pace_label must be"),
                             ({"growth": [growth]}, "growth models and main model differ"),
                             ({"pace_label": [2.0, 0.0]}, "pace_label must be"),
@@ -115,9 +121,7 @@ def test_paced_model_files_are_checked(paced, walk_07_01, tmp_path):
         assert str(path) in str(err.value)
 
 
-def test_paced_and_unpaced_models_do_not_mix(paced, walk_07_01):
-    plain = train_crbm([walk_07_01], CRBMConfig(order=1, hidden=20, epochs=2), 60.0, DOF_NAMES,
-                       rng=np.random.default_rng(0))
+def test_paced_and_unpaced_models_do_not_mix(paced, plain):
     with pytest.raises(InputError, match="pace input or none"):
         CRBMPrior([plain, paced])
     assert CRBMPrior([plain]).pace_spread == 0.0  # the unpaced defaults are unchanged
@@ -202,7 +206,7 @@ def test_a_deep_crbm_file_with_a_paced_first_layer_is_refused(paced, tmp_path):
     assert str(path) in str(err.value)
 
 
-def test_a_pace_never_falls_below_standing_and_jumps_come_from_the_training_paces(paced, walk_07_01):
+def test_a_pace_never_falls_below_standing_and_jumps_come_from_the_training_paces(paced, plain):
     prior = CRBMPrior([paced], pace_drift=0.5, pace_jump=0.5)
     rng = np.random.default_rng(4)
     low = np.full(20000, np.log(PACE_FLOOR_MM) - 0.2)
@@ -215,7 +219,5 @@ def test_a_pace_never_falls_below_standing_and_jumps_come_from_the_training_pace
     assert np.std(drawn) == pytest.approx(paced.pace_label[1], rel=0.05)
     with pytest.raises(InputError, match="pace jump"):
         CRBMPrior([paced], pace_jump=1.5)
-    plain = train_crbm([walk_07_01], CRBMConfig(order=1, hidden=20, epochs=2), 60.0, DOF_NAMES,
-                       rng=np.random.default_rng(0))
     with pytest.raises(InputError, match="pace input"):  # a setting that would do nothing is refused
         CRBMPrior([plain], pace_jump=0.1)

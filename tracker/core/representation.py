@@ -239,6 +239,8 @@ def pending_step(known: np.ndarray) -> np.ndarray:
 
 #: Ground speed (mm/frame) added before taking the log of a pace, so a standing person's pace stays finite.
 PACE_FLOOR_MM = 2.0
+#: The log pace of a person standing still, the least a pace can be.
+STANDING_LOG_PACE = float(np.log(PACE_FLOOR_MM))
 
 
 def log_pace(step: np.ndarray) -> np.ndarray:
