@@ -77,6 +77,10 @@ class CRBMConfig:
     #: Condition on each frame's pace (:func:`~tracker.core.representation.clip_log_pace`, one extra input before
     #: the history), so that one model walks at every pace it was shown, at the pace the tracker gives it.
     pace_input: bool = False
+    #: Learn the root height above each training subject's standing root height (its body model's
+    #: ``rest_root_height``) instead of above the floor, and predict it above the tracked person's: one model then
+    #: fits people of other sizes (:func:`heights_above_standing`).
+    standing_height: bool = False
 
     def check(self) -> "CRBMConfig":
         for name in ("order", "hidden", "epochs", "cd_k", "batch_size"):
@@ -205,6 +209,25 @@ def make_windows(clips: Sequence[np.ndarray], order: int, dof_names: Sequence[st
                       torch.tensor(np.concatenate(starts)), normaliser, pace)
 
 
+def heights_above_standing(clips: Sequence[np.ndarray], standing_heights: Sequence[float] | None) -> list[np.ndarray]:
+    """The clips (each ``T x D`` poses) with each one's root height (mm) taken relative to its subject's standing
+    root height ``standing_heights[i]`` (mm): people of different sizes walk at different absolute heights but at
+    much the same height below their own standing height (the shared walks: 12-50 mm below it, against absolute
+    means of 868-978 mm)."""
+    if standing_heights is None or len(standing_heights) != len(clips):
+        raise InputError("training for the height above standing needs each clip's standing root height (clips "
+                         "retargeted to body models of their own subjects)")
+    heights = np.asarray(standing_heights, float)
+    if not np.all(np.isfinite(heights) & (heights > 0)):
+        raise InputError(f"standing root heights must be positive mm, got {heights.tolist()}")
+    out = []
+    for clip, h in zip(clips, heights):
+        clip = np.array(clip, float)
+        clip[:, 2] -= h
+        out.append(clip)
+    return out
+
+
 def history_noise_scale(data: WindowData) -> torch.Tensor:
     """Per-dimension noise for the history: the 99th percentile of |frame-to-frame change| in the data."""
     idx = data.starts
@@ -241,6 +264,11 @@ class CRBMModel:
     def order(self) -> int:
         return self.crbm.order
 
+    @property
+    def standing_height(self) -> bool:
+        """Whether the model's root heights are above the subject's standing root height (else above the floor)."""
+        return self.config.standing_height
+
     def pace_input(self, log_paces: np.ndarray) -> np.ndarray:
         """The normalised pace input ``(P, 1)`` for log paces ``(P,)``."""
         mean, std = self.pace_label
@@ -253,8 +281,9 @@ class CRBMModel:
         grow = f" (grows from order {', '.join(str(g.order) for g in self.growth)})" if self.growth else ""
         pace = "" if self.pace_label is None else \
             f", paced (training paces {np.exp(self.pace_label[0]) - PACE_FLOOR_MM:.1f} mm/frame typical)"
+        height = ", heights above standing" if self.standing_height else ""
         return (f"CRBM order {self.order}{grow}, {self.crbm.n_hidden} hidden units{time_warp_note(self.time_warp)}"
-                f"{pace}: "
+                f"{pace}{height}: "
                 f"{fit}{self.training_seconds:.1f} s")
 
     def save(self, path: str | Path) -> None:
@@ -327,6 +356,8 @@ def _model_from_document(doc: dict, path: Path, device: str) -> CRBMModel:
         growth = [_model_from_document(g, path, device) for g in doc.get("growth", [])]
         if any(g.config.pace_input != cfg.pace_input for g in growth):
             raise InputError("CRBM model file's growth models and main model differ in having a pace input", path)
+        if any(g.config.standing_height != cfg.standing_height for g in growth):
+            raise InputError("CRBM model file's growth models and main model differ in their height reference", path)
         return CRBMModel(crbm, normaliser, cfg, float(fps), str(doc["body_model"]), [str(n) for n in doc["dof_names"]],
                          [str(n) for n in doc["sources"]], step.numpy(), [float(e) for e in doc["reconstruction_errors"]],
                          float(doc["training_seconds"]), growth,
@@ -362,8 +393,12 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
                body_model: str = "15-cone", sources: Sequence[str] = (),
                progress: Callable[[int, float], None] | None = None,
                checkpoint: tuple[Callable[[CRBMModel, dict], None], int] | None = None, device: str = "cpu", *,
-               rng: np.random.Generator, resume: dict | None = None) -> CRBMModel:
+               rng: np.random.Generator, resume: dict | None = None,
+               standing_heights: Sequence[float] | None = None) -> CRBMModel:
     """Train a CRBM on pose clips (each ``T x D`` at ``fps``) with CD-k; every random draw comes from ``rng``.
+
+    With ``config.standing_height``, ``standing_heights`` gives each clip's standing root height (mm, the
+    ``rest_root_height`` of the body model it was retargeted to), and the model learns the height above it.
 
     ``progress(epoch, reconstruction_error)`` is called after every epoch; ``checkpoint = (save, every)``
     calls ``save(model, training_state)`` every ``every`` epochs, and ``resume`` (such a ``training_state``,
@@ -371,6 +406,8 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
     """
     cfg = config.check()
     t0 = time.perf_counter()
+    if cfg.standing_height:
+        clips = heights_above_standing(clips, standing_heights)
     g = torch_generator(rng, device)
     data = make_windows(clips, cfg.order, dof_names, pace_window=pace_window(fps) if cfg.pace_input else None)
     frames = data.frames.to(device)
@@ -537,12 +574,15 @@ class CRBMPrior(MotionPrior):
     paced: bool = False
     relative_height: bool = False
     pace_jump: float = 0.0
+    #: The tracked person's standing root height (mm), above which a model trained with ``standing_height``
+    #: predicts the root height; None for models of absolute heights.
+    standing_root_height: float | None = None
 
     def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = GIBBS_STEPS,
                  device: str = "cpu", mode: str = "gibbs", root_noise_mm: float = ROOT_NOISE_MM,
                  robust_fraction: float = 0.0, heading_noise: float = 0.0, robust_adaptive: bool = False,
                  pace_spread: float | None = None, pace_drift: float | None = None, relative_height: bool = False,
-                 pace_jump: float | None = None):
+                 pace_jump: float | None = None, standing_root_height: float | None = None):
         if not models:
             raise InputError("the CRBM prior needs at least one model")
         by_order = {m.order: m for m in models}
@@ -556,6 +596,16 @@ class CRBMPrior(MotionPrior):
                 raise InputError("CRBM models for one prior must share body model, pose layout and frame rate")
             if (m.pace_label is None) != (first.pace_label is None):
                 raise InputError("CRBM models for one prior must all have a pace input or none")
+            if m.standing_height != first.standing_height:
+                raise InputError("CRBM models for one prior must all learn heights above standing or none")
+        if first.standing_height:
+            if relative_height:
+                raise InputError("relative height is for models of absolute heights; this CRBM already predicts "
+                                 "the height above the person's standing height")
+            if standing_root_height is None or not standing_root_height > 0:
+                raise InputError("this CRBM predicts the root height above the person's standing height and needs "
+                                 f"it (the body model's rest root height, mm), got {standing_root_height}")
+            self.standing_root_height = float(standing_root_height)
         self.paced = first.pace_label is not None
         if self.paced:
             self.summary_names, self.summary_kind = ("pace (mm/frame)",), "quantity"
@@ -637,8 +687,9 @@ class CRBMPrior(MotionPrior):
                                    np.concatenate([history[:, :1], history], axis=1))[:, -n:]
         feats[:, -1, step] = state["step"]
         previous = feats[:, -1].copy()  # the newest frame's features with the step the particle takes
-        if self.relative_height:  # the history at the training subjects' height
-            shift_height(feats, model.normaliser.mean[2] - state["height"])
+        to_model = self.height_to_model(model, state, len(feats))
+        if to_model is not None:  # the history at the heights the model was trained on
+            shift_height(feats, to_model)
         scale_ground_steps(feats, np.exp(-state["log_pace"]))  # the history at the model's pace
         z = model.normaliser.transform(feats).reshape(len(feats), -1)  # P x (n K)
         pace = None
@@ -655,8 +706,8 @@ class CRBMPrior(MotionPrior):
         f_next = model.normaliser.inverse(v.cpu().double().numpy())
         log_pace = state["log_pace"] if self.paced else drift_log_pace(state["log_pace"], self.pace_drift, rng)
         scale_ground_steps(f_next, np.exp(log_pace))  # the predicted step at the particle's pace
-        if self.relative_height:  # and the prediction at the person's
-            shift_height(f_next, state["height"] - model.normaliser.mean[2])
+        if to_model is not None:  # and the prediction at the person's
+            shift_height(f_next, -to_model)
         poses = add_ground_diffusion(next_poses(history[:, -1], previous, f_next), self.root_noise_mm, rng)
         add_heading_diffusion(poses, history[:, -1], self.heading_noise, rng)
         pending = f_next[:, step]
@@ -669,6 +720,16 @@ class CRBMPrior(MotionPrior):
         if self.relative_height:
             new["height"] = state["height"]
         return poses, new
+
+    def height_to_model(self, model: CRBMModel, state: PriorState, n: int) -> np.ndarray | None:
+        """The shift ``(n,)`` (mm) from the person's root heights to the heights ``model`` was trained on, or None
+        when there is none: minus the person's standing root height for a model of heights above standing, the
+        training frames' mean height minus the known frames' with ``relative_height``."""
+        if model.standing_height:
+            return np.full(n, -self.standing_root_height)
+        if self.relative_height:
+            return model.normaliser.mean[2] - state["height"]
+        return None
 
     def next_pace(self, model: CRBMModel, pace: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Each particle's log pace ``(P,)`` one frame on: a random-walk step of ``pace_drift``, with probability
@@ -712,7 +773,8 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
         pace_input = paces_vary(given_clips(data), data.fps)
     config = CRBMConfig(order=options["order"], hidden=options["hidden"], epochs=options["epochs"],
                         cd_k=options["cd_k"], batch_size=options["batch_size"], history_noise=noise,
-                        sparsity_target=options["sparsity"], pace_input=pace_input).check()
+                        sparsity_target=options["sparsity"], pace_input=pace_input,
+                        standing_height=options["standing_height"]).check()
     grow = _growth_orders(options["grow_from"], config.order)
     every = options["checkpoint_every"] or 0
     orders = grow + [config.order]
@@ -724,9 +786,10 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
             raise InputError("no training checkpoint to resume from", checkpoint)
         doc = read_model_file(checkpoint, CHECKPOINT_FORMAT, "CRBM training checkpoint")
         if "training_state" not in doc or doc.get("stage_orders") != orders \
-                or bool(doc.get("config", {}).get("pace_input", False)) != config.pace_input:
-            raise InputError("the checkpoint is not of this training (other orders, another pace input or a finished "
-                             "model)", checkpoint)
+                or bool(doc.get("config", {}).get("pace_input", False)) != config.pace_input \
+                or bool(doc.get("config", {}).get("standing_height", False)) != config.standing_height:
+            raise InputError("the checkpoint is not of this training (other orders, another pace input or height "
+                             "reference, or a finished model)", checkpoint)
         done = [_model_from_document(g, checkpoint, "cpu") for g in doc["growth"]]
         state = doc["training_state"]
         for _ in done:  # the draws the finished stages took from rng
@@ -747,7 +810,8 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
         model = train_crbm(list(data.clips), replace(config, order=orders[i]), data.fps,
                            data.body_model.dof_names, data.body_model.name, list(data.sources), report,
                            (save, every) if checkpoint is not None and every else None, rng=rng,
-                           resume=state if i == len(done) else None)
+                           resume=state if i == len(done) else None,
+                           standing_heights=data.standing_heights or None)
         if i < len(grow):
             done.append(model)
     model.growth = done
@@ -790,6 +854,9 @@ CRBM_TRAIN_OPTIONS = (
                                      "second), which each particle carries while tracking (default: on when the "
                                      f"clips' paces vary, std of log pace >= {PACE_SPREAD_FOR_INPUT:g}, e.g. the "
                                      "walks of several people; --no-pace-input to turn it off)"),
+    Option("standing_height", bool, False, "learn the root height above each subject's standing root height "
+                                           "instead of above the floor, and track it above the person's own, so "
+                                           "that one model fits people of other sizes (default off)"),
 )
 
 
@@ -818,4 +885,5 @@ def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict
                      device=context.device, robust_fraction=options["robust_fraction"],
                      heading_noise=options["heading_noise"], robust_adaptive=options["robust_adaptive"],
                      pace_spread=options["pace_spread"], pace_drift=options["pace_drift"],
-                     relative_height=options["relative_height"], pace_jump=options["pace_jump"])
+                     relative_height=options["relative_height"], pace_jump=options["pace_jump"],
+                     standing_root_height=context.body_model.rest_root_height)

@@ -197,6 +197,9 @@ def load_deep_crbm(path: str | Path, device: str = "cpu") -> DeepCRBMModel:
         bottom = _model_from_document(doc["bottom"], path, device)
         if bottom.pace_label is not None:
             raise InputError("deep CRBM's first layer has a pace input, which the deep prior does not use", path)
+        if bottom.standing_height:
+            raise InputError("deep CRBM's first layer learned heights above standing, which the deep prior does not "
+                             "use", path)
         unknown = sorted(set(doc["top_config"]) - set(TopConfig.__dataclass_fields__))
         if unknown:
             raise InputError(f"deep CRBM model file has unknown settings {', '.join(unknown)}", path)
@@ -277,6 +280,7 @@ def train_deep_crbm_prior(data: TrainingData, options: dict, rng: np.random.Gene
                                      {k: v for k, v in options.items() if k in crbm_options and v is not None})
     bottom_options["checkpoint_every"] = None
     bottom_options["pace_input"] = False  # the second layer is trained on, and samples through, a plain first layer
+    bottom_options["standing_height"] = False
     top_cfg = TopConfig(order=options["top_order"], hidden=options["top_hidden"], epochs=options["top_epochs"],
                         cd_k=bottom_options["cd_k"], batch_size=bottom_options["batch_size"]).check()
     stages = 1 + len(_growth_orders(bottom_options["grow_from"], bottom_options["order"]))
@@ -290,7 +294,8 @@ def train_deep_crbm_prior(data: TrainingData, options: dict, rng: np.random.Gene
     return DeepCRBMModel(bottom, top, top_cfg, errors, time.perf_counter() - t0)
 
 
-DEEP_TRAIN_OPTIONS = tuple(o for o in CRBM_TRAIN_OPTIONS if o.name not in ("checkpoint_every", "pace_input")) + (
+DEEP_TRAIN_OPTIONS = tuple(o for o in CRBM_TRAIN_OPTIONS if o.name not in ("checkpoint_every", "pace_input",
+                                                                               "standing_height")) + (
     Option("top_order", int, TopConfig.order, "order M of the second layer (default 2)", minimum=1, maximum=100),
     Option("top_hidden", int, TopConfig.hidden, "hidden units of the second layer (default 100)", minimum=1,
            maximum=100000),

@@ -560,6 +560,8 @@ class Drawer:
     normaliser: FeatureNormaliser
     pose_step_rms: np.ndarray
     crbm: Any
+    #: Whether the features' root height is above standing (see :attr:`priors.crbm.CRBMModel.standing_height`).
+    standing_height: bool = False
 
 
 @dataclass

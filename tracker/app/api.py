@@ -214,7 +214,8 @@ def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
     else:
         clips, sources = load_training_clips(items, skeletons, fps), [str(f) for f in items]
     # Pace augmentation (the time_warp option every learned prior takes): the clips replayed at each speed.
-    data = TrainingData(tuple(c.poses for c in clips), fps, clips[0].model, tuple(sources)).time_warped(
+    data = TrainingData(tuple(c.poses for c in clips), fps, clips[0].model, tuple(sources),
+                        standing_heights=tuple(float(c.model.rest_root_height) for c in clips)).time_warped(
         resolved["time_warp"])
     extra = {}
     if resume:

@@ -140,7 +140,8 @@ class TrainingData:
     ``time_warp`` (clip by clip, every speed of one clip in turn); ``origins[i]`` is the given clip that clip
     ``i`` replays and ``given_sources`` are the given clips' sources (a prior that takes one setting per given
     clip, like the FCRBM's labels, maps it through ``origins``). Learned priors record ``time_warp`` in their
-    model files."""
+    model files. ``standing_heights`` (mm, one per clip, or empty when unknown) is each clip's subject's standing
+    root height, the ``rest_root_height`` of the body model the clip was retargeted to."""
 
     clips: tuple[np.ndarray, ...]
     fps: float
@@ -149,6 +150,7 @@ class TrainingData:
     time_warp: tuple[float, ...] = (1.0,)
     origins: tuple[int, ...] = ()
     given_sources: tuple[str, ...] = ()
+    standing_heights: tuple[float, ...] = ()
 
     @property
     def n_frames(self) -> int:
@@ -176,8 +178,9 @@ class TrainingData:
                 clips.append(time_warp_clip(poses, s, triples))
                 sources.append(name if speeds == (1.0,) else f"{name} @ {s:g}x")
                 origins.append(i)
+        standing = tuple(self.standing_heights[i] for i in origins) if self.standing_heights else ()
         return TrainingData(tuple(clips), self.fps, self.body_model, tuple(sources), speeds, tuple(origins),
-                            tuple(self.sources))
+                            tuple(self.sources), standing)
 
 
 def _check_time_warp(value: str, owner: str) -> None:
