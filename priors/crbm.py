@@ -561,7 +561,9 @@ class CRBMPrior(MotionPrior):
     which starts at the known frames' pace with std ``pace_spread``, drifts by ``pace_drift`` per frame, is drawn
     afresh from the training paces with probability ``pace_jump`` per frame and never falls below standing
     still (``log_pace`` then stays 0); with ``relative_height``, ``height`` ``(P,)``, the known frames' mean root
-    height (mm), by which the model's heights are shifted (see :func:`priors.common.shift_height`); and
+    height (mm), by which the model's heights are shifted (see :func:`priors.common.shift_height`; a model trained
+    with ``standing_height`` is shifted by the person's standing root height instead, ``standing_root_height``,
+    and needs no state); and
     ``walked`` ``(P,)``,
     whether its latest sample came from
     the robust option's random walk (``robust_fraction``, adapted to the posterior when ``robust_adaptive``,
@@ -774,7 +776,8 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
     config = CRBMConfig(order=options["order"], hidden=options["hidden"], epochs=options["epochs"],
                         cd_k=options["cd_k"], batch_size=options["batch_size"], history_noise=noise,
                         sparsity_target=options["sparsity"], pace_input=pace_input,
-                        standing_height=options["standing_height"]).check()
+                        standing_height=bool(data.standing_heights) if options["standing_height"] is None
+                        else options["standing_height"]).check()
     grow = _growth_orders(options["grow_from"], config.order)
     every = options["checkpoint_every"] or 0
     orders = grow + [config.order]
@@ -854,9 +857,11 @@ CRBM_TRAIN_OPTIONS = (
                                      "second), which each particle carries while tracking (default: on when the "
                                      f"clips' paces vary, std of log pace >= {PACE_SPREAD_FOR_INPUT:g}, e.g. the "
                                      "walks of several people; --no-pace-input to turn it off)"),
-    Option("standing_height", bool, False, "learn the root height above each subject's standing root height "
-                                           "instead of above the floor, and track it above the person's own, so "
-                                           "that one model fits people of other sizes (default off)"),
+    Option("standing_height", bool, None, "learn the root height above each subject's standing root height "
+                                          "(its body model's) instead of above the floor, and track it above the "
+                                          "person's own, so that one model fits people of other sizes (default: "
+                                          "on when the clips carry their subjects' standing heights, as clips "
+                                          "read from mocap files do; --no-standing-height to turn it off)"),
 )
 
 
@@ -874,9 +879,10 @@ CRBM_TRAIN_OPTIONS = (
              Option("pace_jump", float, None, "probability per frame that a particle's pace is drawn afresh from "
                                               f"the training paces (CRBMs trained with a pace input; default "
                                               f"{PACED_JUMP:g})", minimum=0.0, maximum=1.0),
-             Option("relative_height", bool, False, "keep the person's own root height: the model's heights are "
-                                                    "moved by the known frames' mean root height minus the "
-                                                    "training frames' (default off)")))
+             Option("relative_height", bool, False, "for a model of absolute heights (train --no-standing-height): "
+                                                    "keep the person's own root height, the model's heights moved "
+                                                    "by the known frames' mean root height minus the training "
+                                                    "frames' (default off)")))
 def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> CRBMPrior:
     models = [load_crbm(m, device=context.device) for m in model_files]
     for path, m in zip(model_files, models):

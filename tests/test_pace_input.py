@@ -182,8 +182,8 @@ def test_by_default_a_pace_input_only_for_clips_of_several_paces(walk_07_01):
     assert not paces_vary(given_clips(data), 60.0)
 
 
-def test_every_experiment_pins_the_pace_input_of_its_crbms():
-    """An experiment's CRBM rows keep measuring what their published table measured whatever train's default."""
+def test_every_experiment_pins_the_pace_input_and_height_reference_of_its_crbms():
+    """An experiment's CRBM rows keep measuring what their published table measured whatever train's defaults."""
     import tomllib
     from pathlib import Path
 
@@ -193,7 +193,8 @@ def test_every_experiment_pins_the_pace_input_of_its_crbms():
         for prior in tomllib.loads(f.read_text()).get("prior", []):
             if prior.get("name") == "crbm":
                 for entry in prior.get("train", []):
-                    assert "pace_input" in entry.get("options", {}), (f.name, prior.get("label"))
+                    for option in ("pace_input", "standing_height"):
+                        assert option in entry.get("options", {}), (f.name, prior.get("label"), option)
 
 
 def test_a_deep_crbm_file_with_a_paced_first_layer_is_refused(paced, tmp_path):
