@@ -216,7 +216,7 @@ def heights_above_standing(clips: Sequence[np.ndarray], standing_heights: Sequen
     means of 868-978 mm)."""
     if standing_heights is None or len(standing_heights) != len(clips):
         raise InputError("training for the height above standing needs each clip's standing root height (clips "
-                         "retargeted to body models of their own subjects)")
+                         "retargeted to body models of their own subjects, as train reads them from mocap files)")
     heights = np.asarray(standing_heights, float)
     if not np.all(np.isfinite(heights) & (heights > 0)):
         raise InputError(f"standing root heights must be positive mm, got {heights.tolist()}")
@@ -776,8 +776,7 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
     config = CRBMConfig(order=options["order"], hidden=options["hidden"], epochs=options["epochs"],
                         cd_k=options["cd_k"], batch_size=options["batch_size"], history_noise=noise,
                         sparsity_target=options["sparsity"], pace_input=pace_input,
-                        standing_height=bool(data.standing_heights) if options["standing_height"] is None
-                        else options["standing_height"]).check()
+                        standing_height=options["standing_height"]).check()
     grow = _growth_orders(options["grow_from"], config.order)
     every = options["checkpoint_every"] or 0
     orders = grow + [config.order]
@@ -857,11 +856,10 @@ CRBM_TRAIN_OPTIONS = (
                                      "second), which each particle carries while tracking (default: on when the "
                                      f"clips' paces vary, std of log pace >= {PACE_SPREAD_FOR_INPUT:g}, e.g. the "
                                      "walks of several people; --no-pace-input to turn it off)"),
-    Option("standing_height", bool, None, "learn the root height above each subject's standing root height "
-                                          "(its body model's) instead of above the floor, and track it above the "
-                                          "person's own, so that one model fits people of other sizes (default: "
-                                          "on when the clips carry their subjects' standing heights, as clips "
-                                          "read from mocap files do; --no-standing-height to turn it off)"),
+    Option("standing_height", bool, False, "learn the root height above each subject's standing root height "
+                                           "(its body model's) instead of above the floor, and track it above the "
+                                           "person's own, so that one model fits people of other sizes (default "
+                                           "off: it won the tuning folds of issue 13 but not its test folds)"),
 )
 
 
@@ -879,10 +877,10 @@ CRBM_TRAIN_OPTIONS = (
              Option("pace_jump", float, None, "probability per frame that a particle's pace is drawn afresh from "
                                               f"the training paces (CRBMs trained with a pace input; default "
                                               f"{PACED_JUMP:g})", minimum=0.0, maximum=1.0),
-             Option("relative_height", bool, False, "for a model of absolute heights (train --no-standing-height): "
-                                                    "keep the person's own root height, the model's heights moved "
+             Option("relative_height", bool, False, "keep the person's own root height, the model's heights moved "
                                                     "by the known frames' mean root height minus the training "
-                                                    "frames' (default off)")))
+                                                    "frames' (default off; for models of absolute heights, not "
+                                                    "those trained with --standing-height)")))
 def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> CRBMPrior:
     models = [load_crbm(m, device=context.device) for m in model_files]
     for path, m in zip(model_files, models):

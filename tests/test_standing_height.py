@@ -120,14 +120,14 @@ def test_training_data_carries_each_clips_standing_height_through_the_time_warp(
 
 
 def test_train_reads_each_subjects_standing_height_from_its_skeleton(mocap_dir):
-    """Through the API, by default, clips of two subjects of different sizes (7: 966 mm standing root height,
-    91: 880 mm) give one model whose mean height is below standing, where the absolute heights differ by about
-    80 mm; ``standing_height=False`` (``--no-standing-height``) keeps the absolute heights."""
+    """Through the API, with ``standing_height=True``, clips of two subjects of different sizes (7: 966 mm
+    standing root height, 91: 880 mm) give one model whose mean height is below standing, where the absolute
+    heights differ by about 80 mm; by default the model keeps the absolute heights."""
     from tracker.app import api
 
     clips = [mocap_dir / "07" / "07_01.amc", mocap_dir / "91" / "91_straight_walk.amc"]
-    model = api.train("crbm", clips, epochs=1, hidden=10, grow_from="none", pace_input=False, rng=0)
-    assert model.standing_height and -40 < model.normaliser.mean[2] < 0
-    model = api.train("crbm", clips, epochs=1, hidden=10, grow_from="none", pace_input=False, standing_height=False,
+    model = api.train("crbm", clips, epochs=1, hidden=10, grow_from="none", pace_input=False, standing_height=True,
                       rng=0)
+    assert model.standing_height and -40 < model.normaliser.mean[2] < 0
+    model = api.train("crbm", clips, epochs=1, hidden=10, grow_from="none", pace_input=False, rng=0)
     assert not model.standing_height and 850 < model.normaliser.mean[2] < 1000
