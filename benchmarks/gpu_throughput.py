@@ -131,8 +131,8 @@ def main() -> None:
     std = step_rms([retarget(asf_amc_clip(mocap / "07.asf", mocap / f"07_{i}.amc"), fps=60).poses
                     for i in ("01", "02")])
     print(f"\n2. tracking 07_11 ({args.frames} frames, 4 views), zero-velocity prior, seeds 0..{args.seeds - 1}")
-    print("| particles | where | mean error (mm) per seed | s/frame (whole loop) | of which waiting for "
-          "observations | filter (prior, likelihood, resampling) |")
+    print("| particles | where | mean error (mm) per seed | s/frame (whole loop) | reading and observations "
+          "(overlapped with the filter when threads > 1) | filter (prior, likelihood, resampling) |")
     print("|---|---|---|---|---|---|")
     for P in (1000, 4000, 16000):
         for where in ("cpu", str(device)):

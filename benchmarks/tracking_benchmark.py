@@ -49,8 +49,8 @@ def synthetic(tmp: Path) -> None:
     per_frame = run.seconds_per_frame
     observe = (r["load_seconds"] + r["observe_seconds"]).mean()
     print(f"15-cone, {P} particles x {V} views, {n} frames: {per_frame * 1000:.0f} ms per frame "
-          f"= {1 / per_frame:.1f} frames/s (observations {observe * 1000:.0f} ms, "
-          f"filter {r['filter_seconds'].mean() * 1000:.0f} ms); mean error {run.mean_error:.1f} mm")
+          f"= {1 / per_frame:.1f} frames/s (reading and observations {observe * 1000:.0f} ms, overlapped with the "
+          f"filter, filter {r['filter_seconds'].mean() * 1000:.0f} ms); mean error {run.mean_error:.1f} mm")
     lik = EdgeSilhouetteLikelihood(seq.model, seq.rig)
     scorer = lik.prepare(seq.frame(20, range(V)))
     poses = seq.groundtruth.poses[20] + np.random.default_rng(0).normal(0, 1, (P, 40)) * std
@@ -81,7 +81,8 @@ def crbm_tracking(tmp: Path) -> None:
         wait = np.median([np.median(r.records["load_seconds"] + r.records["observe_seconds"]) for r in runs])
         filt = np.median([np.median(r.records["filter_seconds"]) for r in runs])
         print(f"CRBM-3 tracking, 1000 particles x 4 views, {steps} Gibbs steps: {per_frame * 1000:.0f} ms per frame "
-              f"= {1 / per_frame:.1f} frames/s (median of 3 seeds; per frame, medians: waiting for observations "
+              f"= {1 / per_frame:.1f} frames/s (median of 3 seeds; per frame, medians: reading and observations of "
+              f"the next frame, overlapped with the filter, "
               f"{wait * 1000:.0f} ms, filter {filt * 1000:.0f} ms); mean errors "
               f"{', '.join(f'{r.mean_error:.1f}' for r in runs)} mm")
 

@@ -196,3 +196,28 @@ def test_a_frame_that_fails_to_read_ahead_stops_the_run_where_it_is_due():
             pf.run(np.zeros((1, 2)), frames(), on_frame=lambda step: seen.append(step.frame), workers=workers)
         assert seen == [0, 1, 2, 3]
         assert str(err.value).splitlines() == [str(err.value)] and "truncated PNG" in str(err.value)
+
+
+def test_with_workers_the_filter_steps_beside_the_reading_thread():
+    """With workers, frames are read (and images decoded) in the calling thread while another thread filters;
+    the callbacks run in the calling thread, between steps."""
+    import threading
+
+    caller = threading.current_thread().name
+    seen = {"read": set(), "likelihood": set(), "on_frame": set()}
+
+    def frames():
+        for k in range(5):
+            seen["read"].add(threading.current_thread().name)
+            yield Frame(k, ())
+
+    def score(x):
+        seen["likelihood"].add(threading.current_thread().name)
+        return -0.5 * np.sum(x ** 2, axis=1)
+
+    prior = LinearGaussianPrior(np.eye(2), np.full(2, 0.1))
+    pf = ParticleFilter(prior, FunctionLikelihood([score] * 5), FilterConfig(n_particles=50), np.random.default_rng(0))
+    pf.run(np.zeros((1, 2)), frames(), on_frame=lambda step: seen["on_frame"].add(threading.current_thread().name),
+           workers=1)
+    assert seen["read"] == {caller} and seen["on_frame"] == {caller}
+    assert seen["likelihood"] and caller not in seen["likelihood"]

@@ -65,8 +65,11 @@ class TrackingResult:
 
     @property
     def seconds_per_frame(self) -> float:
-        """Wall time per tracked frame: reading, observations and the filter step."""
+        """Wall time per tracked frame: reading, observations and the filter step, as far as they did not
+        overlap (the sum of the three in results recorded without ``wall_seconds``)."""
         n = max(len(self.tracked_frames), 1)
+        if "wall_seconds" in self.records:
+            return float(self.records["wall_seconds"].sum()) / n
         return float(sum(self.records[k].sum() for k in ("load_seconds", "observe_seconds", "filter_seconds")
                          if k in self.records)) / n
 
@@ -250,7 +253,7 @@ def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, conf
 
     first = n0 + (0 if state is None else state.tracked)
     pf = ParticleFilter(prior, likelihood, config, rng)
-    workers = configured_threads() - 1  # this thread reads and filters, the others prepare frames ahead
+    workers = configured_threads() - 1  # with 2 or more: one thread filters while this one reads the next frame
     try:
         records = pf.run(known, (seq.frame(k, views) for k in range(first, T)), recording, report, state, keep,
                          workers=workers)

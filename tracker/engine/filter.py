@@ -28,16 +28,17 @@ draw comes from the one generator passed in. :meth:`ParticleFilter.start` and
 :meth:`ParticleFilter.step` expose the loop one frame at a time (its whole
 state is a :class:`FilterState`); :meth:`ParticleFilter.run` runs it over a
 sequence of frames and returns what the caller asked to record. With
-``workers > 0`` it reads the next frames ahead and prepares their observations
-in background threads while the filter steps (:class:`Prefetcher`);
-preparation draws no random numbers, so the results are the same.
+``workers > 0`` the filter steps in a background thread while the calling
+thread reads and prepares the next frame's observations, and further workers
+prepare frames ahead (:class:`Prefetcher`); preparation draws no random
+numbers and the steps run in order, so the results are the same.
 """
 from __future__ import annotations
 
 import time
 from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Callable, Iterable, Iterator, Mapping
 
 import numpy as np
@@ -235,26 +236,65 @@ class ParticleFilter:
         ``on_frame(step)`` sees every :class:`FrameStep` (particles and weights included); ``on_state(state,
         recording)`` sees the filter's whole state after every frame (for checkpoints). To continue an earlier
         run, pass its ``state`` and its :class:`Recording` as ``record``, restore the generator's state, and
-        give only the frames not yet tracked. ``workers`` > 0 reads up to that many frames ahead and
-        prepares them in as many background threads (then a frame's ``load`` time is reading ahead plus the
-        wait for its prepared observations, and its ``observe`` time 0); 0 does everything in the calling
-        thread, one frame at a time.
+        give only the frames not yet tracked. ``workers`` > 0 steps the filter in a background thread while the
+        calling thread reads and prepares the next frame, and ``workers - 1`` more threads prepare frames
+        further ahead (then a frame's ``load`` time is its reading and preparation, done while the frame before
+        was filtered, and its ``observe`` time 0); 0 does everything in the calling thread, one frame at a time.
+        The results are the same either way.
         """
         recording = record if isinstance(record, Recording) else Recording(record)
         state = self.start(known) if state is None else state
-        with Prefetcher(frames, self.likelihood, workers) as source:
-            while True:
-                t0 = time.perf_counter()
-                item = source.next()
-                if item is None:
-                    break
-                frame, prepared = item
-                state, step = self.step(state, frame, time.perf_counter() - t0, prepared)
-                recording.add(step)
-                if on_frame is not None:
-                    on_frame(step)
-                if on_state is not None:
-                    on_state(state, recording)
+
+        clock = [time.perf_counter()]  # when the frame before was done (its callbacks not counted)
+
+        def finish(new_state: FilterState, step: FrameStep) -> FilterState:
+            step = replace(step, seconds={**step.seconds, "wall": time.perf_counter() - clock[0]})
+            recording.add(step)
+            if on_frame is not None:
+                on_frame(step)
+            if on_state is not None:
+                on_state(new_state, recording)
+            clock[0] = time.perf_counter()
+            return new_state
+
+        if workers <= 0:
+            with Prefetcher(frames, self.likelihood, 0) as source:
+                while True:
+                    t0 = time.perf_counter()
+                    item = source.next()
+                    if item is None:
+                        break
+                    state = finish(*self.step(state, item[0], time.perf_counter() - t0, item[1]))
+            return recording.result()
+        # Pipelined: a filter thread steps frame t while this thread reads and prepares frame t+1 (image decoding
+        # stays on this thread, see Prefetcher), and the workers beyond the first prepare further frames ahead.
+        # Steps run one at a time in frame order and every callback runs here between them, so the results and
+        # the generator's draws are those of the loop above.
+        with ThreadPoolExecutor(1, thread_name_prefix="filter") as stepper, \
+                Prefetcher(frames, self.likelihood, workers - 1) as source:
+            item, load = self._next_prepared(source)
+            while item is not None:
+                stepping = stepper.submit(self.step, state, item[0], load, item[1])
+                try:
+                    following, load = self._next_prepared(source)
+                except Exception as exc:  # raised once the frames before it are done, as in the loop above
+                    following, failure = None, exc
+                else:
+                    failure = None
+                state = finish(*stepping.result())
+                if failure is not None:
+                    raise failure
+                item = following
+        return recording.result()
+
+    def _next_prepared(self, source: "Prefetcher") -> tuple[tuple[Frame, FrameLikelihood] | None, float]:
+        """The next frame from ``source`` with its observations prepared (here, when ``source`` did not), and
+        the seconds that took; None at the end."""
+        t0 = time.perf_counter()
+        item = source.next()
+        if item is not None and item[1] is None:
+            item = (item[0], self.likelihood.prepare(item[0]))
+        return item, time.perf_counter() - t0
         return recording.result()
 
 

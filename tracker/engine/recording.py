@@ -27,7 +27,9 @@ class FrameStep:
     the filter re-diffused around its last estimate. ``seconds`` splits the
     frame's wall time into ``load`` (reading the frame), ``observe`` (the
     likelihood's per-frame preparation) and ``filter`` (prior, likelihood,
-    resampling). ``prior_label`` names the model that drew the frame's poses; ``prior_summary`` is the prior's
+    resampling); :meth:`ParticleFilter.run <tracker.engine.filter.ParticleFilter.run>` adds ``wall``, the time
+    the frame added to the run (less than the sum of the others where reading and filtering overlap).
+    ``prior_label`` names the model that drew the frame's poses; ``prior_summary`` is the prior's
     summary of its per-particle state under the weights (:meth:`~tracker.engine.prior.MotionPrior.summarize`),
     or None.
     """
@@ -56,6 +58,7 @@ RECORDERS: dict[str, Callable[[FrameStep], Any]] = {
     "load_seconds": lambda s: s.seconds["load"],
     "observe_seconds": lambda s: s.seconds["observe"],
     "filter_seconds": lambda s: s.seconds["filter"],
+    "wall_seconds": lambda s: s.seconds.get("wall", s.seconds["load"] + s.seconds["observe"] + s.seconds["filter"]),
     "prior_labels": lambda s: s.prior_label,
     "prior_summary": lambda s: s.prior_summary,
     "particles": lambda s: s.particles,
@@ -64,7 +67,7 @@ RECORDERS: dict[str, Callable[[FrameStep], Any]] = {
 
 #: What :func:`tracker.track` records unless told otherwise (particles and weights are large: ask for them).
 DEFAULT_RECORD = ("mean_poses", "best_poses", "ess", "resampled", "recovered", "load_seconds", "observe_seconds",
-                  "filter_seconds", "prior_labels")
+                  "filter_seconds", "wall_seconds", "prior_labels")
 
 
 class Recording:
