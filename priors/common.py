@@ -184,7 +184,8 @@ def shift_height(features: np.ndarray, offset: np.ndarray) -> np.ndarray:
     """Invariant features ``P x ... x K`` with the root height (mm) of every frame moved by ``offset`` ``(P,)``
     mm, in place. The CRBM predicts the absolute root height of the people it was trained on; a shorter or
     taller person's heights, moved to the training subjects' mean before the model sees them and back after,
-    keep the person's own height (``relative_height``)."""
+    keep the person's own height (``relative_height``); a model trained on heights above standing is moved by the
+    person's standing root height instead (:meth:`priors.crbm.CRBMPrior.height_to_model`)."""
     shape = (len(offset),) + (1,) * (features.ndim - 1)
     features[..., 2:3] += np.asarray(offset, float).reshape(shape)
     return features

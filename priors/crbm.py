@@ -292,8 +292,11 @@ class CRBMModel:
 
     def to_document(self) -> dict:
         """The model file's dictionary (tensors and plain values; ``torch.load(weights_only=True)`` reads it)."""
+        config = asdict(self.config)
+        if not config["standing_height"]:  # as files written before the setting existed (readable by them)
+            del config["standing_height"]
         return {
-            "format": FORMAT, "params": self.crbm.state_dict(), "config": asdict(self.config), "fps": float(self.fps),
+            "format": FORMAT, "params": self.crbm.state_dict(), "config": config, "fps": float(self.fps),
             "body_model": self.body_model, "dof_names": list(self.dof_names), "sources": list(self.sources),
             "pose_step_rms": torch.tensor(self.pose_step_rms, dtype=torch.float64),
             "normaliser": normaliser_to_tensors(self.normaliser),
@@ -650,7 +653,8 @@ class CRBMPrior(MotionPrior):
                 "root_noise_mm": self.root_noise_mm, "mode": self.mode, "robust_fraction": self.robust_fraction,
                 "robust_adaptive": self.robust_adaptive, "heading_noise_rad": self.heading_noise,
                 "pace_spread": self.pace_spread, "pace_drift": self.pace_drift,
-                "relative_height": self.relative_height, "pace_jump": self.pace_jump}
+                "relative_height": self.relative_height, "pace_jump": self.pace_jump,
+                "standing_root_height_mm": self.standing_root_height}
 
     def model_for(self, available: int) -> CRBMModel:
         """The highest-order model whose history is all real poses (never a padded history)."""
@@ -859,7 +863,7 @@ CRBM_TRAIN_OPTIONS = (
     Option("standing_height", bool, False, "learn the root height above each subject's standing root height "
                                            "(its body model's) instead of above the floor, and track it above the "
                                            "person's own, so that one model fits people of other sizes (default "
-                                           "off: it won the tuning folds of issue 13 but not its test folds)"),
+                                           "off: it won issue 13's tuning folds but lost its one-view test folds)"),
 )
 
 

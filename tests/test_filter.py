@@ -188,7 +188,7 @@ def test_a_frame_that_fails_to_read_ahead_stops_the_run_where_it_is_due():
 
     prior = LinearGaussianPrior(np.eye(2), np.full(2, 0.1))
     functions = [lambda x: -0.5 * np.sum(x ** 2, axis=1)] * 6
-    for workers in (0, 2):
+    for workers in (0, 1, 2):
         seen = []
         pf = ParticleFilter(prior, FunctionLikelihood(functions), FilterConfig(n_particles=50),
                             np.random.default_rng(0))
@@ -221,3 +221,54 @@ def test_with_workers_the_filter_steps_beside_the_reading_thread():
            workers=1)
     assert seen["read"] == {caller} and seen["on_frame"] == {caller}
     assert seen["likelihood"] and caller not in seen["likelihood"]
+
+
+def test_a_step_that_fails_in_the_filter_thread_is_raised_after_the_frames_before_it():
+    from tracker.core.errors import InputError
+
+    def score(k):
+        def f(x):
+            if k == 3:
+                raise InputError("the likelihood refused frame 3")
+            return -0.5 * np.sum(x ** 2, axis=1)
+        return f
+
+    prior = LinearGaussianPrior(np.eye(2), np.full(2, 0.1))
+    for workers in (0, 1):
+        seen = []
+        pf = ParticleFilter(prior, FunctionLikelihood([score(k) for k in range(6)]), FilterConfig(n_particles=50),
+                            np.random.default_rng(0))
+        with pytest.raises(InputError, match="refused frame 3"):
+            pf.run(np.zeros((1, 2)), [Frame(k, ()) for k in range(6)],
+                   on_frame=lambda step: seen.append(step.frame), workers=workers)
+        assert seen == [0, 1, 2]
+
+
+def test_each_frame_records_the_wall_time_it_added():
+    """``wall_seconds``: with the stages in one thread about their sum; with reading and filtering overlapped,
+    less than their sum (each frame's reading sleeps 20 ms and its filter step 20 ms)."""
+    import time
+
+    def frames():
+        for k in range(6):
+            time.sleep(0.02)
+            yield Frame(k, ())
+
+    def slow(x):
+        time.sleep(0.02)
+        return -0.5 * np.sum(x ** 2, axis=1)
+
+    prior = LinearGaussianPrior(np.eye(2), np.full(2, 0.1))
+    walls = {}
+    for workers in (0, 1):
+        pf = ParticleFilter(prior, FunctionLikelihood([slow] * 6), FilterConfig(n_particles=50),
+                            np.random.default_rng(0))
+        r = pf.run(np.zeros((1, 2)), frames(), record=("wall_seconds", "load_seconds", "observe_seconds",
+                                                        "filter_seconds"), workers=workers)
+        stages = r["load_seconds"] + r["observe_seconds"] + r["filter_seconds"]
+        walls[workers] = float(np.median(r["wall_seconds"]))
+        if workers == 0:
+            assert np.all(np.abs(r["wall_seconds"] - stages) < 0.01)
+        else:
+            assert np.median(r["wall_seconds"]) < 0.8 * np.median(stages)
+    assert walls[1] < 0.8 * walls[0], walls

@@ -153,3 +153,23 @@ def test_ctrl_c_saves_a_checkpoint_and_resume_gives_the_uninterrupted_result(wal
     r = subprocess.run([sys.executable, "-m", "tracker", "track", "--resume", str(out)], capture_output=True,
                        text=True)
     assert r.returncode == 2 and "no interrupted run to resume" in r.stderr
+
+
+def test_a_checkpoint_written_before_frames_recorded_their_wall_time_resumes(tmp_path):
+    """Checkpoints of interrupted runs from before ``wall_seconds`` existed still resume: a frame's wall time
+    was then the sum of its stages."""
+    from tracker.app.checkpoint import load_checkpoint, save_checkpoint
+    from tracker.engine.filter import FilterState
+    from tracker.engine.recording import DEFAULT_RECORD, Recording
+    from tracker.engine.weights import LogWeights
+
+    old = Recording([n for n in DEFAULT_RECORD if n != "wall_seconds"])
+    old.values.update({"mean_poses": [np.zeros(3)] * 2, "best_poses": [np.zeros(3)] * 2, "ess": [5.0, 6.0],
+                       "resampled": [True, False], "recovered": [False, False], "load_seconds": [0.01, 0.02],
+                       "observe_seconds": [0.0, 0.0], "filter_seconds": [0.03, 0.04], "prior_labels": ["a", "a"]})
+    state = FilterState(np.zeros((4, 1, 3)), None, LogWeights.uniform(4), np.zeros((1, 3)), 1, 2)
+    rng = np.random.default_rng(0)
+    save_checkpoint(tmp_path / "c.npz", state, old, rng.bit_generator.state, {"x": 1})
+    recording = Recording(DEFAULT_RECORD)
+    restored, _ = load_checkpoint(tmp_path / "c.npz", {"x": 1}, recording, rng)
+    assert restored.tracked == 2 and np.allclose(recording.values["wall_seconds"], [0.04, 0.06])

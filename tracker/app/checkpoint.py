@@ -77,6 +77,9 @@ def load_checkpoint(path: str | Path, fingerprint: dict, recording: Recording,
         prior_state = arrays["prior_state"]
     else:
         prior_state = {k[len("prior_state."):]: v for k, v in arrays.items() if k.startswith("prior_state.")}
+    if "record.wall_seconds" not in arrays and all(f"record.{n}_seconds" in arrays for n in ("load", "observe", "filter")):
+        # written before frames recorded their wall time, when a frame's stages did not overlap
+        arrays["record.wall_seconds"] = sum(arrays[f"record.{n}_seconds"] for n in ("load", "observe", "filter"))
     missing = [n for n in recording.values if f"record.{n}" not in arrays]
     if missing:
         raise InputError(f"checkpoint lacks the recorded {', '.join(missing)}", path)

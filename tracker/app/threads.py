@@ -34,7 +34,8 @@ def configured_threads() -> int:
 
 def set_threads(n: int | None) -> int:
     """Limit BLAS (through threadpoolctl), OpenCV and torch to ``n`` threads (default: the available cores);
-    tracking prepares frames ahead in ``n - 1`` background threads (:func:`configured_threads`)."""
+    with ``n`` of 2 or more, tracking steps the filter in a background thread while the calling thread reads the
+    next frame, and prepares frames further ahead in ``n - 2`` more (:func:`configured_threads`)."""
     global _configured
     n = available_cores() if n is None else int(n)
     if n < 1:

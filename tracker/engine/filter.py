@@ -267,7 +267,8 @@ class ParticleFilter:
                     state = finish(*self.step(state, item[0], time.perf_counter() - t0, item[1]))
             return recording.result()
         # Pipelined: a filter thread steps frame t while this thread reads and prepares frame t+1 (image decoding
-        # stays on this thread, see Prefetcher), and the workers beyond the first prepare further frames ahead.
+        # stays on this thread, see Prefetcher: its stderr redirection could swallow what the filter thread printed
+        # meanwhile, which is nothing in normal operation), and the workers beyond the first prepare further ahead.
         # Steps run one at a time in frame order and every callback runs here between them, so the results and
         # the generator's draws are those of the loop above.
         with ThreadPoolExecutor(1, thread_name_prefix="filter") as stepper, \
@@ -295,7 +296,6 @@ class ParticleFilter:
         if item is not None and item[1] is None:
             item = (item[0], self.likelihood.prepare(item[0]))
         return item, time.perf_counter() - t0
-        return recording.result()
 
 
 class Prefetcher:

@@ -24,8 +24,8 @@ class FrameStep:
     resampling; ``mean`` and ``best`` ``(D,)`` the weighted mean and the
     highest-weight particle; ``ess`` the effective sample size before
     resampling; ``recovered`` is true when no particle explained the frame and
-    the filter re-diffused around its last estimate. ``seconds`` splits the
-    frame's wall time into ``load`` (reading the frame), ``observe`` (the
+    the filter re-diffused around its last estimate. ``seconds`` times the
+    frame's stages: ``load`` (reading the frame), ``observe`` (the
     likelihood's per-frame preparation) and ``filter`` (prior, likelihood,
     resampling); :meth:`ParticleFilter.run <tracker.engine.filter.ParticleFilter.run>` adds ``wall``, the time
     the frame added to the run (less than the sum of the others where reading and filtering overlap).
