@@ -81,6 +81,11 @@ class CRBMConfig:
     #: ``rest_root_height``) instead of above the floor, and predict it above the tracked person's: one model then
     #: fits people of other sizes (:func:`heights_above_standing`).
     standing_height: bool = False
+    #: Fraction of each clip (its last frames) held out to choose the epoch: every ``validation_every`` epochs the
+    #: one-step prediction error (free-energy best guess, normalised units) on the held-out windows is measured and
+    #: the weights of the best check are kept (Taylor 2009 held out 10%). 0: no validation, the last epoch's weights.
+    validation: float = 0.0
+    validation_every: int = 10
 
     def check(self) -> "CRBMConfig":
         for name in ("order", "hidden", "epochs", "cd_k", "batch_size"):
@@ -91,6 +96,10 @@ class CRBMConfig:
             raise InputError(f"history noise must be 'auto' or a non-negative number, got {self.history_noise!r}")
         if self.sparsity_target is not None and not 0 < self.sparsity_target < 1:
             raise InputError(f"sparsity target must lie in (0, 1), got {self.sparsity_target}")
+        if not 0 <= self.validation <= 0.5:
+            raise InputError(f"validation fraction must lie in [0, 0.5], got {self.validation}")
+        if int(self.validation_every) < 1:
+            raise InputError(f"validation_every must be at least 1, got {self.validation_every}")
         return self
 
 
@@ -259,6 +268,10 @@ class CRBMModel:
     #: With ``config.pace_input``: the mean and std of the training frames' log pace, which normalise the pace
     #: input (:func:`~tracker.core.representation.clip_log_pace`); None otherwise.
     pace_label: tuple[float, float] | None = None
+    #: With ``config.validation``: ``[epoch, held-out one-step error]`` of every check, and the epoch whose
+    #: weights the model kept (0: no validation).
+    validation_errors: list[list[float]] = field(default_factory=list)
+    best_epoch: int = 0
 
     @property
     def order(self) -> int:
@@ -282,6 +295,9 @@ class CRBMModel:
         pace = "" if self.pace_label is None else \
             f", paced (training paces {np.exp(self.pace_label[0]) - PACE_FLOOR_MM:.1f} mm/frame typical)"
         height = ", heights above standing" if self.standing_height else ""
+        if self.best_epoch:
+            best = min(e for _, e in self.validation_errors)
+            fit += f"held-out one-step error {best:.4f} at epoch {self.best_epoch} (kept), "
         return (f"CRBM order {self.order}{grow}, {self.crbm.n_hidden} hidden units{time_warp_note(self.time_warp)}"
                 f"{pace}{height}: "
                 f"{fit}{self.training_seconds:.1f} s")
@@ -293,8 +309,9 @@ class CRBMModel:
     def to_document(self) -> dict:
         """The model file's dictionary (tensors and plain values; ``torch.load(weights_only=True)`` reads it)."""
         config = asdict(self.config)
-        if not config["standing_height"]:  # as files written before the setting existed (readable by them)
-            del config["standing_height"]
+        for key in ("standing_height", "validation", "validation_every"):  # at their defaults, as files written
+            if config[key] == getattr(CRBMConfig, key):                      # before they existed (readable by them)
+                del config[key]
         return {
             "format": FORMAT, "params": self.crbm.state_dict(), "config": config, "fps": float(self.fps),
             "body_model": self.body_model, "dof_names": list(self.dof_names), "sources": list(self.sources),
@@ -302,6 +319,8 @@ class CRBMModel:
             "normaliser": normaliser_to_tensors(self.normaliser),
             "reconstruction_errors": [float(e) for e in self.reconstruction_errors],
             "training_seconds": float(self.training_seconds),
+            "validation_errors": [[float(e), float(x)] for e, x in self.validation_errors],
+            "best_epoch": int(self.best_epoch),
             "growth": [g.to_document() for g in self.growth], "time_warp": [float(s) for s in self.time_warp],
             "pace_label": None if self.pace_label is None else [float(x) for x in self.pace_label],
         }
@@ -364,7 +383,9 @@ def _model_from_document(doc: dict, path: Path, device: str) -> CRBMModel:
         return CRBMModel(crbm, normaliser, cfg, float(fps), str(doc["body_model"]), [str(n) for n in doc["dof_names"]],
                          [str(n) for n in doc["sources"]], step.numpy(), [float(e) for e in doc["reconstruction_errors"]],
                          float(doc["training_seconds"]), growth,
-                         checked_time_warp(doc.get("time_warp"), "CRBM", path), pace_label)
+                         checked_time_warp(doc.get("time_warp"), "CRBM", path), pace_label,
+                         [[float(e), float(x)] for e, x in doc.get("validation_errors", [])],
+                         int(doc.get("best_epoch", 0)))
     except InputError:
         raise
     except KeyError as exc:
@@ -430,7 +451,20 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
     activity = torch.full((H,), cfg.sparsity_target or 0.0, device=device)
     model = CRBMModel(crbm, data.normaliser, cfg, fps, body_model, list(dof_names), list(sources),
                       step_rms(clips), pace_label=pace_label)
-    starts = data.starts.to(device)
+    starts, held_out = split_validation(data.starts, [len(c) for c in clips], N, cfg.validation)
+    starts, held_out = starts.to(device), held_out.to(device)
+
+    def held_out_error() -> float:
+        """Mean squared one-step prediction error (normalised units) of the free-energy best guess on the
+        held-out windows."""
+        idx = held_out[:, None] + steps
+        window = frames[idx]
+        hist = window[:, :-1].reshape(len(idx), N * K)
+        if pace is not None:
+            hist = torch.cat([pace[idx[:, -1], None], hist], dim=1)
+        return float(((crbm.best_guess(hist) - window[:, -1]) ** 2).mean())
+
+    best = {"error": math.inf, "params": None}
     first_epoch, seconds_before = 0, 0.0
     if resume is not None:
         crbm.load_state_dict(resume["params"])
@@ -440,6 +474,10 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
         first_epoch = int(resume["epoch"])
         model.reconstruction_errors = [float(e) for e in resume["reconstruction_errors"]]
         seconds_before = float(resume["seconds"])
+        if "best" in resume:
+            best = {"error": float(resume["best"]["error"]), "params": resume["best"]["params"]}
+            model.validation_errors = [list(map(float, x)) for x in resume["best"]["errors"]]
+            model.best_epoch = int(resume["best"]["epoch"])
     for epoch in range(first_epoch, cfg.epochs):
         order = starts[torch.randperm(len(starts), generator=g, device=device)]
         err_sum, count = 0.0, 0
@@ -483,15 +521,46 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
                              "lower the learning rate")
         if progress is not None:
             progress(epoch + 1, model.reconstruction_errors[-1])
+        if len(held_out) and ((epoch + 1) % cfg.validation_every == 0 or epoch + 1 == cfg.epochs):
+            error = held_out_error()
+            model.validation_errors.append([epoch + 1, error])
+            if error < best["error"]:
+                best = {"error": error, "params": crbm.state_dict()}
+                model.best_epoch = epoch + 1
         if checkpoint is not None and (epoch + 1) % checkpoint[1] == 0 and epoch + 1 < cfg.epochs:
             model.training_seconds = seconds_before + time.perf_counter() - t0
             checkpoint[0](model, {"params": crbm.state_dict(), "epoch": epoch + 1,
                                   "velocity": {k: v.detach().cpu().clone() for k, v in velocity.items()},
                                   "activity": activity.detach().cpu().clone(), "generator": g.get_state(),
                                   "reconstruction_errors": list(model.reconstruction_errors),
-                                  "seconds": model.training_seconds})
+                                  "seconds": model.training_seconds,
+                                  **({"best": {**best, "errors": list(model.validation_errors),
+                                               "epoch": model.best_epoch}} if len(held_out) else {})})
+    if best["params"] is not None:  # the weights of the best held-out check
+        crbm.load_state_dict(best["params"])
     model.training_seconds = seconds_before + time.perf_counter() - t0
     return model
+
+
+def split_validation(starts: torch.Tensor, clip_lengths: Sequence[int], order: int, fraction: float
+                     ) -> tuple[torch.Tensor, torch.Tensor]:
+    """The training windows' starts ``(M,)`` (indices into the clips' frames concatenated, clips of
+    ``clip_lengths`` frames; a window predicts the frame ``order`` after its start) split into those for training
+    and those held out: windows predicting a frame in the last ``fraction`` of their clip are held out (none when
+    ``fraction`` is 0). Held-out windows are whole stretches of motion rather than frames scattered between
+    training frames, which would flatter the check."""
+    if fraction <= 0:
+        return starts, starts[:0]
+    s = starts.cpu().numpy()
+    held = np.zeros(len(s), bool)
+    offset = 0
+    for n in clip_lengths:
+        held |= (s + order >= offset + int(round((1 - fraction) * n))) & (s < offset + n)
+        offset += n
+    if held.all() or not held.any():
+        raise InputError(f"a validation fraction of {fraction:g} leaves no windows to "
+                         f"{'train on' if held.all() else 'hold out'}; the clips are too short")
+    return starts[torch.from_numpy(~held)], starts[torch.from_numpy(held)]
 
 
 #: Least spread (std of the training frames' log pace) for which ``train`` gives a CRBM a pace input by default:
@@ -780,7 +849,7 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
     config = CRBMConfig(order=options["order"], hidden=options["hidden"], epochs=options["epochs"],
                         cd_k=options["cd_k"], batch_size=options["batch_size"], history_noise=noise,
                         sparsity_target=options["sparsity"], pace_input=pace_input,
-                        standing_height=options["standing_height"]).check()
+                        standing_height=options["standing_height"], validation=options["validation"]).check()
     grow = _growth_orders(options["grow_from"], config.order)
     every = options["checkpoint_every"] or 0
     orders = grow + [config.order]
@@ -860,6 +929,10 @@ CRBM_TRAIN_OPTIONS = (
                                      "second), which each particle carries while tracking (default: on when the "
                                      f"clips' paces vary, std of log pace >= {PACE_SPREAD_FOR_INPUT:g}, e.g. the "
                                      "walks of several people; --no-pace-input to turn it off)"),
+    Option("validation", float, CRBMConfig.validation,
+           "fraction of each clip (its last frames) held out to choose the epoch: the weights of the epoch with the "
+           "least held-out one-step error, checked every 10 epochs, are kept (default 0: the last epoch's)",
+           minimum=0.0, maximum=0.5),
     Option("standing_height", bool, False, "learn the root height above each subject's standing root height "
                                            "(its body model's) instead of above the floor, and track it above the "
                                            "person's own, so that one model fits people of other sizes (default "

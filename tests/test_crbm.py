@@ -210,3 +210,44 @@ def test_interrupted_training_resumes_to_the_same_model(tmp_path):
     assert resumed.reconstruction_errors == whole.reconstruction_errors and not (tmp_path / "c.pt").exists()
     with pytest.raises(InputError, match="no training checkpoint"):
         tracker.train("crbm", [walks[0]], checkpoint=tmp_path / "c.pt", resume=True, **settings)
+
+
+def test_split_validation_holds_out_the_end_of_each_clip():
+    from priors.crbm import split_validation
+
+    # Order-2 windows of clips of 10 and 6 frames (none predicts a clip's last frame, see make_windows).
+    starts = torch.tensor([0, 1, 2, 3, 4, 5, 6, 10, 11, 12])
+    train, held = split_validation(starts, [10, 6], 2, 0.34)  # the last 3 and 2 frames of each clip
+    assert held.tolist() == [5, 6, 12] and train.tolist() == [0, 1, 2, 3, 4, 10, 11]
+    assert split_validation(starts, [10, 6], 2, 0.0)[1].numel() == 0
+    with pytest.raises(InputError, match="no windows to hold out"):
+        split_validation(torch.tensor([0, 1]), [4], 1, 0.1)
+
+
+def test_validation_keeps_the_weights_of_the_best_held_out_check(walks):
+    """With 30% of a short clip held out and a fast learning rate, the held-out error is least before the last
+    epoch; the model keeps those weights: the same training stopped at that epoch ends with the same weights."""
+    clip = walks[0][:150]
+    cfg = CRBMConfig(order=2, hidden=100, epochs=200, validation=0.3, validation_every=5, learning_rate=1e-2)
+    whole = train_crbm([clip], cfg, 60.0, DOF_NAMES, rng=np.random.default_rng(1))
+    errors = dict((int(e), x) for e, x in whole.validation_errors)
+    assert sorted(errors) == list(range(5, 201, 5)) and 0 < whole.best_epoch < 200
+    assert errors[whole.best_epoch] == min(errors.values())
+    stopped = train_crbm([clip], CRBMConfig(**{**cfg.__dict__, "epochs": whole.best_epoch}), 60.0, DOF_NAMES,
+                         rng=np.random.default_rng(1))
+    assert all(torch.equal(whole.crbm.state_dict()[k], stopped.crbm.state_dict()[k]) for k in CRBM_PARAMS)
+    assert f"at epoch {whole.best_epoch} (kept)" in whole.summary()
+
+
+def test_training_with_validation_resumes_to_the_same_model(walks, tmp_path):
+    cfg = CRBMConfig(order=1, hidden=20, epochs=8, validation=0.2, validation_every=2)
+    states = []
+    whole = train_crbm(walks[:2], cfg, 60.0, DOF_NAMES, rng=np.random.default_rng(2),
+                       checkpoint=(lambda model, state: states.append(state), 4))
+    resumed = train_crbm(walks[:2], cfg, 60.0, DOF_NAMES, rng=np.random.default_rng(2), resume=states[0])
+    assert states[0]["best"]["epoch"] in (2, 4)
+    assert all(torch.equal(whole.crbm.state_dict()[k], resumed.crbm.state_dict()[k]) for k in CRBM_PARAMS)
+    assert resumed.validation_errors == whole.validation_errors and resumed.best_epoch == whole.best_epoch
+    whole.save(tmp_path / "m.pt")
+    loaded = load_crbm(tmp_path / "m.pt")
+    assert loaded.best_epoch == whole.best_epoch and loaded.validation_errors == whole.validation_errors
