@@ -659,6 +659,11 @@ class CRBMPrior(MotionPrior):
                  pace_jump: float | None = None, standing_root_height: float | None = None):
         if not models:
             raise InputError("the CRBM prior needs at least one model")
+        orders = [m.order for m in models]
+        if len(set(orders)) < len(orders):  # one would silently replace the other
+            raise InputError(f"the CRBM prior takes one model per order (the lower orders grow the history), got "
+                             f"orders {', '.join(map(str, orders))}: several models of one order (an ensemble) are "
+                             "not supported")
         by_order = {m.order: m for m in models}
         for m in models:  # the lower orders a model file carries, unless given explicitly
             for g in m.growth:

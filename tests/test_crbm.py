@@ -251,3 +251,8 @@ def test_training_with_validation_resumes_to_the_same_model(walks, tmp_path):
     whole.save(tmp_path / "m.pt")
     loaded = load_crbm(tmp_path / "m.pt")
     assert loaded.best_epoch == whole.best_epoch and loaded.validation_errors == whole.validation_errors
+
+
+def test_two_models_of_one_order_are_refused_not_silently_dropped(crbm3):
+    with pytest.raises(InputError, match="one model per order"):
+        CRBMPrior([crbm3, crbm3])
