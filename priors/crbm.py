@@ -41,6 +41,7 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
+from priors.ensemble import EnsemblePrior
 from priors.common import (
     ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS, add_ground_diffusion, add_heading_diffusion, check_model_fits,
     check_weights, drift_log_pace, mix_in_random_walk, normaliser_from_tensors, normaliser_to_tensors,
@@ -662,8 +663,8 @@ class CRBMPrior(MotionPrior):
         orders = [m.order for m in models]
         if len(set(orders)) < len(orders):  # one would silently replace the other
             raise InputError(f"the CRBM prior takes one model per order (the lower orders grow the history), got "
-                             f"orders {', '.join(map(str, orders))}: several models of one order (an ensemble) are "
-                             "not supported")
+                             f"orders {', '.join(map(str, orders))}; several model files all of one order make an "
+                             "ensemble")
         by_order = {m.order: m for m in models}
         for m in models:  # the lower orders a model file carries, unless given explicitly
             for g in m.growth:
@@ -946,7 +947,8 @@ CRBM_TRAIN_OPTIONS = (
 
 
 @register_prior(
-    "crbm", summary="Conditional RBM (Taylor 2009); several model files of increasing order grow the history",
+    "crbm", summary="Conditional RBM (Taylor 2009); several model files of increasing order grow the history, "
+                    "several of one order form an ensemble",
     model_files="several", train=train_crbm_prior, train_options=CRBM_TRAIN_OPTIONS, resumable=True,
     options=(Option("gibbs_steps", int, GIBBS_STEPS, f"alternating Gibbs steps per sample (default {GIBBS_STEPS})",
                     minimum=1, maximum=10000),
@@ -963,13 +965,22 @@ CRBM_TRAIN_OPTIONS = (
                                                     "by the known frames' mean root height minus the training "
                                                     "frames' (default off; for models of absolute heights, not "
                                                     "those trained with --standing-height)")))
-def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> CRBMPrior:
+def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> CRBMPrior | EnsemblePrior:
+    """The CRBM prior of ``model_files``: models of increasing order grow the history; several files all of one
+    order (each with the growth models it carries) form an ensemble, each drawing its share of the particles
+    (:class:`priors.ensemble.EnsemblePrior`)."""
     models = [load_crbm(m, device=context.device) for m in model_files]
     for path, m in zip(model_files, models):
         m.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, path)
-    return CRBMPrior(models, gibbs_steps=options["gibbs_steps"], root_noise_mm=options["root_noise"],
-                     device=context.device, robust_fraction=options["robust_fraction"],
-                     heading_noise=options["heading_noise"], robust_adaptive=options["robust_adaptive"],
-                     pace_spread=options["pace_spread"], pace_drift=options["pace_drift"],
-                     relative_height=options["relative_height"], pace_jump=options["pace_jump"],
-                     standing_root_height=context.body_model.rest_root_height)
+
+    def prior(of: list[CRBMModel]) -> CRBMPrior:
+        return CRBMPrior(of, gibbs_steps=options["gibbs_steps"], root_noise_mm=options["root_noise"],
+                         device=context.device, robust_fraction=options["robust_fraction"],
+                         heading_noise=options["heading_noise"], robust_adaptive=options["robust_adaptive"],
+                         pace_spread=options["pace_spread"], pace_drift=options["pace_drift"],
+                         relative_height=options["relative_height"], pace_jump=options["pace_jump"],
+                         standing_root_height=context.body_model.rest_root_height)
+
+    if len(models) > 1 and len({m.order for m in models}) == 1:
+        return EnsemblePrior([prior([m]) for m in models])
+    return prior(models)
