@@ -41,17 +41,17 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
-from priors.ensemble import EnsemblePrior
 from priors.common import (
     ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS, add_ground_diffusion, add_heading_diffusion, check_model_fits,
     check_weights, drift_log_pace, mix_in_random_walk, normaliser_from_tensors, normaliser_to_tensors,
     read_model_file, robust_share, scale_ground_steps, shift_height, start_log_pace, steps_taken, torch_generator,
     torch_save_atomic, checked_time_warp, time_warp_note,
 )
+from priors.ensemble import EnsemblePrior
 from tracker.core.errors import InputError
 from tracker.core.representation import (
-    PACE_FLOOR_MM, STANDING_LOG_PACE, STEP_FEATURES, FeatureNormaliser, clip_features, clip_log_pace, log_pace, next_poses, pending_step,
-    poses_to_invariant, step_rms,
+    PACE_FLOOR_MM, STANDING_LOG_PACE, STEP_FEATURES, FeatureNormaliser, clip_features, clip_log_pace, log_pace,
+    next_poses, pending_step, poses_to_invariant, step_rms,
 )
 from tracker.engine.prior import MotionPrior, PriorState
 from tracker.engine.registry import Option, PriorContext, TrainingData, register_prior
@@ -102,6 +102,11 @@ class CRBMConfig:
         if int(self.validation_every) < 1:
             raise InputError(f"validation_every must be at least 1, got {self.validation_every}")
         return self
+
+
+#: The training settings that change what a model's inputs mean (name: what it is, for messages): the growth
+#: models in a file and a resumed training must agree with the model on them.
+INPUT_SETTINGS = {"pace_input": "pace input", "standing_height": "height reference"}
 
 
 def bernoulli(p: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
@@ -230,12 +235,8 @@ def heights_above_standing(clips: Sequence[np.ndarray], standing_heights: Sequen
     heights = np.asarray(standing_heights, float)
     if not np.all(np.isfinite(heights) & (heights > 0)):
         raise InputError(f"standing root heights must be positive mm, got {heights.tolist()}")
-    out = []
-    for clip, h in zip(clips, heights):
-        clip = np.array(clip, float)
-        clip[:, 2] -= h
-        out.append(clip)
-    return out
+    # A pose's root height is number 2, as an invariant feature's is.
+    return [shift_height(np.array(clip, float)[None], np.array([-h]))[0] for clip, h in zip(clips, heights)]
 
 
 def history_noise_scale(data: WindowData) -> torch.Tensor:
@@ -377,10 +378,9 @@ def _model_from_document(doc: dict, path: Path, device: str) -> CRBMModel:
             raise InputError("CRBM model file's pose_step_rms must be finite, non-negative, one per pose number",
                              path)
         growth = [_model_from_document(g, path, device) for g in doc.get("growth", [])]
-        if any(g.config.pace_input != cfg.pace_input for g in growth):
-            raise InputError("CRBM model file's growth models and main model differ in having a pace input", path)
-        if any(g.config.standing_height != cfg.standing_height for g in growth):
-            raise InputError("CRBM model file's growth models and main model differ in their height reference", path)
+        for key, what in INPUT_SETTINGS.items():
+            if any(getattr(g.config, key) != getattr(cfg, key) for g in growth):
+                raise InputError(f"CRBM model file's growth models and main model differ in {what}", path)
         return CRBMModel(crbm, normaliser, cfg, float(fps), str(doc["body_model"]), [str(n) for n in doc["dof_names"]],
                          [str(n) for n in doc["sources"]], step.numpy(), [float(e) for e in doc["reconstruction_errors"]],
                          float(doc["training_seconds"]), growth,
@@ -455,15 +455,21 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
     starts, held_out = split_validation(data.starts, [len(c) for c in clips], N, cfg.validation)
     starts, held_out = starts.to(device), held_out.to(device)
 
-    def held_out_error() -> float:
-        """Mean squared one-step prediction error (normalised units) of the free-energy best guess on the
-        held-out windows."""
-        idx = held_out[:, None] + steps
+    def windows(window_starts: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The frames to predict ``B x K`` and their conditioning inputs ``B x (C + N K)`` (the pace of the frame
+        to predict, then the history) of the windows starting at ``window_starts`` ``(B,)``: windows by indexing."""
+        idx = window_starts[:, None] + steps  # B x (N+1) frame indices
         window = frames[idx]
         hist = window[:, :-1].reshape(len(idx), N * K)
         if pace is not None:
             hist = torch.cat([pace[idx[:, -1], None], hist], dim=1)
-        return float(((crbm.best_guess(hist) - window[:, -1]) ** 2).mean())
+        return window[:, -1], hist
+
+    def held_out_error() -> float:
+        """Mean squared one-step prediction error (normalised units) of the free-energy best guess on the
+        held-out windows."""
+        v, hist = windows(held_out)
+        return float(((crbm.best_guess(hist) - v) ** 2).mean())
 
     best = {"error": math.inf, "params": None}
     first_epoch, seconds_before = 0, 0.0
@@ -483,12 +489,7 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
         order = starts[torch.randperm(len(starts), generator=g, device=device)]
         err_sum, count = 0.0, 0
         for i in range(0, len(order), cfg.batch_size):
-            idx = order[i:i + cfg.batch_size, None] + steps  # B x (N+1) frame indices: windows by indexing
-            window = frames[idx]
-            v0 = window[:, -1]
-            hist = window[:, :-1].reshape(len(idx), N * K)
-            if pace is not None:  # the pace of the frame to predict
-                hist = torch.cat([pace[idx[:, -1], None], hist], dim=1)
+            v0, hist = windows(order[i:i + cfg.batch_size])
             if cfg.history_noise:
                 hist = hist + torch.randn(hist.shape, generator=g, device=device) * noise
             a_hat, b_hat = crbm.biases(hist)
@@ -499,7 +500,7 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
                 vk = a_hat + h @ crbm.W.T
                 pk = crbm.hidden_probabilities(vk, b_hat)
                 h = bernoulli(pk, g)
-            n = len(idx)
+            n = len(v0)
             dv, dh = v0 - vk, h0 - pk
             grads = {"W": (v0.T @ h0 - vk.T @ pk) / n, "A": hist.T @ dv / n, "B": hist.T @ dh / n,
                      "a": dv.mean(0), "b": dh.mean(0)}
@@ -866,11 +867,11 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
         if checkpoint is None or not checkpoint.exists():
             raise InputError("no training checkpoint to resume from", checkpoint)
         doc = read_model_file(checkpoint, CHECKPOINT_FORMAT, "CRBM training checkpoint")
+        saved = doc.get("config", {})
         if "training_state" not in doc or doc.get("stage_orders") != orders \
-                or bool(doc.get("config", {}).get("pace_input", False)) != config.pace_input \
-                or bool(doc.get("config", {}).get("standing_height", False)) != config.standing_height:
-            raise InputError("the checkpoint is not of this training (other orders, another pace input or height "
-                             "reference, or a finished model)", checkpoint)
+                or any(bool(saved.get(key, False)) != getattr(config, key) for key in INPUT_SETTINGS):
+            raise InputError("the checkpoint is not of this training (other orders, another "
+                             f"{' or '.join(INPUT_SETTINGS.values())}, or a finished model)", checkpoint)
         done = [_model_from_document(g, checkpoint, "cpu") for g in doc["growth"]]
         state = doc["training_state"]
         for _ in done:  # the draws the finished stages took from rng

@@ -19,8 +19,8 @@ from tracker.engine.prior import MotionPrior, PriorState, reindex_state
 
 def _scatter(full: PriorState, idx: np.ndarray, part: PriorState) -> PriorState:
     """``full`` (a member's state for all particles) with rows ``idx`` replaced by ``part``."""
-    if full is None or part is None:
-        return full if part is None else part
+    if part is None:
+        return None
     if isinstance(full, dict):
         return {k: _scatter(full[k], idx, part[k]) for k in full}
     out = np.array(full, copy=True)
@@ -50,6 +50,13 @@ class EnsemblePrior(MotionPrior):
         self.order, self.name = first.order, first.name
         self.summary_names, self.summary_kind = first.summary_names, first.summary_kind
 
+    def _shares(self, state: PriorState):
+        """Each member with its index and the indices ``(n,)`` of its particles, for members that have any."""
+        for k, m in enumerate(self.members):
+            idx = np.flatnonzero(state["member"] == k)
+            if len(idx):
+                yield k, m, idx
+
     def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
         state = {"member": np.arange(n_particles) % len(self.members)}
         for k, m in enumerate(self.members):
@@ -59,15 +66,10 @@ class EnsemblePrior(MotionPrior):
     def sample(self, history: np.ndarray, available: int, state: PriorState,
                rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
         poses = np.empty((history.shape[0], history.shape[2]))
-        new = {"member": state["member"]}
-        for k, m in enumerate(self.members):
-            idx = np.flatnonzero(state["member"] == k)
+        new = dict(state)  # a member that resampling left no particles keeps its state
+        for k, m, idx in self._shares(state):
             own = state[f"member_{k}"]
-            if len(idx) == 0:  # resampling left this member no particles
-                new[f"member_{k}"] = own
-                continue
-            drawn, part = m.sample(history[idx], available, reindex_state(own, idx), rng)
-            poses[idx] = drawn
+            poses[idx], part = m.sample(history[idx], available, reindex_state(own, idx), rng)
             new[f"member_{k}"] = _scatter(own, idx, part)
         return poses, new
 
@@ -75,11 +77,8 @@ class EnsemblePrior(MotionPrior):
         return np.mean([m.diffusion_std() for m in self.members], axis=0)
 
     def summarize(self, state: PriorState, weights: np.ndarray) -> np.ndarray | None:
-        parts = []
-        for k, m in enumerate(self.members):
-            idx = np.flatnonzero(state["member"] == k)
-            if len(idx):
-                parts.append(m.summarize(reindex_state(state[f"member_{k}"], idx), weights[idx]))
+        parts = [m.summarize(reindex_state(state[f"member_{k}"], idx), weights[idx])
+                 for k, m, idx in self._shares(state)]
         if not parts or any(p is None for p in parts):
             return None
         return np.sum(parts, axis=0)

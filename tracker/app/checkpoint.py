@@ -15,7 +15,7 @@ from data_tools.checks import load_npz
 from data_tools.files import atomic_path
 from tracker.core.errors import InputError
 from tracker.engine.filter import FilterState
-from tracker.engine.recording import Recording
+from tracker.engine.recording import STAGES, Recording
 from tracker.engine.weights import LogWeights
 
 FORMAT = "pose-tracker checkpoint v1"
@@ -77,9 +77,10 @@ def load_checkpoint(path: str | Path, fingerprint: dict, recording: Recording,
         prior_state = arrays["prior_state"]
     else:
         prior_state = {k[len("prior_state."):]: v for k, v in arrays.items() if k.startswith("prior_state.")}
-    if "record.wall_seconds" not in arrays and all(f"record.{n}_seconds" in arrays for n in ("load", "observe", "filter")):
+    stages = [f"record.{k}_seconds" for k in STAGES]
+    if "record.wall_seconds" not in arrays and all(k in arrays for k in stages):
         # written before frames recorded their wall time, when a frame's stages did not overlap
-        arrays["record.wall_seconds"] = sum(arrays[f"record.{n}_seconds"] for n in ("load", "observe", "filter"))
+        arrays["record.wall_seconds"] = sum(arrays[k] for k in stages)
     missing = [n for n in recording.values if f"record.{n}" not in arrays]
     if missing:
         raise InputError(f"checkpoint lacks the recorded {', '.join(missing)}", path)

@@ -23,7 +23,7 @@ from tracker.core.metrics import marker_error
 from tracker.engine.filter import FilterConfig, ParticleFilter
 from tracker.engine.likelihood import Likelihood
 from tracker.engine.prior import MotionPrior
-from tracker.engine.recording import DEFAULT_RECORD, FrameStep
+from tracker.engine.recording import DEFAULT_RECORD, STAGES, FrameStep
 
 
 @dataclass
@@ -70,8 +70,7 @@ class TrackingResult:
         n = max(len(self.tracked_frames), 1)
         if "wall_seconds" in self.records:
             return float(self.records["wall_seconds"].sum()) / n
-        return float(sum(self.records[k].sum() for k in ("load_seconds", "observe_seconds", "filter_seconds")
-                         if k in self.records)) / n
+        return float(sum(self.records[f"{k}_seconds"].sum() for k in STAGES if f"{k}_seconds" in self.records)) / n
 
     @property
     def recovered_frames(self) -> list[int]:

@@ -48,6 +48,9 @@ class FrameStep:
     prior_summary: np.ndarray | None = None
 
 
+#: The stages a frame's time is split into (:attr:`FrameStep.seconds`); without overlap its wall time is their sum.
+STAGES = ("load", "observe", "filter")
+
 #: Named per-frame quantities.
 RECORDERS: dict[str, Callable[[FrameStep], Any]] = {
     "mean_poses": lambda s: s.mean,
@@ -58,7 +61,7 @@ RECORDERS: dict[str, Callable[[FrameStep], Any]] = {
     "load_seconds": lambda s: s.seconds["load"],
     "observe_seconds": lambda s: s.seconds["observe"],
     "filter_seconds": lambda s: s.seconds["filter"],
-    "wall_seconds": lambda s: s.seconds.get("wall", s.seconds["load"] + s.seconds["observe"] + s.seconds["filter"]),
+    "wall_seconds": lambda s: s.seconds.get("wall", sum(s.seconds[k] for k in STAGES)),
     "prior_labels": lambda s: s.prior_label,
     "prior_summary": lambda s: s.prior_summary,
     "particles": lambda s: s.particles,
