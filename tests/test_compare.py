@@ -1,5 +1,6 @@
 """The experiment runner: validation, seeding independent of workers, resume after a kill, caching,
 tables, and the Dask and Ray backends on local two-worker clusters."""
+import csv
 import json
 import os
 import signal
@@ -17,6 +18,7 @@ from tracker.app.report import bootstrap_interval
 from tracker.core.errors import InputError
 
 SAMPLE = Path(__file__).resolve().parents[1] / "data_tools" / "samples" / "cmu07"
+CLIP = SAMPLE / "07_01.amc"
 
 
 def write_experiment(folder: Path, priors=("zero-velocity", "constant-velocity"), seeds=2, extra="",
@@ -52,6 +54,11 @@ def run_numbers(out: Path) -> dict:
     ('[[prior]]\nname = "crbm"\nmodels = ["missing.pt"]', "file not found"),
     ('[[prior]]\nname = "nope"', "unknown prior 'nope'"),
     ('[[prior]]\nname = "zero-velocity"\nlabel = "z2"\noptions = { gibbs_steps = 3 }', "takes no option"),
+    ('[[prior]]\nname = "zero-velocity"\nlabel = "z2"\ntrain_seeds = [0, 1]', "train_seeds repeats the entry's"),
+    (f'[[prior]]\nname = "crbm"\ntrain_seeds = [0, 1]\ntrain = [{{ mocap = ["{CLIP}"], seed = 3 }}]',
+     "either as train_seeds or as each training's seed"),
+    (f'[[prior]]\nname = "crbm"\ntrain_seeds = [1, 1]\ntrain = [{{ mocap = ["{CLIP}"] }}]',
+     "train_seeds must be distinct integers"),
 ])
 def test_experiment_file_is_validated_whole(tmp_path, mutation, expected):
     path = write_experiment(tmp_path)
@@ -99,6 +106,27 @@ def test_numbers_do_not_depend_on_workers_and_finished_runs_are_skipped(tmp_path
     assert any("6 runs: 4 finished before (skipped), 2 to run" in s for s in said)
     rows = (tmp_path / "a" / "table.csv").read_text()
     assert "zv-scaled" in rows and rows.count("mean_error_mm") == 3
+
+
+def test_train_seeds_repeat_a_training_and_the_report_averages_over_the_models(tmp_path):
+    path = write_experiment(tmp_path, priors=("zero-velocity",))
+    train = f'{{ mocap = ["{CLIP}"], options = {{ order = 1, epochs = 2, hidden = 10 }} }}'
+    path.write_text(path.read_text() + f'\n[[prior]]\nlabel = "C"\nname = "crbm"\ntrain_seeds = [4, 7]\n'
+                                       f'train = [{train}]\n')
+    exp = load_experiment(path)
+    assert [(p.label, p.replicate_of, p.training_seed, [t.seed for t in p.train]) for p in exp.priors[1:]] == [
+        ("C, training seed 4", "C", 4, [4]), ("C, training seed 7", "C", 7, [7])]
+    compare(path, tmp_path / "out", say=lambda s: None, progress=False)
+    assert len(list((tmp_path / "out" / "models").iterdir())) == 2  # one model per training seed
+    with open(tmp_path / "out" / "table.csv", newline="") as f:
+        rows = {r["row"]: (float(r["mean"]), float(r["std"]), int(r["runs"])) for r in csv.DictReader(f)
+                if r["metric"] == "mean_error_mm"}
+    one, two = rows["C, training seed 4"][0], rows["C, training seed 7"][0]
+    assert one != two  # different models
+    mean, between, runs = rows["C (over 2 training seeds)"]
+    assert mean == pytest.approx((one + two) / 2, abs=1e-3) and between == pytest.approx(abs(one - two) / 2 ** 0.5,
+                                                                                           abs=1e-3) and runs == 4
+    assert "## Over training seeds" in (tmp_path / "out" / "table.md").read_text()
 
 
 def test_killed_experiment_resumes_without_redoing_finished_runs(tmp_path):

@@ -42,6 +42,11 @@ File layout (paths are relative to the experiment file; every key is checked, un
     models = ["crbm3.pt"]                    # model files, or models the runner trains (and caches):
     train = [{ mocap = ["a.amc", "b.amc"], options = { order = 1 } },
              { mocap = ["a.amc", { path = "c.amc", start = 0, frames = 600 }], options = { order = 3 } }]
+    [[prior]]
+    label = "CRBM-3"                         # the same training repeated with several training seeds: one row
+    name = "crbm"                            # per model ("CRBM-3, training seed 0", ...), and the report's
+    train_seeds = [0, 1, 2, 3, 4]            # "over training seeds" table: the mean over the models, the spread
+    train = [{ mocap = ["a.amc"] }]          # between models beside the spread over tracking seeds
 
     [[likelihood]]                           # variants (default: one edge-silhouette)
     label = "bidirectional"
@@ -58,7 +63,7 @@ import hashlib
 import itertools
 import json
 import sys
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -76,7 +81,7 @@ TOP_KEYS = {"description", "seed", "seeds", "fps", "baseline", "paired", "tracki
 TRACKING_KEYS = {"particles", "views", "annealing_layers", "frames", "known_frames", "resampling"}
 SEQUENCE_KEYS = {"name", "path", "mocap", "skeleton", "then", "then_skeleton", "switch_at", "fade", "start", "frames", "views", "seed", "noise", "width",
                  "height", "lighting_change", "occluder", "missing_camera"}
-PRIOR_KEYS = {"label", "name", "options", "models", "train", "train_mocap"}
+PRIOR_KEYS = {"label", "name", "options", "models", "train", "train_mocap", "train_seeds"}
 TRAIN_KEYS = {"mocap", "skeletons", "options", "seed"}
 LIKELIHOOD_KEYS = {"label", "name", "options"}
 
@@ -130,6 +135,10 @@ class PriorSpec:
     models: tuple[Path, ...]
     train: tuple[TrainSpec, ...]
     train_mocap: tuple[ClipSpec, ...] | None
+    #: For one of the rows a ``train_seeds`` entry expands into: the entry's own label (the group's) and this
+    #: row's training seed; None for an ordinary entry.
+    replicate_of: str | None = None
+    training_seed: int | None = None
 
 
 @dataclass(frozen=True)
@@ -203,6 +212,21 @@ def _clip(w: "_Where", value: Any, entry: str) -> ClipSpec:
         return ClipSpec(w.file(value.get("path"), entry), w.int_(value.get("start", 0), entry + " start", 0),
                         None if frames is None else w.int_(frames, entry + " frames", 3))
     return ClipSpec(w.file(value, entry))
+
+
+def _replicates(w: "_Where", spec: PriorSpec, entry_doc: dict, entry: str) -> list[PriorSpec]:
+    """The rows of a ``train_seeds`` entry: the entry once per training seed, every one of its trainings run
+    with that seed, labelled ``"LABEL, training seed S"``."""
+    seeds = _as_list(entry_doc["train_seeds"])
+    if not spec.train:
+        raise w.error(entry, "train_seeds repeats the entry's trainings: it needs train = [...]")
+    if any("seed" in t for t in _as_list(entry_doc.get("train", []))):
+        raise w.error(entry, "give the training seeds either as train_seeds or as each training's seed, not both")
+    seeds = [w.int_(s, f"{entry} train_seeds", 0) for s in seeds]
+    if not seeds or len(set(seeds)) != len(seeds):
+        raise w.error(entry, f"train_seeds must be distinct integers >= 0, got {entry_doc['train_seeds']!r}")
+    return [replace(spec, label=f"{spec.label}, training seed {s}", replicate_of=spec.label, training_seed=s,
+                    train=tuple(replace(t, seed=s) for t in spec.train)) for s in seeds]
 
 
 def _as_list(value: Any) -> list:
@@ -320,7 +344,8 @@ def load_experiment(path: str | Path) -> Experiment:
         if spec.model_files == "one" and len(models) + len(trains) != 1:
             raise w.error(entry, f"prior {p['name']} takes exactly one model")
         train_mocap = tuple(_clip(w, m, entry) for m in _as_list(p["train_mocap"])) if "train_mocap" in p else None
-        priors.append(PriorSpec(label, p["name"], dict(p.get("options", {})), models, tuple(trains), train_mocap))
+        prior = PriorSpec(label, p["name"], dict(p.get("options", {})), models, tuple(trains), train_mocap)
+        priors += _replicates(w, prior, p, entry) if "train_seeds" in p else [prior]
     if not priors:
         raise w.error("", "no [[prior]] entries")
     if len({p.label for p in priors}) != len(priors):

@@ -115,6 +115,8 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
                 lo, hi = bootstrap_interval(d)
                 cells.append(f"{d.mean():+.1f} [{lo:+.1f}, {hi:+.1f}]" if d.size > 1 else f"{d.mean():+.1f}")
             md.write(f"| {row} | {base_row} | " + " | ".join(cells) + " |\n")
+    _write_replicates(md, csv_rows, exp, rows, seqs, split_row, lambda row, s: [
+        per_run(r, "per_frame_error_mm") for r in by.get((row, s), [])])
     cpu = sum({r["run"]["key"]: r.get("wall_seconds", 0.0) for r in results}.values())
     md.write(f"\n{meta['runs']} runs, {cpu:.0f} s of run time in all; this invocation ran {meta['ran_now']} of them "
              f"with {meta['jobs']} {meta['backend']} job(s) in {meta['wall_seconds_now']:.0f} s; package version "
@@ -125,6 +127,41 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
     write_text_atomic(out / "table.csv", buf.getvalue())
     _plot(out / "per_frame.png", rows, seqs, by)
     return {"table": md.getvalue(), "runs": len(results)}
+
+
+def _write_replicates(md: io.StringIO, csv_rows: list, exp, rows: list[str], seqs: list[str], split_row,
+                      errors) -> None:
+    """The "over training seeds" table: for every prior entry with ``train_seeds`` (and every view set or other
+    variant), each model's marker error (its mean over tracking seeds), then the mean over the models with the
+    standard deviation between them, their range, and the mean standard deviation over tracking seeds within a
+    model. ``errors(row, sequence)`` gives a row's per-run errors (mm). The means also go to ``table.csv`` as
+    rows ``"LABEL (over N training seeds)" + variant``, which :mod:`benchmarks.loso_summary` reads like any other."""
+    group_of = {p.label: p.replicate_of for p in exp.priors if p.replicate_of is not None}
+    groups: dict[tuple[str, str], list[str]] = {}
+    for row in rows:
+        label, variant = split_row(row)
+        if label in group_of:
+            groups.setdefault((group_of[label], variant), []).append(row)
+    if not groups:
+        return
+    md.write("\n## Over training seeds (marker error, mm): mean over models ± std between models [range]; "
+             "mean std over tracking seeds within a model\n\n| prior | models | " + " | ".join(seqs) + " |\n"
+             + "|---" * (len(seqs) + 2) + "|\n")
+    for (group, variant), members in groups.items():
+        cells = []
+        name = f"{group} (over {len(members)} training seeds){variant}"
+        for s in seqs:
+            per_model = [errors(row, s) for row in members]
+            if any(not v or not np.all(np.isfinite(v)) for v in per_model):
+                cells.append("n/a")
+                continue
+            means = [float(np.mean(v)) for v in per_model]
+            mean, between = summarize_runs(means)
+            within = float(np.mean([summarize_runs(v)[1] for v in per_model]))
+            cells.append(f"{mean:.1f} ± {between:.1f} [{min(means):.1f}, {max(means):.1f}]; {within:.1f}")
+            csv_rows.append(["mean_error_mm", name, s, f"{mean:.4f}", f"{between:.4f}",
+                             sum(len(v) for v in per_model), ""])
+        md.write(f"| {group}{variant} | {len(members)} | " + " | ".join(cells) + " |\n")
 
 
 def _plot(path: Path, rows: list[str], seqs: list[str], by: dict) -> None:
