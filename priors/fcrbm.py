@@ -56,6 +56,7 @@ from priors.contrastive import balanced_starts, minibatches, momentum_step, wind
 from priors.crbm import CRBM_TRAIN_OPTIONS, CRBMPrior, _growth_orders, bernoulli, history_noise_scale, make_windows
 from tracker.core.errors import InputError
 from tracker.core.representation import FeatureNormaliser, step_rms
+from tracker.engine.mixture import Mixture, switching
 from tracker.engine.prior import PriorState
 from tracker.engine.registry import Option, PriorContext, TrainingData, register_prior
 
@@ -66,6 +67,13 @@ LABEL_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$")
 #: With at most this many distinct style rows in a batch, Gibbs sampling uses one effective weight matrix per row
 #: value (:meth:`FCRBM.gibbs`); with more (e.g. every particle a different blend) the factored form.
 GROUPED_STYLES_MAX = 16
+#: How the FCRBM prior infers an unknown style: ``"mixture"`` keeps a fixed share of the particles on every label
+#: and moves weight between them (mixture tracking, :mod:`tracker.engine.mixture`); ``"particles"`` lets every
+#: particle carry and switch its own label, the posterior being the weighted histogram (before session 8).
+STYLE_INFERENCE = ("mixture", "particles")
+#: Temperature of the labels' evidence in mixture inference (the likelihood to the power ``1 / T`` when the
+#: labels are weighed against each other). Chosen on a tuning fold (``docs/fcrbm.md``, "Mixture tracking").
+STYLE_TEMPERATURE = 30.0
 
 
 @dataclass
@@ -578,8 +586,13 @@ class _StyledSampler:
 class FCRBMPrior(CRBMPrior):
     """Samples every particle's next pose with an FCRBM, the particle's own style label clamped.
 
-    Per-particle state: the CRBM prior's (the pending root step) with ``"style"`` ``(P,)``, the label indices. Each frame every label switches with probability ``style_switch`` to one of the other labels,
-    chosen uniformly; then the pose is drawn. ``style`` fixes every particle's label (no switching: the oracle).
+    Per-particle state: the CRBM prior's (the pending root step) with ``"style"`` ``(P,)``, the label indices.
+    An unknown style is inferred by mixture tracking (``style_inference="mixture"``, the default): every label
+    keeps an equal share of the particles, and the filter moves weight between the labels by their tempered
+    evidence and switches with probability ``style_switch`` per frame (:meth:`mixture`,
+    :mod:`tracker.engine.mixture`). With ``"particles"`` every particle's label switches with probability
+    ``style_switch`` to one of the other labels, chosen uniformly, before its pose is drawn. ``style`` fixes
+    every particle's label (no switching: the oracle), or follows a schedule.
     The pose step itself (invariant features, normalisation, integration of the root, ground and heading
     diffusion) is the CRBM prior's (:meth:`priors.crbm.CRBMPrior.sample`), with the FCRBM drawing the features.
     :meth:`summarize` gives the filter's posterior over the labels, recorded per frame.
@@ -589,7 +602,8 @@ class FCRBMPrior(CRBMPrior):
 
     def __init__(self, models: Sequence[FCRBMModel], gibbs_steps: int = 30, device: str = "cpu",
                  root_noise_mm: float = ROOT_NOISE_MM, heading_noise: float = 0.0, style_switch: float = 0.05,
-                 style: str | None = None):
+                 style: str | None = None, style_inference: str = "mixture",
+                 style_temperature: float = STYLE_TEMPERATURE):
         if not models:
             raise InputError("the FCRBM prior needs at least one model")
         by_order = {m.order: m for m in models}
@@ -605,7 +619,9 @@ class FCRBMPrior(CRBMPrior):
                                  "labels")
         checks = {"Gibbs steps": (gibbs_steps, gibbs_steps >= 1), "root noise": (root_noise_mm, root_noise_mm >= 0),
                   "heading noise": (heading_noise, heading_noise >= 0),
-                  "style switch": (style_switch, 0 <= style_switch <= 1)}
+                  "style switch": (style_switch, 0 <= style_switch <= 1),
+                  "style inference": (style_inference, style_inference in STYLE_INFERENCE),
+                  "style temperature": (style_temperature, style_temperature >= 1)}
         for what, (value, ok) in checks.items():
             if not ok:
                 raise InputError(f"FCRBM prior: bad {what} {value!r}")
@@ -613,6 +629,7 @@ class FCRBMPrior(CRBMPrior):
         self.style = None if style in (None, "") else str(style)
         self.schedule = None if self.style is None else parse_style_schedule(self.style, self.labels)
         self.style_switch = float(style_switch)
+        self.style_inference, self.style_temperature = style_inference, float(style_temperature)
         # CRBMPrior.__init__ is not called: it moves ``m.crbm`` weights (an FCRBM model has ``fcrbm``) and checks
         # no labels. Every attribute CRBMPrior.start/sample/model_for/settings read is set here instead; the
         # sampling options this prior leaves at the CRBM prior's defaults (pose step, see class docstring):
@@ -628,7 +645,8 @@ class FCRBMPrior(CRBMPrior):
 
     def settings(self) -> dict:
         return {"orders": [m.order for m in self.models], "gibbs_steps": self.gibbs_steps, "labels": self.labels,
-                "style": self.style, "style_switch": self.style_switch,
+                "style": self.style, "style_switch": self.style_switch, "style_inference": self.style_inference,
+                "style_temperature": self.style_temperature,
                 "root_noise_mm": self.root_noise_mm, "heading_noise_rad": self.heading_noise}
 
     def model_for(self, available: int) -> Drawer:  # type: ignore[override]
@@ -639,12 +657,17 @@ class FCRBMPrior(CRBMPrior):
         return f"fcrbm order {self.model_for(available).order}"
 
     def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
-        """The pending step of the last known frame, and every particle's label: the ``style`` (schedule) given,
-        else drawn uniformly over the labels. The clock starts at the first tracked frame, ``len(known)``."""
+        """The pending step of the last known frame, and every particle's label: the ``style`` (schedule) given;
+        else with mixture inference an equal share of the particles per label (particle ``i`` label ``i mod L``),
+        with per-particle inference drawn uniformly. The clock starts at the first tracked frame, ``len(known)``."""
         crbm_state = super().start(known, n_particles, rng)
         clock = np.full(n_particles, len(known), np.int64)
-        style = self.scheduled(clock) if self.schedule is not None else \
-            rng.integers(len(self.labels), size=n_particles)
+        if self.schedule is not None:
+            style = self.scheduled(clock)
+        elif self.style_inference == "mixture":
+            style = np.arange(n_particles) % len(self.labels)
+        else:
+            style = rng.integers(len(self.labels), size=n_particles)
         return _with_style(crbm_state, style.astype(np.int64), clock)
 
     def restart(self, state: PriorState, recent: np.ndarray, n_particles: int,
@@ -660,10 +683,22 @@ class FCRBMPrior(CRBMPrior):
         frames, indices = self.schedule
         return indices[np.searchsorted(frames, clock, side="right") - 1]
 
+    def mixture(self, state: PriorState) -> Mixture | None:
+        """With mixture inference of an unknown style: one component per label (the particles carrying it), the
+        switching probability ``style_switch`` between them, the evidence tempered by ``style_temperature``."""
+        if self.schedule is not None or self.style_inference != "mixture" or len(self.labels) < 2:
+            return None
+        return Mixture(np.asarray(state["style"]), switching(len(self.labels), self.style_switch),
+                       self.style_temperature)
+
+    def relabel(self, state: PriorState, component: np.ndarray) -> PriorState:
+        return {**state, "style": np.array(component, np.int64)}
+
     def switch(self, style: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Labels ``(P,)`` after one frame's switching (each to another label with probability ``style_switch``)."""
+        """Labels ``(P,)`` after one frame's switching (each to another label with probability ``style_switch``);
+        with mixture inference the labels stay (the filter moves weight and particles between them)."""
         L = len(self.labels)
-        if L < 2 or self.style_switch == 0:
+        if L < 2 or self.style_switch == 0 or self.style_inference == "mixture":
             return style
         flip = rng.random(len(style)) < self.style_switch
         return np.where(flip, (style + rng.integers(1, L, size=len(style))) % L, style)
@@ -774,10 +809,17 @@ FCRBM_TRAIN_OPTIONS = (
                                                  "another label (default 0.05)", minimum=0.0, maximum=1.0),
              Option("style", str, None, "give every particle this label and never switch (the oracle), or a "
                                         "schedule walk,run@120 (label per sequence frame, for an activity "
-                                        "change); default: inferred")))
+                                        "change); default: inferred"),
+             Option("style_inference", str, "mixture", "how an unknown style is inferred: mixture (a fixed share "
+                    "of the particles per label, weight moving between labels; default) or particles (each "
+                    "particle switches its own label)", choices=STYLE_INFERENCE),
+             Option("style_temperature", float, STYLE_TEMPERATURE, "mixture inference: the likelihood is raised "
+                    f"to 1/T when the labels are weighed (default {STYLE_TEMPERATURE:g})", minimum=1.0,
+                    maximum=1e6)))
 def build_fcrbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> FCRBMPrior:
     model = load_fcrbm(model_files[0], device=context.device)
     model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, model_files[0])
     return FCRBMPrior([model], gibbs_steps=options["gibbs_steps"], device=context.device,
                       root_noise_mm=options["root_noise"], heading_noise=options["heading_noise"],
-                      style_switch=options["style_switch"], style=options["style"])
+                      style_switch=options["style_switch"], style=options["style"],
+                      style_inference=options["style_inference"], style_temperature=options["style_temperature"])

@@ -102,7 +102,7 @@ def test_training_is_deterministic_per_seed_and_lowers_the_error(clips):
 
 
 def test_prior_sampling_is_deterministic_and_styles_switch(model, clips):
-    prior = FCRBMPrior([model], gibbs_steps=5, style_switch=0.2)
+    prior = FCRBMPrior([model], gibbs_steps=5, style_switch=0.2, style_inference="particles")
     hist = np.repeat(clips[0][None, 10:12], 300, axis=0)
 
     def draw(seed):
@@ -125,6 +125,25 @@ def test_prior_sampling_is_deterministic_and_styles_switch(model, clips):
     assert np.all(state["style"] == 1) and np.allclose(oracle.summarize(state, np.full(50, 0.02)), [0, 1])
     with pytest.raises(InputError, match="not a label of this FCRBM"):
         FCRBMPrior([model], style="jump")
+
+
+def test_mixture_inference_keeps_a_share_of_particles_on_every_label(model, clips):
+    prior = FCRBMPrior([model], gibbs_steps=5, style_switch=0.1, style_temperature=20)
+    assert prior.settings()["style_inference"] == "mixture"
+    rng = np.random.default_rng(0)
+    state = prior.start(clips[0][:12], 9, rng)
+    assert list(state["style"]) == [0, 1, 0, 1, 0, 1, 0, 1, 0]  # particle i carries label i mod L
+    _, after = prior.sample(np.repeat(clips[0][None, 10:12], 9, axis=0), 2, state, rng)
+    assert np.array_equal(after["style"], state["style"])  # the labels never switch on their own
+    mix = prior.mixture(after)
+    assert np.array_equal(mix.component, after["style"]) and mix.temperature == 20
+    assert np.allclose(mix.transition, [[0.9, 0.1], [0.1, 0.9]])
+    moved = prior.relabel(prior.reindex(after, np.zeros(9, int)), mix.component)
+    assert np.array_equal(moved["style"], state["style"]) and np.all(moved["clock"] == after["clock"])
+    assert FCRBMPrior([model], style="run").mixture(after) is None  # an oracle has nothing to infer
+    assert FCRBMPrior([model], style_inference="particles").mixture(after) is None
+    with pytest.raises(InputError, match="style temperature"):
+        FCRBMPrior([model], style_temperature=0.5)
 
 
 def test_a_style_schedule_gives_each_frame_its_label_and_survives_a_restart(model, clips):

@@ -18,6 +18,10 @@ resamples, and diffuses with the prior's one-step scale times
 ``layer_diffusion_decay^m``; the last layer's weights are the frame's weights
 and every frame ends with resampling.
 
+A prior may split the particles into components that resampling keeps apart (mixture tracking, for a
+discrete hypothesis such as the FCRBM's style label; :mod:`tracker.engine.mixture`): then the weights are
+normalised within components and times the components' weights, and every frame resamples each component.
+
 If every weight is ``-inf`` (no particle explains the frame) the filter
 records the frame as recovered, re-diffuses the particles around the last
 estimate, and goes on; it never produces NaN.
@@ -45,6 +49,7 @@ import numpy as np
 
 from tracker.core.errors import InputError
 from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood
+from tracker.engine.mixture import mixture_weights, resample_components
 from tracker.engine.prior import MotionPrior, PriorState
 from tracker.engine.recording import DEFAULT_RECORD, FrameStep, Recording
 from tracker.engine.resampling import SCHEMES
@@ -147,6 +152,12 @@ class ParticleFilter:
             recent = np.concatenate([np.repeat(recent[:1], N - len(recent), axis=0), recent])
         history = np.repeat(recent[None], P, axis=0)
         prior_state = self.prior.start(known, P, self.rng)
+        mix = self.prior.mixture(prior_state)
+        if mix is not None:
+            mix.check(P)
+            if self.config.annealing_layers > 1:
+                raise InputError(f"the {self.prior.name} prior's mixture tracking does not combine with annealing "
+                                 "layers: track with one layer")
         return FilterState(history, prior_state, LogWeights.uniform(P), recent.copy(), min(len(known), N))
 
     def step(self, state: FilterState, frame: Frame, load_seconds: float = 0.0,
@@ -169,18 +180,29 @@ class ParticleFilter:
         else:
             weights = state.weights.add(ll)
         recovered = not weights.any_finite
+        mix = None
         if recovered:
             x, history, weights = self._recover(state, frame_lik)
             prior_state = self.prior.restart(state.prior_state, state.recent_estimates, cfg.n_particles, self.rng)
-        W = weights.normalised
+        else:
+            mix = self.prior.mixture(state.prior_state)
+        if mix is not None:  # mixture tracking: weights within components, times the components' weights
+            W = mixture_weights(state.weights, ll, mix)
+            weights = LogWeights(np.log(W, out=np.full(len(W), -np.inf), where=W > 0))
+        else:
+            W = weights.normalised
         mean = W @ x
         best = x[int(np.argmax(W))]
         ess = effective_sample_size(W)
         summary = self.prior.summarize(prior_state, W)
         history = np.concatenate([history[:, 1:], x[:, None]], axis=1)
         recent = np.concatenate([state.recent_estimates[1:], mean[None]])
-        resampled = cfg.annealing_layers > 1 or ess < cfg.ess_threshold * cfg.n_particles
-        if resampled:
+        resampled = cfg.annealing_layers > 1 or mix is not None or ess < cfg.ess_threshold * cfg.n_particles
+        if mix is not None:  # every frame, each component redrawn from all particles (the IMM mixing step)
+            idx, carried = resample_components(W, mix, self.rng, self.resample)
+            history = history[idx]
+            prior_state = self.prior.relabel(self.prior.reindex(prior_state, idx), mix.component)
+        elif resampled:
             idx = self.resample(W, self.rng)
             history = history[idx]
             prior_state = self.prior.reindex(prior_state, idx)

@@ -13,9 +13,12 @@ so one seed fixes a whole run.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from tracker.engine.mixture import Mixture
 
 #: A prior's own per-particle state: ``None``, an array with particles on the leading axis, or a dict of them.
 PriorState = Any
@@ -74,6 +77,16 @@ class MotionPrior(ABC):
     def reindex(self, state: PriorState, idx: np.ndarray) -> PriorState:
         """Per-particle state after resampling picked particles ``idx``."""
         return reindex_state(state, idx)
+
+    def mixture(self, state: PriorState) -> "Mixture | None":
+        """The components the filter must keep apart (mixture tracking, :mod:`tracker.engine.mixture`) for the
+        per-particle ``state``, or None (the default): plain SIR."""
+        return None
+
+    def relabel(self, state: PriorState, component: np.ndarray) -> PriorState:
+        """The per-particle ``state`` after mixture resampling drew particles across components: the particle at
+        position ``i`` now belongs to ``component[i]`` (``(P,)``). Only priors with a :meth:`mixture` need it."""
+        return state
 
     @abstractmethod
     def diffusion_std(self) -> np.ndarray:

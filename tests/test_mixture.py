@@ -1,0 +1,125 @@
+"""Mixture tracking (tracker.engine.mixture): weights within and across components, resampling that keeps every
+component's particles, switching between them, and the filter tracking a change of mode with it."""
+import numpy as np
+import pytest
+
+from tracker.core.errors import InputError
+from tracker.engine.filter import FilterConfig, ParticleFilter
+from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood
+from tracker.engine.mixture import Mixture, mixture_weights, resample_components, switching
+from tracker.engine.prior import MotionPrior
+from tracker.engine.resampling import SCHEMES
+from tracker.engine.weights import LogWeights
+
+
+class ModePrior(MotionPrior):
+    """A 1-D walker whose mode (the component) is its velocity: +1 or -1 per frame, plus noise 0.3."""
+
+    order = 1
+    name = "mode"
+    summary_names = ("forward", "back")
+
+    def __init__(self, switch=0.05, temperature=1.0):
+        self.switch, self.temperature = switch, temperature
+
+    def start(self, known, n_particles, rng):
+        return {"mode": np.arange(n_particles) % 2}
+
+    def sample(self, history, available, state, rng):
+        v = np.where(state["mode"] == 0, 1.0, -1.0)[:, None]
+        return history[:, -1] + v + 0.3 * rng.standard_normal((len(history), 1)), state
+
+    def mixture(self, state):
+        return Mixture(state["mode"], switching(2, self.switch), self.temperature)
+
+    def relabel(self, state, component):
+        return {"mode": np.array(component)}
+
+    def summarize(self, state, weights):
+        return np.bincount(state["mode"], weights=weights, minlength=2)
+
+    def diffusion_std(self):
+        return np.array([0.3])
+
+
+class Around(Likelihood):
+    """Frame k: Gaussian log-likelihood (std 0.5) around ``truth[k]``."""
+
+    def __init__(self, truth):
+        self.truth = truth
+
+    def prepare(self, frame: Frame) -> FrameLikelihood:
+        centre = self.truth[frame.index]
+
+        class Score(FrameLikelihood):
+            def __call__(self, poses):
+                return -0.5 * ((poses[:, 0] - centre) / 0.5) ** 2
+        return Score()
+
+
+def test_at_temperature_one_the_mixture_weights_are_the_plain_weights():
+    rng = np.random.default_rng(0)
+    carried, ll = LogWeights(rng.normal(size=12)), rng.normal(size=12) * 5
+    mix = Mixture(np.arange(12) % 3, switching(3, 0.1))
+    assert np.allclose(mixture_weights(carried, ll, mix), carried.add(ll).normalised)
+
+
+def test_temperature_flattens_the_components_weights_not_the_weights_within():
+    ll = np.array([0.0, -40.0, -20.0, -20.0])  # component 0 holds the single best particle
+    mix = Mixture(np.array([0, 0, 1, 1]), switching(2, 0.0), temperature=20.0)
+    w = mixture_weights(LogWeights.uniform(4), ll, mix)
+    plain = mixture_weights(LogWeights.uniform(4), ll, Mixture(mix.component, mix.transition))
+    assert plain[0] > 0.999999  # untempered, one lucky particle decides
+    pi0 = w[:2].sum()
+    assert 0.5 < pi0 < 0.9 and np.isclose(w.sum(), 1.0)  # exp(0/20)+exp(-2) against 2 exp(-1)
+    assert np.isclose(w[1] / w[0], np.exp(-40.0)) and np.isclose(w[2], w[3])  # within: the full likelihood
+
+
+@pytest.mark.parametrize("scheme", sorted(SCHEMES))
+def test_resampling_draws_any_number_with_the_expected_counts(scheme):
+    w = np.array([0.1, 0.6, 0.3])
+    counts = np.mean([np.bincount(SCHEMES[scheme](w, np.random.default_rng(i), 50), minlength=3)
+                      for i in range(200)], axis=0)
+    assert np.allclose(counts, 50 * w, atol=1.0)
+
+
+def test_each_component_is_redrawn_from_all_particles_through_the_transition():
+    component = np.array([0, 0, 0, 1, 1])
+    mix = Mixture(component, switching(2, 0.1))
+    weights = np.array([0.5, 0.3, 0.2, 0.0, 0.0])  # component 1 has lost all its weight
+    idx, carried = resample_components(weights, mix, np.random.default_rng(0), SCHEMES["systematic"])
+    assert np.all(np.isin(idx[:3], [0, 1, 2])) and np.all(np.isin(idx[3:], [0, 1, 2]))  # restarts from component 0
+    totals = np.exp(carried.log_w)
+    assert np.isclose(totals[:3].sum(), 0.9) and np.isclose(totals[3:].sum(), 0.1)  # the predicted weights
+
+
+def test_the_mixture_is_checked():
+    with pytest.raises(InputError, match="every component needs"):
+        Mixture(np.zeros(4, int), switching(2, 0.1)).check(4)
+    with pytest.raises(InputError, match="rows must be probabilities"):
+        Mixture(np.arange(4) % 2, np.array([[0.5, 0.4], [0.0, 1.0]])).check(4)
+    with pytest.raises(InputError, match="one component in 0..C-1 per particle"):
+        Mixture(np.arange(3) % 2, switching(2, 0.1)).check(4)
+    pf = ParticleFilter(ModePrior(), Around([0.0]), FilterConfig(n_particles=10, annealing_layers=3),
+                        np.random.default_rng(0))
+    with pytest.raises(InputError, match="does not combine with annealing"):
+        pf.start(np.zeros((1, 1)))
+
+
+def test_the_filter_follows_a_change_of_mode_and_keeps_both_components():
+    truth = np.concatenate([np.arange(1, 21), 20 - np.arange(1, 21)]).astype(float)  # forward 20, back 20
+    pf = ParticleFilter(ModePrior(switch=0.05), Around(truth), FilterConfig(n_particles=200),
+                        np.random.default_rng(3))
+    state = pf.start(np.zeros((1, 1)))
+    posterior, estimates = [], []
+    for k in range(len(truth)):
+        state, step = pf.step(state, Frame(k, ()))
+        assert np.array_equal(np.bincount(state.prior_state["mode"]), [100, 100])  # the shares never change
+        posterior.append(step.prior_summary[0])
+        estimates.append(step.mean[0])
+    posterior = np.array(posterior)
+    assert np.all(posterior[3:20] > 0.9) and np.all(posterior[24:] < 0.1)  # forward, then back within 4 frames
+    assert np.max(np.abs(np.array(estimates) - truth)) < 1.5
+    again = ParticleFilter(ModePrior(switch=0.05), Around(truth), FilterConfig(n_particles=200),
+                           np.random.default_rng(3)).run(np.zeros((1, 1)), [Frame(k, ()) for k in range(len(truth))])
+    assert np.allclose(again["mean_poses"][:, 0], estimates)  # run() and step() agree, deterministic per seed

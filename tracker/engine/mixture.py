@@ -1,0 +1,118 @@
+"""Mixture tracking: a particle set split into components that resampling never merges.
+
+A prior whose particles carry a discrete hypothesis (the FCRBM's style label) can ask the filter to keep a
+fixed share of particles on every hypothesis (Vermaak, Doucet & Perez 2003, "Maintaining multi-modality
+through mixture tracking"), with switches between hypotheses as in the interacting multiple model filter (Blom
+& Bar-Shalom 1988). Without it, one frame on which a particle of the wrong hypothesis happens to fit the
+images best takes nearly all the weight, resampling copies it everywhere, and the right hypothesis is gone
+(measured on an activity switch: ``docs/fcrbm.md``, "Mixture tracking").
+
+The posterior is ``sum_c pi_c p_c(x)``: component weights ``pi`` ``(C,)`` and, within component ``c``, the
+particles at the positions where ``component == c`` with weights normalised within it. Each frame:
+
+1. the particles are weighted by the likelihood within their component; the component weights by the
+   component's mean likelihood (its evidence, the sum of its carried weights times the likelihood), the
+   likelihood raised to ``1 / temperature`` for this evidence only: the likelihood's sharpness is set for
+   telling poses apart, and untempered a single lucky particle decides the hypothesis;
+2. the estimate and the prior's summary use the overall weights ``pi_c * w_i``;
+3. each component is redrawn from all particles, particle ``i`` weighted by ``transition[c_i, c] * W_i``
+   (the IMM mixing step: a component whose weight is small restarts from the others' particles, so it can take
+   over when the person changes activity), and every particle of component ``c`` carries the weight
+   ``sum_i transition[c_i, c] W_i / n_c``: the predicted component weight shared equally.
+
+Arrays: ``component`` ``(P,)`` integers in ``0..C-1``, fixed per particle position; ``transition`` ``C x C``
+(row: from, column: to; rows sum to 1).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from tracker.core.errors import InputError
+from tracker.engine.weights import LogWeights
+
+
+@dataclass(frozen=True)
+class Mixture:
+    """The components of a particle set: ``component`` ``(P,)``, ``transition`` ``C x C`` per frame, and the
+    ``temperature`` (>= 1) the likelihood is raised to ``1 / temperature`` by in the component weights."""
+
+    component: np.ndarray
+    transition: np.ndarray
+    temperature: float = 1.0
+
+    def check(self, n_particles: int) -> "Mixture":
+        c, T = np.asarray(self.component), np.asarray(self.transition, float)
+        C = T.shape[0] if T.ndim == 2 else 0
+        if c.shape != (n_particles,) or C == 0 or T.shape != (C, C) or c.min() < 0 or c.max() >= C:
+            raise InputError(f"mixture: need one component in 0..C-1 per particle and a C x C transition, got "
+                             f"components {c.shape}, transition {T.shape}")
+        if np.any(np.bincount(c, minlength=C) == 0):
+            raise InputError("mixture: every component needs at least one particle")
+        if np.any(T < 0) or not np.allclose(T.sum(axis=1), 1.0):
+            raise InputError("mixture: the transition's rows must be probabilities summing to 1")
+        if not self.temperature >= 1.0:
+            raise InputError(f"mixture: the evidence temperature must be at least 1, got {self.temperature}")
+        return self
+
+    @property
+    def n_components(self) -> int:
+        return self.transition.shape[0]
+
+
+def switching(n_components: int, switch: float) -> np.ndarray:
+    """The transition ``C x C`` that stays with probability ``1 - switch`` and otherwise moves to one of the
+    other components, chosen uniformly."""
+    if n_components == 1:
+        return np.ones((1, 1))
+    T = np.full((n_components, n_components), switch / (n_components - 1))
+    np.fill_diagonal(T, 1.0 - switch)
+    return T
+
+
+def _log_sum(a: np.ndarray) -> float:
+    top = np.max(a)
+    return float(top + np.log(np.sum(np.exp(a - top)))) if np.isfinite(top) else -np.inf
+
+
+def mixture_weights(carried: LogWeights, log_likelihood: np.ndarray, mix: Mixture) -> np.ndarray:
+    """The overall normalised weights ``(P,)``: within each component the carried weights times the likelihood,
+    normalised; times the component's posterior weight (its carried total times its tempered evidence).
+    All zero if no particle has a finite weight."""
+    log_w, ll = carried.log_w, np.asarray(log_likelihood, float)
+    out = np.zeros(len(log_w))
+    log_pi = np.full(mix.n_components, -np.inf)
+    for c in range(mix.n_components):
+        m = np.flatnonzero(mix.component == c)
+        within = log_w[m] + ll[m]
+        total = _log_sum(within)
+        if not np.isfinite(total):
+            continue
+        out[m] = np.exp(within - total)
+        log_pi[c] = _log_sum(log_w[m] + ll[m] / mix.temperature)
+    if not np.any(np.isfinite(log_pi)):
+        return np.zeros(len(log_w))
+    pi = np.exp(log_pi - np.max(log_pi))
+    return out * (pi / pi.sum())[mix.component]
+
+
+def resample_components(weights: np.ndarray, mix: Mixture, rng: np.random.Generator,
+                        scheme: Callable[..., np.ndarray]) -> tuple[np.ndarray, LogWeights]:
+    """Indices ``(P,)`` for every particle position, and the carried log-weights: each component's positions
+    redrawn (with ``scheme``) from all particles weighted by ``transition[c_i, c] * weights_i``, each carrying
+    that total over the component's particle count."""
+    P = len(weights)
+    idx = np.empty(P, np.int64)
+    carried = np.empty(P)
+    for c in range(mix.n_components):
+        m = np.flatnonzero(mix.component == c)
+        w = mix.transition[mix.component, c] * weights
+        total = float(w.sum())
+        if not total > 0:  # nothing to draw from (cannot happen while any weight is positive): keep the component
+            idx[m], carried[m] = m, -np.inf
+            continue
+        idx[m] = scheme(w / total, rng, len(m))
+        carried[m] = np.log(total / len(m))
+    return idx, LogWeights(carried)
