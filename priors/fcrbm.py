@@ -73,7 +73,7 @@ GROUPED_STYLES_MAX = 16
 STYLE_INFERENCE = ("mixture", "particles")
 #: Temperature of the labels' evidence in mixture inference (the likelihood to the power ``1 / T`` when the
 #: labels are weighed against each other). Chosen on a tuning fold (``docs/fcrbm.md``, "Mixture tracking").
-STYLE_TEMPERATURE = 30.0
+STYLE_TEMPERATURE = 10.0
 
 
 @dataclass
