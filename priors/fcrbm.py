@@ -30,9 +30,11 @@ expected visible values, probabilities on the final step). Blends and transition
 (:func:`generate`, :func:`transition_styles`).
 
 Tracking (:class:`FCRBMPrior`, registered as ``fcrbm``): each particle carries a discrete style label besides its
-pose history; each frame the label switches with probability ``style_switch`` to one of the other labels (uniform),
-then the pose is drawn with the particle's label clamped. The filter's posterior over the style is the weighted
-histogram of the particles' labels (:meth:`FCRBMPrior.summarize`), recorded per frame in ``result.json``. Particles
+pose history, and its pose is drawn with its label clamped. By default an equal share of the particles carries
+each label and the filter weighs the labels against each other (mixture tracking, :mod:`tracker.engine.mixture`,
+switching with probability ``style_switch`` per frame); with ``style_inference="particles"`` each particle's label
+switches on its own with that probability. The filter's posterior over the style is the weighted histogram of the
+particles' labels (:meth:`FCRBMPrior.summarize`), recorded per frame in ``result.json``. Particles
 that share a label share the effective weights ``Wv diag(s) Wh^T``, so sampling works on one ``K x H`` matrix per
 label (:meth:`FCRBM.gibbs`).
 """
@@ -805,8 +807,8 @@ FCRBM_TRAIN_OPTIONS = (
                     minimum=0.0, maximum=1000.0),
              Option("heading_noise", float, 0.0, "diffusion of each sample's heading in rad per frame (default 0)",
                     minimum=0.0, maximum=math.pi),
-             Option("style_switch", float, 0.05, "probability per frame that a particle's style label switches to "
-                                                 "another label (default 0.05)", minimum=0.0, maximum=1.0),
+             Option("style_switch", float, 0.05, "probability per frame that the style switches to another label "
+                                                 "(default 0.05)", minimum=0.0, maximum=1.0),
              Option("style", str, None, "give every particle this label and never switch (the oracle), or a "
                                         "schedule walk,run@120 (label per sequence frame, for an activity "
                                         "change); default: inferred"),

@@ -59,6 +59,9 @@ def run_numbers(out: Path) -> dict:
      "either as train_seeds or as each training's seed"),
     (f'[[prior]]\nname = "crbm"\ntrain_seeds = [1, 1]\ntrain = [{{ mocap = ["{CLIP}"] }}]',
      "train_seeds must be distinct integers"),
+    (f'[[prior]]\nname = "crbm"\ntrain_seeds = 3\ntrain = [{{ mocap = ["{CLIP}"] }}]',
+     "train_seeds must be a list"),
+
 ])
 def test_experiment_file_is_validated_whole(tmp_path, mutation, expected):
     path = write_experiment(tmp_path)
@@ -106,6 +109,16 @@ def test_numbers_do_not_depend_on_workers_and_finished_runs_are_skipped(tmp_path
     assert any("6 runs: 4 finished before (skipped), 2 to run" in s for s in said)
     rows = (tmp_path / "a" / "table.csv").read_text()
     assert "zv-scaled" in rows and rows.count("mean_error_mm") == 3
+
+
+def test_a_train_seeds_group_is_no_baseline_but_its_rows_are(tmp_path):
+    path = write_experiment(tmp_path, priors=())
+    entry = f'\n[[prior]]\nlabel = "C"\nname = "crbm"\ntrain_seeds = [0, 1]\ntrain = [{{ mocap = ["{CLIP}"] }}]\n'
+    path.write_text('baseline = "C"\n' + path.read_text() + entry)
+    with pytest.raises(InputError, match="name one of its rows, e.g. 'C, training seed 0'"):
+        load_experiment(path)
+    path.write_text('baseline = "C, training seed 1"\n' + path.read_text().split("\n", 1)[1])
+    assert load_experiment(path).baseline == "C, training seed 1"
 
 
 def test_train_seeds_repeat_a_training_and_the_report_averages_over_the_models(tmp_path):

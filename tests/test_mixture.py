@@ -123,3 +123,70 @@ def test_the_filter_follows_a_change_of_mode_and_keeps_both_components():
     again = ParticleFilter(ModePrior(switch=0.05), Around(truth), FilterConfig(n_particles=200),
                            np.random.default_rng(3)).run(np.zeros((1, 1)), [Frame(k, ()) for k in range(len(truth))])
     assert np.allclose(again["mean_poses"][:, 0], estimates)  # run() and step() agree, deterministic per seed
+
+
+def test_the_transition_is_read_from_row_to_column():
+    component = np.array([0, 0, 1, 1])
+    T = np.array([[1.0, 0.0], [0.5, 0.5]])  # 0 never leaves; 1 moves to 0 half the time
+    weights = np.array([0.0, 0.0, 0.5, 0.5])
+    idx, carried = resample_components(weights, Mixture(component, T), np.random.default_rng(0), SCHEMES["systematic"])
+    totals = np.exp(carried.log_w)
+    assert np.isclose(totals[:2].sum(), 0.5) and np.isclose(totals[2:].sum(), 0.5)
+    assert np.all(np.isin(idx, [2, 3]))  # component 0 restarts from component 1's particles
+
+
+def test_components_start_equal_whatever_their_sizes():
+    mix = Mixture(np.arange(10) % 3, switching(3, 0.1))  # 4, 3 and 3 particles
+    w = mix.start_weights().normalised
+    assert np.allclose(np.bincount(mix.component, weights=w), 1 / 3)
+
+
+def test_broken_likelihoods_and_lost_frames_keep_the_components():
+    truth = np.arange(1, 13, dtype=float)
+    nan_at, lost_at = 4, 8
+
+    class Broken(Around):
+        def prepare(self, frame):
+            inner = super().prepare(frame)
+
+            class Score(FrameLikelihood):
+                def __call__(self, poses):
+                    ll = inner(poses)
+                    if frame.index == nan_at:
+                        ll[::2] = np.nan  # half the particles, in both components
+                    if frame.index == lost_at:
+                        ll[:] = -np.inf  # nothing explains the frame
+                    return ll
+            return Score()
+
+    pf = ParticleFilter(ModePrior(), Broken(truth), FilterConfig(n_particles=40), np.random.default_rng(1))
+    state = pf.start(np.zeros((1, 1)))
+    for k in range(len(truth)):
+        state, step = pf.step(state, Frame(k, ()))
+        assert np.all(np.isfinite(step.mean)) and np.isclose(step.prior_summary.sum(), 1.0)
+        assert np.array_equal(np.bincount(state.prior_state["mode"], minlength=2), [20, 20])
+        assert step.recovered == (k == lost_at)
+    assert abs(step.mean[0] - truth[-1]) < 2.0
+
+
+def test_a_tempered_mixture_still_follows_the_change_of_mode():
+    truth = np.concatenate([np.arange(1, 21), 20 - np.arange(1, 21)]).astype(float)
+    out = ParticleFilter(ModePrior(switch=0.05, temperature=4.0), Around(truth), FilterConfig(n_particles=200),
+                         np.random.default_rng(5)).run(np.zeros((1, 1)), [Frame(k, ()) for k in range(len(truth))],
+                                                       record=("mean_poses", "prior_summary"))
+    forward = out["prior_summary"][:, 0]
+    assert np.all(forward[5:20] > 0.8) and np.all(forward[26:] < 0.2)
+    assert np.max(np.abs(out["mean_poses"][:, 0] - truth)) < 2.0
+
+
+def test_every_experiment_says_how_its_fcrbm_infers_the_style():
+    """A row that infers the style keeps measuring what its published table measured whatever the default."""
+    import tomllib
+    from pathlib import Path
+
+    files = sorted((Path(__file__).parents[1] / "benchmarks" / "experiments").rglob("*.toml"))
+    for f in files:
+        for prior in tomllib.loads(f.read_text()).get("prior", []):
+            options = prior.get("options", {})
+            if prior.get("name") == "fcrbm" and "style" not in options:
+                assert "style_inference" in options, (f.name, prior.get("label"))

@@ -217,7 +217,9 @@ def _clip(w: "_Where", value: Any, entry: str) -> ClipSpec:
 def _replicates(w: "_Where", spec: PriorSpec, entry_doc: dict, entry: str) -> list[PriorSpec]:
     """The rows of a ``train_seeds`` entry: the entry once per training seed, every one of its trainings run
     with that seed, labelled ``"LABEL, training seed S"``."""
-    seeds = _as_list(entry_doc["train_seeds"])
+    seeds = entry_doc["train_seeds"]
+    if not isinstance(seeds, list):
+        raise w.error(entry, f"train_seeds must be a list of training seeds, e.g. [0, 1, 2], got {seeds!r}")
     if not spec.train:
         raise w.error(entry, "train_seeds repeats the entry's trainings: it needs train = [...]")
     if any("seed" in t for t in _as_list(entry_doc.get("train", []))):
@@ -365,7 +367,9 @@ def load_experiment(path: str | Path) -> Experiment:
         raise w.error("[[likelihood]]", "likelihood labels must be unique")
     baseline = doc.get("baseline", priors[0].label)
     if baseline not in {p.label for p in priors}:
-        raise w.error("baseline", f"{baseline!r} is not a prior label")
+        group = [p.label for p in priors if p.replicate_of == baseline]
+        raise w.error("baseline", f"{baseline!r} repeats its training (train_seeds): name one of its rows, e.g. "
+                                  f"{group[0]!r}" if group else f"{baseline!r} is not a prior label")
     paired = doc.get("paired", "baseline")
     if paired not in ("baseline", "all"):
         raise w.error("paired", f"expected 'baseline' or 'all', got {paired!r}")

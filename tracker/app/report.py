@@ -135,7 +135,8 @@ def _write_replicates(md: io.StringIO, csv_rows: list, exp, rows: list[str], seq
     variant), each model's marker error (its mean over tracking seeds), then the mean over the models with the
     standard deviation between them, their range, and the mean standard deviation over tracking seeds within a
     model. ``errors(row, sequence)`` gives a row's per-run errors (mm). The means also go to ``table.csv`` as
-    rows ``"LABEL (over N training seeds)" + variant``, which :mod:`benchmarks.loso_summary` reads like any other."""
+    rows ``"LABEL (over N training seeds)" + variant`` (their ``std`` is the spread between the models, ``runs``
+    all the models' runs), which :mod:`benchmarks.loso_summary` reads like any other."""
     group_of = {p.label: p.replicate_of for p in exp.priors if p.replicate_of is not None}
     groups: dict[tuple[str, str], list[str]] = {}
     for row in rows:

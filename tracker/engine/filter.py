@@ -49,7 +49,7 @@ import numpy as np
 
 from tracker.core.errors import InputError
 from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood
-from tracker.engine.mixture import mixture_weights, resample_components
+from tracker.engine.mixture import Mixture, mixture_weights, resample_components
 from tracker.engine.prior import MotionPrior, PriorState
 from tracker.engine.recording import DEFAULT_RECORD, FrameStep, Recording
 from tracker.engine.resampling import SCHEMES
@@ -152,13 +152,19 @@ class ParticleFilter:
             recent = np.concatenate([np.repeat(recent[:1], N - len(recent), axis=0), recent])
         history = np.repeat(recent[None], P, axis=0)
         prior_state = self.prior.start(known, P, self.rng)
+        mix = self._mixture(prior_state)
+        weights = LogWeights.uniform(P) if mix is None else mix.start_weights()
+        return FilterState(history, prior_state, weights, recent.copy(), min(len(known), N))
+
+    def _mixture(self, prior_state: PriorState) -> Mixture | None:
+        """The prior's components for ``prior_state`` (checked), or None for plain SIR."""
         mix = self.prior.mixture(prior_state)
-        if mix is not None:
-            mix.check(P)
-            if self.config.annealing_layers > 1:
-                raise InputError(f"the {self.prior.name} prior's mixture tracking does not combine with annealing "
-                                 "layers: track with one layer")
-        return FilterState(history, prior_state, LogWeights.uniform(P), recent.copy(), min(len(known), N))
+        if mix is None:
+            return None
+        if self.config.annealing_layers > 1:
+            raise InputError(f"the {self.prior.name} prior's mixture tracking does not combine with annealing "
+                             "layers: track with one layer")
+        return mix.check(self.config.n_particles)
 
     def step(self, state: FilterState, frame: Frame, load_seconds: float = 0.0,
              prepared: FrameLikelihood | None = None) -> tuple[FilterState, FrameStep]:
@@ -180,14 +186,19 @@ class ParticleFilter:
         else:
             weights = state.weights.add(ll)
         recovered = not weights.any_finite
-        mix = None
+        carried_in = state.weights
         if recovered:
             x, history, weights = self._recover(state, frame_lik)
             prior_state = self.prior.restart(state.prior_state, state.recent_estimates, cfg.n_particles, self.rng)
+            mix = self._mixture(prior_state)
+            if mix is not None:  # the components start afresh, each with an equal weight
+                carried_in, ll = mix.start_weights(), weights.log_w
         else:
-            mix = self.prior.mixture(state.prior_state)
+            mix = self._mixture(state.prior_state)
         if mix is not None:  # mixture tracking: weights within components, times the components' weights
-            W = mixture_weights(state.weights, ll, mix)
+            W = mixture_weights(carried_in, ll, mix)
+            if not W.any():  # only the recovery's all-minus-infinity frame gets here: its particles, unweighted
+                W = np.full(len(W), 1.0 / len(W))
             weights = LogWeights(np.log(W, out=np.full(len(W), -np.inf), where=W > 0))
         else:
             W = weights.normalised

@@ -14,14 +14,16 @@ particles at the positions where ``component == c`` with weights normalised with
    component's mean likelihood (its evidence, the sum of its carried weights times the likelihood), the
    likelihood raised to ``1 / temperature`` for this evidence only: the likelihood's sharpness is set for
    telling poses apart, and untempered a single lucky particle decides the hypothesis;
-2. the estimate and the prior's summary use the overall weights ``pi_c * w_i``;
+2. the estimate and the prior's summary use the overall weights ``pi_c * w_i`` (so the components' posterior
+   is the tempered one);
 3. each component is redrawn from all particles, particle ``i`` weighted by ``transition[c_i, c] * W_i``
    (the IMM mixing step: a component whose weight is small restarts from the others' particles, so it can take
    over when the person changes activity), and every particle of component ``c`` carries the weight
    ``sum_i transition[c_i, c] W_i / n_c``: the predicted component weight shared equally.
 
 Arrays: ``component`` ``(P,)`` integers in ``0..C-1``, fixed per particle position; ``transition`` ``C x C``
-(row: from, column: to; rows sum to 1).
+(row: from, column: to; rows sum to 1). Every mixture frame resamples (the filter's ESS threshold does not
+apply). With no switching (a zero off the diagonal) a component that lost all its weight stays lost.
 """
 from __future__ import annotations
 
@@ -61,6 +63,11 @@ class Mixture:
     def n_components(self) -> int:
         return self.transition.shape[0]
 
+    def start_weights(self) -> LogWeights:
+        """Log-weights ``(P,)`` that give every component the same weight, shared equally by its particles."""
+        counts = np.bincount(self.component, minlength=self.n_components)
+        return LogWeights(-np.log(self.n_components * counts[self.component].astype(float)))
+
 
 def switching(n_components: int, switch: float) -> np.ndarray:
     """The transition ``C x C`` that stays with probability ``1 - switch`` and otherwise moves to one of the
@@ -81,11 +88,15 @@ def mixture_weights(carried: LogWeights, log_likelihood: np.ndarray, mix: Mixtur
     """The overall normalised weights ``(P,)``: within each component the carried weights times the likelihood,
     normalised; times the component's posterior weight (its carried total times its tempered evidence).
     All zero if no particle has a finite weight."""
-    log_w, ll = carried.log_w, np.asarray(log_likelihood, float)
+    log_w = carried.log_w
+    ll = np.asarray(log_likelihood, float)
+    ll = np.where(np.isnan(ll), -np.inf, ll)  # a broken likelihood value is a particle with no weight
     out = np.zeros(len(log_w))
     log_pi = np.full(mix.n_components, -np.inf)
     for c in range(mix.n_components):
         m = np.flatnonzero(mix.component == c)
+        if m.size == 0:
+            continue
         within = log_w[m] + ll[m]
         total = _log_sum(within)
         if not np.isfinite(total):
