@@ -51,8 +51,8 @@ def main() -> None:
     for path in sorted(args.results.glob("runs/*/result.json")):
         result = json.loads(path.read_text())
         summary = result.get("prior_summary")
-        if result["run"]["sequence"] != args.sequence or not summary:
-            continue
+        if result["run"]["sequence"] != args.sequence or not summary or "most_probable" not in summary:
+            continue  # no posterior over labels (none, or a quantity such as the paced CRBM's pace)
         frames = np.arange(summary["first_frame"], summary["first_frame"] + len(summary["most_probable"]))
         keep = scored_frames(frames, args.schedule, args.skip, args.fade)
         guess = np.array(summary["most_probable"])[keep]
