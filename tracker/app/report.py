@@ -125,7 +125,7 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
     buf = io.StringIO()
     csv.writer(buf).writerows(csv_rows)
     write_text_atomic(out / "table.csv", buf.getvalue())
-    _plot(out / "per_frame.png", rows, seqs, by)
+    _plot(out / "per_frame.png", _plotted_rows(exp, rows, split_row), seqs, by)
     return {"table": md.getvalue(), "runs": len(results)}
 
 
@@ -165,14 +165,32 @@ def _write_replicates(md: io.StringIO, csv_rows: list, exp, rows: list[str], seq
         md.write(f"| {group}{variant} | {len(members)} | " + " | ".join(cells) + " |\n")
 
 
-def _plot(path: Path, rows: list[str], seqs: list[str], by: dict) -> None:
-    """Per-frame marker error of each row, mean over seeds with a ±1 std band, one panel per sequence.
+def _plotted_rows(exp, rows: list[str], split_row) -> dict[str, list[str]]:
+    """The plot's lines: every row on its own, except the rows of a ``train_seeds`` entry, which make one line
+    per variant (``"LABEL (over N training seeds)" + variant``) from all their models' runs."""
+    group_of = {p.label: p.replicate_of for p in exp.priors if p.replicate_of is not None}
+    lines: dict[str, list[str]] = {}
+    for row in rows:
+        label, variant = split_row(row)
+        if label in group_of:
+            members = [r for r in rows
+                       if split_row(r)[1] == variant and group_of.get(split_row(r)[0]) == group_of[label]]
+            lines.setdefault(f"{group_of[label]} (over {len(members)} training seeds){variant}", members)
+        else:
+            lines[row] = [row]
+    return lines
+
+
+def _plot(path: Path, lines: dict[str, list[str]], seqs: list[str], by: dict) -> None:
+    """Per-frame marker error of each line (a row, or a ``train_seeds`` group's rows together), mean over its
+    runs with a ±1 std band, one panel per sequence.
 
     Each prior gets its own colour (up to 20 distinct ones) and each view set its own line style, so rows
     stay apart however many there are; the legend sits to the right of the panels."""
     from matplotlib import colormaps
     from matplotlib.figure import Figure
 
+    rows = list(lines)
     priors = list(dict.fromkeys(r.rpartition(", views ")[0] or r for r in rows))
     view_sets = list(dict.fromkeys(r.rpartition(", views ")[2] if ", views " in r else "" for r in rows))
     palette = colormaps["tab10" if len(priors) <= 10 else "tab20"]
@@ -182,7 +200,7 @@ def _plot(path: Path, rows: list[str], seqs: list[str], by: dict) -> None:
     axes = fig.subplots(len(seqs), 1, squeeze=False)[:, 0]
     for ax, s in zip(axes, seqs):
         for row in rows:
-            group = [r for r in by.get((row, s), []) if r.get("per_frame_error_mm")]
+            group = [r for member in lines[row] for r in by.get((member, s), []) if r.get("per_frame_error_mm")]
             if not group:
                 continue
             n = min(len(r["per_frame_error_mm"]) for r in group)
