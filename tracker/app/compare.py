@@ -137,9 +137,14 @@ def check_grid(exp: Experiment, sequence_paths: dict[str, Path], models: dict[st
                              f"({seq.n_frames} frames)", exp.path)
         for p in exp.priors:
             try:
-                build_prior(p.name, seq, models[p.label], step_std=scales[p.label], **p.options)
+                prior = build_prior(p.name, seq, models[p.label], step_std=scales[p.label], **p.options)
             except InputError as exc:
                 raise InputError(f"prior {p.label!r} on sequence {name!r}: {exc}", exp.path) from None
+            if max(exp.tracking["annealing_layers"]) > 1:  # the filter refuses a mixture with annealing layers
+                known = np.repeat(seq.model.rest_pose()[None], max(prior.order, 2), axis=0)
+                if prior.mixture(prior.start(known, 2, np.random.default_rng(0))) is not None:
+                    raise InputError(f"prior {p.label!r}: its mixture tracking does not combine with [tracking] "
+                                     "annealing_layers > 1", exp.path)
 
 
 # -- one run (executed in a worker) ---------------------------------------------------------------------------
