@@ -115,7 +115,8 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
                 lo, hi = bootstrap_interval(d)
                 cells.append(f"{d.mean():+.1f} [{lo:+.1f}, {hi:+.1f}]" if d.size > 1 else f"{d.mean():+.1f}")
             md.write(f"| {row} | {base_row} | " + " | ".join(cells) + " |\n")
-    _write_replicates(md, csv_rows, exp, rows, seqs, split_row, lambda row, s: [
+    groups = _replicate_groups(exp, rows, split_row)
+    _write_replicates(md, csv_rows, groups, seqs, lambda row, s: [
         per_run(r, "per_frame_error_mm") for r in by.get((row, s), [])])
     cpu = sum({r["run"]["key"]: r.get("wall_seconds", 0.0) for r in results}.values())
     md.write(f"\n{meta['runs']} runs, {cpu:.0f} s of run time in all; this invocation ran {meta['ran_now']} of them "
@@ -125,24 +126,36 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
     buf = io.StringIO()
     csv.writer(buf).writerows(csv_rows)
     write_text_atomic(out / "table.csv", buf.getvalue())
-    _plot(out / "per_frame.png", _plotted_rows(exp, rows, split_row), seqs, by)
+    _plot(out / "per_frame.png", _plotted_rows(rows, groups), seqs, by)
     return {"table": md.getvalue(), "runs": len(results)}
 
 
-def _write_replicates(md: io.StringIO, csv_rows: list, exp, rows: list[str], seqs: list[str], split_row,
-                      errors) -> None:
-    """The "over training seeds" table: for every prior entry with ``train_seeds`` (and every view set or other
-    variant), each model's marker error (its mean over tracking seeds), then the mean over the models with the
-    standard deviation between them, their range, and the mean standard deviation over tracking seeds within a
-    model. ``errors(row, sequence)`` gives a row's per-run errors (mm). The means also go to ``table.csv`` as
-    rows ``"LABEL (over N training seeds)" + variant`` (their ``std`` is the spread between the models, ``runs``
-    all the models' runs), which :mod:`benchmarks.loso_summary` reads like any other."""
+def _replicate_groups(exp, rows: list[str], split_row) -> dict[tuple[str, str], list[str]]:
+    """The rows of every ``train_seeds`` entry, grouped per variant (view set, likelihood, ...): (the entry's
+    label, the variant) -> its rows, in row order."""
     group_of = {p.label: p.replicate_of for p in exp.priors if p.replicate_of is not None}
-    groups: dict[tuple[str, str], list[str]] = {}
+    members: dict[tuple[str, str], list[str]] = {}
     for row in rows:
         label, variant = split_row(row)
         if label in group_of:
-            groups.setdefault((group_of[label], variant), []).append(row)
+            members.setdefault((group_of[label], variant), []).append(row)
+    return members
+
+
+def _group_name(group: str, variant: str, members: list[str]) -> str:
+    """A ``train_seeds`` group's row name in ``table.csv`` and the plot: ``"LABEL (over N training seeds)"`` and
+    the variant."""
+    return f"{group} (over {len(members)} training seeds){variant}"
+
+
+def _write_replicates(md: io.StringIO, csv_rows: list, groups: dict[tuple[str, str], list[str]], seqs: list[str],
+                      errors) -> None:
+    """The "over training seeds" table of the ``groups`` (:func:`_replicate_groups`): for each, the mean over its
+    models of each model's marker error (its mean over tracking seeds), the standard deviation between them, their
+    range, and the mean standard deviation over tracking seeds within a model. ``errors(row, sequence)`` gives a
+    row's per-run errors (mm). The means also go to ``table.csv`` as rows named like the group (their ``std`` is
+    the spread between the models, ``runs`` all the models' runs), which :mod:`benchmarks.loso_summary` reads like
+    any other."""
     if not groups:
         return
     md.write("\n## Over training seeds (marker error, mm): mean over models ± std between models [range]; "
@@ -150,7 +163,7 @@ def _write_replicates(md: io.StringIO, csv_rows: list, exp, rows: list[str], seq
              + "|---" * (len(seqs) + 2) + "|\n")
     for (group, variant), members in groups.items():
         cells = []
-        name = f"{group} (over {len(members)} training seeds){variant}"
+        name = _group_name(group, variant, members)
         for s in seqs:
             per_model = [errors(row, s) for row in members]
             if any(not v or not np.all(np.isfinite(v)) for v in per_model):
@@ -165,19 +178,14 @@ def _write_replicates(md: io.StringIO, csv_rows: list, exp, rows: list[str], seq
         md.write(f"| {group}{variant} | {len(members)} | " + " | ".join(cells) + " |\n")
 
 
-def _plotted_rows(exp, rows: list[str], split_row) -> dict[str, list[str]]:
-    """The plot's lines: every row on its own, except the rows of a ``train_seeds`` entry, which make one line
-    per variant (``"LABEL (over N training seeds)" + variant``) from all their models' runs."""
-    group_of = {p.label: p.replicate_of for p in exp.priors if p.replicate_of is not None}
+def _plotted_rows(rows: list[str], groups: dict[tuple[str, str], list[str]]) -> dict[str, list[str]]:
+    """The plot's lines: every row on its own, except the rows of a ``train_seeds`` group, which make one line
+    from all their models' runs (at the place of the group's first row)."""
+    group_of_row = {row: (_group_name(*key, members), members) for key, members in groups.items() for row in members}
     lines: dict[str, list[str]] = {}
     for row in rows:
-        label, variant = split_row(row)
-        if label in group_of:
-            members = [r for r in rows
-                       if split_row(r)[1] == variant and group_of.get(split_row(r)[0]) == group_of[label]]
-            lines.setdefault(f"{group_of[label]} (over {len(members)} training seeds){variant}", members)
-        else:
-            lines[row] = [row]
+        name, members = group_of_row.get(row, (row, [row]))
+        lines.setdefault(name, members)
     return lines
 
 
