@@ -154,6 +154,28 @@ UNLEARNED_MOTION_OPTIONS = (
 )
 
 
+#: The learned priors' option to take each particle's ground step from its own motion (:func:`persist_ground_step`).
+GROUND_VELOCITY_OPTION = Option(
+    "ground_velocity_noise", float, None,
+    "let each particle keep its own ground step from frame to frame (constant velocity in the body's frame), "
+    "changed by Gaussian noise of this std in mm/frame per frame, instead of the step the model predicts; the model "
+    "still drives the height, orientation, heading rate and joints, and a model with a pace input is told the "
+    "particle's own ground speed (default: off, the model's steps)", minimum=0.0, maximum=1000.0)
+
+
+def persist_ground_step(step: np.ndarray, std: float, rng: np.random.Generator) -> np.ndarray:
+    """The forward and lateral ground step ``P x 2`` (mm/frame, the first two of
+    :data:`~tracker.core.representation.STEP_FEATURES`) each particle takes out of its next pose: the step ``step``
+    ``P x 2+`` it takes now, plus Gaussian noise of ``std`` (nothing drawn when 0). A learned prior's integrated
+    steps carry the training walkers' pace and leave a slower or faster person behind (issue 13's folds 91 and
+    131); a step that persists follows whatever speed the likelihood has selected, as the baseline's random walk
+    does, while the model keeps the body's dynamics."""
+    out = np.array(step[:, :2], float)
+    if std > 0:
+        out += std * rng.standard_normal(out.shape)
+    return out
+
+
 def start_log_pace(n_particles: int, spread: float, rng: np.random.Generator) -> np.ndarray:
     """Each particle's initial log pace ``(P,)``: the log of the factor between the person's ground steps and the
     steps the learned model would take (0: the model's own pace), Gaussian with std ``spread``. Nothing is

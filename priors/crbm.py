@@ -42,8 +42,9 @@ import numpy as np
 import torch
 
 from priors.common import (
-    ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS, add_ground_diffusion, add_heading_diffusion, check_model_fits,
-    check_weights, drift_log_pace, mix_in_random_walk, normaliser_from_tensors, normaliser_to_tensors,
+    GROUND_VELOCITY_OPTION, ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS, add_ground_diffusion, add_heading_diffusion,
+    check_model_fits, check_weights, drift_log_pace, mix_in_random_walk, normaliser_from_tensors,
+    normaliser_to_tensors, persist_ground_step,
     read_model_file, robust_share, scale_ground_steps, shift_height, start_log_pace, steps_taken, torch_generator,
     torch_save_atomic, checked_time_warp, time_warp_note,
 )
@@ -653,12 +654,16 @@ class CRBMPrior(MotionPrior):
     #: The tracked person's standing root height (mm), above which a model trained with ``standing_height``
     #: predicts the root height; None for models of absolute heights.
     standing_root_height: float | None = None
+    #: With a number (mm/frame per frame): each particle's ground step persists from frame to frame, changed by
+    #: Gaussian noise of this std, instead of the model's predicted step (:func:`priors.common.persist_ground_step`).
+    ground_velocity_noise: float | None = None
 
     def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = GIBBS_STEPS,
                  device: str = "cpu", mode: str = "gibbs", root_noise_mm: float = ROOT_NOISE_MM,
                  robust_fraction: float = 0.0, heading_noise: float = 0.0, robust_adaptive: bool = False,
                  pace_spread: float | None = None, pace_drift: float | None = None, relative_height: bool = False,
-                 pace_jump: float | None = None, standing_root_height: float | None = None):
+                 pace_jump: float | None = None, standing_root_height: float | None = None,
+                 ground_velocity_noise: float | None = None):
         if not models:
             raise InputError("the CRBM prior needs at least one model")
         orders = [m.order for m in models]
@@ -717,6 +722,15 @@ class CRBMPrior(MotionPrior):
             raise InputError(f"pace spread and drift must be non-negative (log units), got {pace_spread}, {pace_drift}")
         self.pace_spread, self.pace_drift = float(pace_spread), float(pace_drift)
         self.relative_height = bool(relative_height)
+        if ground_velocity_noise is not None:
+            if not ground_velocity_noise >= 0:
+                raise InputError("ground velocity noise must be a non-negative number of mm per frame per frame, "
+                                 f"got {ground_velocity_noise}")
+            if pace_jump > 0:
+                raise InputError("pace jump draws a pace the particle's ground velocity would not follow; with "
+                                 "ground velocity noise the pace is the particle's own ground speed")
+            ground_velocity_noise = float(ground_velocity_noise)
+        self.ground_velocity_noise = ground_velocity_noise
         self.order = self.models[-1].order
         self.gibbs_steps = gibbs_steps
         self.device = torch.device(device)
@@ -730,7 +744,8 @@ class CRBMPrior(MotionPrior):
                 "robust_adaptive": self.robust_adaptive, "heading_noise_rad": self.heading_noise,
                 "pace_spread": self.pace_spread, "pace_drift": self.pace_drift,
                 "relative_height": self.relative_height, "pace_jump": self.pace_jump,
-                "standing_root_height_mm": self.standing_root_height}
+                "standing_root_height_mm": self.standing_root_height,
+                "ground_velocity_noise_mm": self.ground_velocity_noise}
 
     def model_for(self, available: int) -> CRBMModel:
         """The highest-order model whose history is all real poses (never a padded history)."""
@@ -775,8 +790,10 @@ class CRBMPrior(MotionPrior):
         scale_ground_steps(feats, np.exp(-state["log_pace"]))  # the history at the model's pace
         z = model.normaliser.transform(feats).reshape(len(feats), -1)  # P x (n K)
         pace = None
-        if self.paced:  # the model is told each particle's pace, which drifts (and may jump) first
-            pace = self.next_pace(model, state["pace"], rng)
+        if self.paced:  # the model is told each particle's pace, which drifts (and may jump) first, or is the
+            # speed of the ground step the particle takes now when that step is its own
+            pace = (self.next_pace(model, state["pace"], rng) if self.ground_velocity_noise is None
+                    else np.maximum(log_pace(state["step"]), STANDING_LOG_PACE))
             z = np.concatenate([model.pace_input(pace), z], axis=1)
         hist = torch.tensor(z, dtype=torch.float32, device=self.device)
         generator = torch_generator(rng, self.device)
@@ -786,17 +803,19 @@ class CRBMPrior(MotionPrior):
             if self.mode == "gibbs":
                 v = model.crbm.gibbs(hist, self.gibbs_steps, generator)
         f_next = model.normaliser.inverse(v.cpu().double().numpy())
-        log_pace = state["log_pace"] if self.paced else drift_log_pace(state["log_pace"], self.pace_drift, rng)
-        scale_ground_steps(f_next, np.exp(log_pace))  # the predicted step at the particle's pace
+        step_factor = state["log_pace"] if self.paced else drift_log_pace(state["log_pace"], self.pace_drift, rng)
+        scale_ground_steps(f_next, np.exp(step_factor))  # the predicted step at the particle's pace
         if to_model is not None:  # and the prediction at the person's
             shift_height(f_next, -to_model)
         poses = add_ground_diffusion(next_poses(history[:, -1], previous, f_next), self.root_noise_mm, rng)
         add_heading_diffusion(poses, history[:, -1], self.heading_noise, rng)
         pending = f_next[:, step]
+        if self.ground_velocity_noise is not None:  # the particle's own ground step persists, not the model's
+            pending[:, :2] = persist_ground_step(state["step"], self.ground_velocity_noise, rng)
         share = robust_share(state["walked"], self.robust_fraction, self.robust_adaptive)
         walked = mix_in_random_walk(poses, history[:, -1], model.pose_step_rms, share, rng)
         pending[walked] = steps_taken(history[walked, -1], poses[walked])
-        new = {"step": pending, "log_pace": log_pace, "walked": walked}
+        new = {"step": pending, "log_pace": step_factor, "walked": walked}
         if pace is not None:
             new["pace"] = pace
         if self.relative_height:
@@ -962,6 +981,7 @@ CRBM_TRAIN_OPTIONS = (
              Option("pace_jump", float, None, "probability per frame that a particle's pace is drawn afresh from "
                                               f"the training paces (CRBMs trained with a pace input; default "
                                               f"{PACED_JUMP:g})", minimum=0.0, maximum=1.0),
+             GROUND_VELOCITY_OPTION,
              Option("relative_height", bool, False, "keep the person's own root height, the model's heights moved "
                                                     "by the known frames' mean root height minus the training "
                                                     "frames' (default off; for models of absolute heights, not "
@@ -980,7 +1000,8 @@ def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict
                          heading_noise=options["heading_noise"], robust_adaptive=options["robust_adaptive"],
                          pace_spread=options["pace_spread"], pace_drift=options["pace_drift"],
                          relative_height=options["relative_height"], pace_jump=options["pace_jump"],
-                         standing_root_height=context.body_model.rest_root_height)
+                         standing_root_height=context.body_model.rest_root_height,
+                         ground_velocity_noise=options["ground_velocity_noise"])
 
     if len(models) > 1 and len({m.order for m in models}) == 1:
         return EnsemblePrior([prior([m]) for m in models])

@@ -32,7 +32,7 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
-from priors.common import ROOT_NOISE_MM, read_model_file, torch_generator
+from priors.common import GROUND_VELOCITY_OPTION, ROOT_NOISE_MM, read_model_file, torch_generator
 from priors.contrastive import minibatches, momentum_step, window_index
 from priors.crbm import (
     CRBM, CRBM_TRAIN_OPTIONS, CRBMModel, CRBMPrior, _growth_orders, _model_from_document, bernoulli, make_windows,
@@ -245,9 +245,10 @@ class DeepCRBMPrior(CRBMPrior):
     name = "deep-crbm"
 
     def __init__(self, model: DeepCRBMModel, gibbs_steps: int = 30, device: str = "cpu",
-                 root_noise_mm: float = ROOT_NOISE_MM, heading_noise: float = 0.0):
+                 root_noise_mm: float = ROOT_NOISE_MM, heading_noise: float = 0.0,
+                 ground_velocity_noise: float | None = None):
         super().__init__([model.bottom], gibbs_steps=gibbs_steps, device=device, root_noise_mm=root_noise_mm,
-                         heading_noise=heading_noise)
+                         heading_noise=heading_noise, ground_velocity_noise=ground_velocity_noise)
         self.deep = model
         for k in CRBM.PARAMS:
             setattr(model.top, k, getattr(model.top, k).to(self.device))
@@ -312,9 +313,11 @@ DEEP_TRAIN_OPTIONS = tuple(o for o in CRBM_TRAIN_OPTIONS if o.name not in ("chec
              Option("root_noise", float, ROOT_NOISE_MM, "ground-plane diffusion of each sample in mm (default 5)",
                     minimum=0.0, maximum=1000.0),
              Option("heading_noise", float, 0.0, "diffusion of each sample's heading in rad per frame (default 0)",
-                    minimum=0.0, maximum=math.pi)))
+                    minimum=0.0, maximum=math.pi),
+             GROUND_VELOCITY_OPTION))
 def build_deep_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> DeepCRBMPrior:
     model = load_deep_crbm(model_files[0], device=context.device)
     model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, model_files[0])
     return DeepCRBMPrior(model, gibbs_steps=options["gibbs_steps"], device=context.device,
-                         root_noise_mm=options["root_noise"], heading_noise=options["heading_noise"])
+                         root_noise_mm=options["root_noise"], heading_noise=options["heading_noise"],
+                         ground_velocity_noise=options["ground_velocity_noise"])
