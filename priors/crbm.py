@@ -48,6 +48,7 @@ from priors.common import (
     read_model_file, robust_share, scale_ground_steps, shift_height, start_log_pace, steps_taken, torch_generator,
     torch_save_atomic, checked_time_warp, time_warp_note,
 )
+from priors.contrastive import ContrastiveConfig
 from priors.ensemble import EnsemblePrior
 from tracker.core.errors import InputError
 from tracker.core.representation import (
@@ -61,18 +62,9 @@ FORMAT = "pose-tracker crbm v1"
 #: Training checkpoints have their own format, so a half-trained model is never taken for a model file.
 CHECKPOINT_FORMAT = "pose-tracker crbm training checkpoint v1"
 @dataclass
-class CRBMConfig:
-    """Training settings (learning rates per mini-batch of averaged statistics)."""
+class CRBMConfig(ContrastiveConfig):
+    """Training settings of a CRBM: :class:`~priors.contrastive.ContrastiveConfig`'s, and the CRBM's own."""
 
-    order: int = 3
-    hidden: int = 150
-    epochs: int = 500
-    cd_k: int = 10
-    batch_size: int = 100
-    learning_rate: float = 1e-3
-    autoregressive_learning_rate: float = 1e-5
-    momentum: float = 0.9
-    weight_decay: float = 2e-4
     history_noise: float | str = "auto"
     sparsity_target: float | None = None
     sparsity_cost: float = 0.1
@@ -90,12 +82,7 @@ class CRBMConfig:
     validation_every: int = 10
 
     def check(self) -> "CRBMConfig":
-        for name in ("order", "hidden", "epochs", "cd_k", "batch_size"):
-            if int(getattr(self, name)) < 1:
-                raise InputError(f"CRBM {name} must be at least 1, got {getattr(self, name)}")
-        if not (isinstance(self.history_noise, (int, float)) and self.history_noise >= 0) \
-                and self.history_noise != "auto":
-            raise InputError(f"history noise must be 'auto' or a non-negative number, got {self.history_noise!r}")
+        super().check()
         if self.sparsity_target is not None and not 0 < self.sparsity_target < 1:
             raise InputError(f"sparsity target must lie in (0, 1), got {self.sparsity_target}")
         if not 0 <= self.validation <= 0.5:

@@ -27,13 +27,13 @@ import math
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, ClassVar, Sequence
 
 import numpy as np
 import torch
 
 from priors.common import GROUND_VELOCITY_OPTION, ROOT_NOISE_MM, read_model_file, torch_generator
-from priors.contrastive import minibatches, momentum_step, window_index
+from priors.contrastive import ContrastiveConfig, minibatches, momentum_step, window_index
 from priors.crbm import (
     CRBM, CRBM_TRAIN_OPTIONS, CRBMModel, CRBMPrior, _growth_orders, _model_from_document, bernoulli, make_windows,
     train_crbm_prior,
@@ -46,25 +46,14 @@ FORMAT = "pose-tracker deep-crbm v1"
 
 
 @dataclass
-class TopConfig:
-    """Settings of the second layer (learning rates per mini-batch of averaged statistics)."""
+class TopConfig(ContrastiveConfig):
+    """Settings of the second layer: :class:`~priors.contrastive.ContrastiveConfig`'s, with a smaller second layer."""
 
     order: int = 2
     hidden: int = 100
     epochs: int = 200
-    cd_k: int = 10
-    batch_size: int = 100
-    learning_rate: float = 1e-3
-    autoregressive_learning_rate: float = 1e-5
-    momentum: float = 0.9
-    weight_decay: float = 2e-4
 
-    def check(self) -> "TopConfig":
-        for name in ("order", "hidden", "epochs", "cd_k", "batch_size"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise InputError(f"deep CRBM top {name} must be an integer of at least 1, got {value!r}")
-        return self
+    KIND: ClassVar[str] = "deep CRBM top"
 
 
 def first_layer_activations(model: CRBMModel, clips: Sequence[np.ndarray]) -> tuple[torch.Tensor, torch.Tensor]:

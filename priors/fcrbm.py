@@ -45,7 +45,7 @@ import re
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, ClassVar, Sequence
 
 import numpy as np
 import torch
@@ -54,7 +54,7 @@ from priors.common import (
     ROOT_NOISE_MM, check_model_fits, check_weights, normaliser_from_tensors, normaliser_to_tensors, read_model_file,
     torch_generator, checked_time_warp, time_warp_note,
 )
-from priors.contrastive import balanced_starts, minibatches, momentum_step, window_index
+from priors.contrastive import ContrastiveConfig, balanced_starts, minibatches, momentum_step, window_index
 from priors.crbm import CRBM_TRAIN_OPTIONS, CRBMPrior, _growth_orders, bernoulli, history_noise_scale, make_windows
 from tracker.core.errors import InputError
 from tracker.core.representation import FeatureNormaliser, step_rms
@@ -79,37 +79,20 @@ STYLE_TEMPERATURE = 10.0
 
 
 @dataclass
-class FCRBMConfig:
-    """Training settings (learning rates per mini-batch of averaged statistics; Taylor & Hinton 2009, Sec. 4.2)."""
+class FCRBMConfig(ContrastiveConfig):
+    """Training settings of an FCRBM (Taylor & Hinton 2009, Sec. 4.2): :class:`~priors.contrastive.ContrastiveConfig`'s
+    with the paper's defaults, and the factors, style features, history noise and label balance."""
 
-    order: int = 3
-    hidden: int = 150
-    factors: int = 100
-    features: int = 20
     epochs: int = 300
-    cd_k: int = 10
-    batch_size: int = 100
     learning_rate: float = 1e-2
     autoregressive_learning_rate: float = 1e-3
-    momentum: float = 0.9
-    weight_decay: float = 2e-4
+    factors: int = 100
+    features: int = 20
     history_noise: float | str = "auto"
     balance: bool = True
 
-    def check(self) -> "FCRBMConfig":
-        for name in ("order", "hidden", "factors", "features", "epochs", "cd_k", "batch_size"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise InputError(f"FCRBM {name} must be an integer of at least 1, got {value!r}")
-        for name in ("learning_rate", "autoregressive_learning_rate", "weight_decay"):
-            if not (isinstance(getattr(self, name), (int, float)) and 0 <= getattr(self, name) < 1):
-                raise InputError(f"FCRBM {name} must lie in [0, 1), got {getattr(self, name)!r}")
-        if not 0 <= self.momentum < 1:
-            raise InputError(f"FCRBM momentum must lie in [0, 1), got {self.momentum!r}")
-        if not (isinstance(self.history_noise, (int, float)) and self.history_noise >= 0) \
-                and self.history_noise != "auto":
-            raise InputError(f"history noise must be 'auto' or a non-negative number, got {self.history_noise!r}")
-        return self
+    KIND: ClassVar[str] = "FCRBM"
+    COUNTS: ClassVar[tuple[str, ...]] = ContrastiveConfig.COUNTS + ("factors", "features")
 
 
 def parse_labels(text: str | Sequence[str], sources: Sequence[str]) -> list[str]:
