@@ -43,10 +43,9 @@ import torch
 
 from priors.common import (
     GROUND_VELOCITY_OPTION, ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS, add_ground_diffusion, add_heading_diffusion,
-    check_model_fits, check_weights, drift_log_pace, mix_in_random_walk, normaliser_from_tensors,
-    normaliser_to_tensors, persist_ground_step,
-    read_model_file, robust_share, scale_ground_steps, shift_height, start_log_pace, steps_taken, torch_generator,
-    torch_save_atomic, checked_time_warp, time_warp_note,
+    check_model_fits, check_weights, checked_data_settings, checked_time_warp, drift_log_pace, mix_in_random_walk,
+    normaliser_from_tensors, normaliser_to_tensors, persist_ground_step, read_model_file, robust_share,
+    scale_ground_steps, shift_height, start_log_pace, steps_taken, time_warp_note, torch_generator, torch_save_atomic,
 )
 from priors.contrastive import ContrastiveConfig
 from priors.ensemble import EnsemblePrior
@@ -357,20 +356,13 @@ def _model_from_document(doc: dict, path: Path, device: str) -> CRBMModel:
         normaliser = normaliser_from_tensors(doc["normaliser"], path)
         if normaliser.n_kept != K:
             raise InputError(f"model has {K} visible units but its normaliser keeps {normaliser.n_kept}", path)
-        fps = doc["fps"]
-        if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 0 < fps <= 1e5:
-            raise InputError(f"CRBM model file's fps must be a number in (0, 1e5] Hz, got {fps!r}", path)
-        step = doc["pose_step_rms"]
-        if not isinstance(step, torch.Tensor) or step.shape != (len(doc["dof_names"]),) \
-                or not torch.all(torch.isfinite(step)) or torch.any(step < 0):
-            raise InputError("CRBM model file's pose_step_rms must be finite, non-negative, one per pose number",
-                             path)
+        fps, body_model, dof_names, sources, step = checked_data_settings(doc, "CRBM", path)
         growth = [_model_from_document(g, path, device) for g in doc.get("growth", [])]
         for key, what in INPUT_SETTINGS.items():
             if any(getattr(g.config, key) != getattr(cfg, key) for g in growth):
                 raise InputError(f"CRBM model file's growth models and main model differ in {what}", path)
-        return CRBMModel(crbm, normaliser, cfg, float(fps), str(doc["body_model"]), [str(n) for n in doc["dof_names"]],
-                         [str(n) for n in doc["sources"]], step.numpy(), [float(e) for e in doc["reconstruction_errors"]],
+        return CRBMModel(crbm, normaliser, cfg, fps, body_model, dof_names, sources, step,
+                         [float(e) for e in doc["reconstruction_errors"]],
                          float(doc["training_seconds"]), growth,
                          checked_time_warp(doc.get("time_warp"), "CRBM", path), pace_label,
                          [[float(e), float(x)] for e, x in doc.get("validation_errors", [])],

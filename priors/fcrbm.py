@@ -51,8 +51,8 @@ import numpy as np
 import torch
 
 from priors.common import (
-    ROOT_NOISE_MM, check_model_fits, check_weights, normaliser_from_tensors, normaliser_to_tensors, read_model_file,
-    torch_generator, checked_time_warp, time_warp_note,
+    ROOT_NOISE_MM, check_model_fits, check_weights, checked_data_settings, checked_time_warp, normaliser_from_tensors,
+    normaliser_to_tensors, read_model_file, time_warp_note, torch_generator,
 )
 from priors.contrastive import ContrastiveConfig, balanced_starts, minibatches, momentum_step, window_index
 from priors.crbm import CRBM_TRAIN_OPTIONS, CRBMPrior, _growth_orders, bernoulli, history_noise_scale, make_windows
@@ -366,20 +366,12 @@ def _from_document(doc: dict, path: Path, device: str) -> FCRBMModel:
         normaliser = normaliser_from_tensors(doc["normaliser"], path)
         if normaliser.n_kept != K:
             raise InputError(f"model has {K} visible units but its normaliser keeps {normaliser.n_kept}", path)
-        fps = doc["fps"]
-        if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 0 < fps <= 1e5:
-            raise InputError(f"FCRBM model file's fps must be a number in (0, 1e5] Hz, got {fps!r}", path)
-        step = doc["pose_step_rms"]
-        if not isinstance(step, torch.Tensor) or step.shape != (len(doc["dof_names"]),) \
-                or not torch.all(torch.isfinite(step)) or torch.any(step < 0):
-            raise InputError("FCRBM model file's pose_step_rms must be finite, non-negative, one per pose number",
-                             path)
+        fps, body_model, dof_names, sources, step = checked_data_settings(doc, "FCRBM", path)
         growth = [_from_document(g, path, device) for g in doc.get("growth", [])]
         if any(g.labels != labels for g in growth):
             raise InputError("FCRBM model file's growth models have other labels", path)
-        return FCRBMModel(net, labels, normaliser, cfg, float(fps), str(doc["body_model"]),
-                          [str(n) for n in doc["dof_names"]], [str(n) for n in doc["sources"]], clip_labels,
-                          step.numpy(), [float(e) for e in doc["reconstruction_errors"]],
+        return FCRBMModel(net, labels, normaliser, cfg, fps, body_model, dof_names, sources, clip_labels, step,
+                          [float(e) for e in doc["reconstruction_errors"]],
                           float(doc["training_seconds"]), growth,
                           checked_time_warp(doc.get("time_warp"), "FCRBM", path))
     except InputError:
