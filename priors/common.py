@@ -154,6 +154,21 @@ UNLEARNED_MOTION_OPTIONS = (
 )
 
 
+#: The sampling options the CRBM-family priors (CRBM, deep CRBM, FCRBM) share.
+ROOT_NOISE_OPTION = Option("root_noise", float, ROOT_NOISE_MM,
+                           f"ground-plane diffusion of each sample in mm (default {ROOT_NOISE_MM:g})",
+                           minimum=0.0, maximum=1000.0)
+HEADING_NOISE_OPTION = Option("heading_noise", float, 0.0,
+                              "diffusion of each sample's heading in rad per frame, so that the likelihood can "
+                              "correct an integrated heading (default 0)", minimum=0.0, maximum=float(np.pi))
+
+
+def gibbs_steps_option(default: int) -> Option:
+    """The ``gibbs_steps`` option of a CRBM-family prior, with its own default."""
+    return Option("gibbs_steps", int, default, f"alternating Gibbs steps per sample (default {default})", minimum=1,
+                  maximum=10000)
+
+
 #: The learned priors' option to take each particle's ground step from its own motion (:func:`persist_ground_step`).
 GROUND_VELOCITY_OPTION = Option(
     "ground_velocity_noise", float, None,

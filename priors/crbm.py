@@ -42,10 +42,11 @@ import numpy as np
 import torch
 
 from priors.common import (
-    GROUND_VELOCITY_OPTION, ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS, add_ground_diffusion, add_heading_diffusion,
-    check_model_fits, check_weights, checked_data_settings, checked_time_warp, drift_log_pace, mix_in_random_walk,
-    normaliser_from_tensors, normaliser_to_tensors, persist_ground_step, read_model_file, robust_share,
-    scale_ground_steps, shift_height, start_log_pace, steps_taken, time_warp_note, torch_generator, torch_save_atomic,
+    GROUND_VELOCITY_OPTION, HEADING_NOISE_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION, UNLEARNED_MOTION_OPTIONS,
+    add_ground_diffusion, add_heading_diffusion, check_model_fits, check_weights, checked_data_settings,
+    checked_time_warp, drift_log_pace, gibbs_steps_option, mix_in_random_walk, normaliser_from_tensors,
+    normaliser_to_tensors, persist_ground_step, read_model_file, robust_share, scale_ground_steps, shift_height,
+    start_log_pace, steps_taken, time_warp_note, torch_generator, torch_save_atomic,
 )
 from priors.contrastive import ContrastiveConfig
 from priors.ensemble import EnsemblePrior
@@ -949,14 +950,10 @@ CRBM_TRAIN_OPTIONS = (
     "crbm", summary="Conditional RBM (Taylor 2009); several model files of increasing order grow the history, "
                     "several of one order form an ensemble",
     model_files="several", train=train_crbm_prior, train_options=CRBM_TRAIN_OPTIONS, resumable=True,
-    options=(Option("gibbs_steps", int, GIBBS_STEPS, f"alternating Gibbs steps per sample (default {GIBBS_STEPS})",
-                    minimum=1, maximum=10000),
-             Option("root_noise", float, ROOT_NOISE_MM, "ground-plane diffusion of each sample in mm (default 5)",
-                    minimum=0.0, maximum=1000.0),
+    options=(gibbs_steps_option(GIBBS_STEPS),
+             ROOT_NOISE_OPTION,
              *UNLEARNED_MOTION_OPTIONS,
-             Option("heading_noise", float, 0.0, "diffusion of each sample's heading in rad per frame, so that the "
-                                                 "likelihood can correct an integrated heading (default 0)",
-                    minimum=0.0, maximum=math.pi),
+             HEADING_NOISE_OPTION,
              Option("pace_jump", float, None, "probability per frame that a particle's pace is drawn afresh from "
                                               f"the training paces (CRBMs trained with a pace input; default "
                                               f"{PACED_JUMP:g})", minimum=0.0, maximum=1.0),

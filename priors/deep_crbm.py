@@ -32,7 +32,10 @@ from typing import Callable, ClassVar, Sequence
 import numpy as np
 import torch
 
-from priors.common import GROUND_VELOCITY_OPTION, ROOT_NOISE_MM, read_model_file, torch_generator
+from priors.common import (
+    GROUND_VELOCITY_OPTION, HEADING_NOISE_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION, gibbs_steps_option, read_model_file,
+    torch_generator,
+)
 from priors.contrastive import ContrastiveConfig, minibatches, momentum_step, window_index
 from priors.crbm import (
     CRBM, CRBM_TRAIN_OPTIONS, CRBMModel, CRBMPrior, _growth_orders, _model_from_document, bernoulli, make_windows,
@@ -297,12 +300,9 @@ DEEP_TRAIN_OPTIONS = tuple(o for o in CRBM_TRAIN_OPTIONS if o.name not in ("chec
 @register_prior(
     "deep-crbm", summary="two-layer CRBM (Taylor 2009, Sec. 4.3): a second CRBM on the first one's hidden units",
     model_files="one", train=train_deep_crbm_prior, train_options=DEEP_TRAIN_OPTIONS,
-    options=(Option("gibbs_steps", int, 30, "alternating Gibbs steps per sample (default 30)", minimum=1,
-                    maximum=10000),
-             Option("root_noise", float, ROOT_NOISE_MM, "ground-plane diffusion of each sample in mm (default 5)",
-                    minimum=0.0, maximum=1000.0),
-             Option("heading_noise", float, 0.0, "diffusion of each sample's heading in rad per frame (default 0)",
-                    minimum=0.0, maximum=math.pi),
+    options=(gibbs_steps_option(30),
+             ROOT_NOISE_OPTION,
+             HEADING_NOISE_OPTION,
              GROUND_VELOCITY_OPTION))
 def build_deep_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> DeepCRBMPrior:
     model = load_deep_crbm(model_files[0], device=context.device)

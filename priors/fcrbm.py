@@ -51,8 +51,9 @@ import numpy as np
 import torch
 
 from priors.common import (
-    ROOT_NOISE_MM, check_model_fits, check_weights, checked_data_settings, checked_time_warp, normaliser_from_tensors,
-    normaliser_to_tensors, read_model_file, time_warp_note, torch_generator,
+    HEADING_NOISE_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION, check_model_fits, check_weights, checked_data_settings,
+    checked_time_warp, gibbs_steps_option, normaliser_from_tensors, normaliser_to_tensors, read_model_file,
+    time_warp_note, torch_generator,
 )
 from priors.contrastive import ContrastiveConfig, balanced_starts, minibatches, momentum_step, window_index
 from priors.crbm import CRBM_TRAIN_OPTIONS, CRBMPrior, _growth_orders, bernoulli, history_noise_scale, make_windows
@@ -776,12 +777,9 @@ FCRBM_TRAIN_OPTIONS = (
     "fcrbm", summary="factored, style-gated CRBM (Taylor & Hinton 2009): every particle carries a style label; "
                      "result.json reports the posterior over the labels per frame",
     model_files="one", train=train_fcrbm_prior, train_options=FCRBM_TRAIN_OPTIONS,
-    options=(Option("gibbs_steps", int, 30, "alternating Gibbs steps per sample (default 30)", minimum=1,
-                    maximum=10000),
-             Option("root_noise", float, ROOT_NOISE_MM, "ground-plane diffusion of each sample in mm (default 5)",
-                    minimum=0.0, maximum=1000.0),
-             Option("heading_noise", float, 0.0, "diffusion of each sample's heading in rad per frame (default 0)",
-                    minimum=0.0, maximum=math.pi),
+    options=(gibbs_steps_option(30),
+             ROOT_NOISE_OPTION,
+             HEADING_NOISE_OPTION,
              Option("style_switch", float, 0.05, "probability per frame that the style switches to another label "
                                                  "(default 0.05)", minimum=0.0, maximum=1.0),
              Option("style", str, None, "give every particle this label and never switch (the oracle), or a "
