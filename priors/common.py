@@ -3,8 +3,9 @@ their feature normalisers, the check that a model fits the sequence it is asked 
 diffusion, and the torch generator each sample draws from."""
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence
+from typing import ClassVar, Sequence
 
 import numpy as np
 
@@ -29,6 +30,54 @@ def read_model_file(path, fmt: str, kind: str) -> dict:
     if not isinstance(doc, dict) or doc.get("format") != fmt:
         raise InputError(f"not a {kind} model file (expected format {fmt!r})", path)
     return doc
+
+
+@dataclass(kw_only=True)
+class TrainedModel:
+    """What the CRBM-family model files keep besides their weights and training settings: the feature normaliser,
+    the data they were trained on (frame rate, body model, pose layout, source clips, per-dof RMS frame-to-frame
+    step in mm or rad, the playback speeds of ``train --time-warp``) and how training went. A subclass names its
+    kind (``KIND``, for messages) and adds its weights, settings and ``to_document``."""
+
+    normaliser: FeatureNormaliser
+    fps: float
+    body_model: str
+    dof_names: list[str]
+    sources: list[str]
+    pose_step_rms: np.ndarray
+    reconstruction_errors: list[float] = field(default_factory=list)
+    training_seconds: float = 0.0
+    #: Playback speeds the training clips were replayed at (``train --time-warp``; [1.0]: as given).
+    time_warp: list[float] = field(default_factory=lambda: [1.0])
+
+    KIND: ClassVar[str] = "learned prior"
+
+    def to_document(self) -> dict:  # pragma: no cover - every subclass defines it
+        raise NotImplementedError
+
+    def save(self, path: str | Path) -> None:
+        """The model file at ``path`` (written atomically: never half-written)."""
+        torch_save_atomic(self.to_document(), Path(path))
+
+    def data_document(self) -> dict:
+        """The model file's entries for the fields above (tensors and plain values)."""
+        import torch
+
+        return {"fps": float(self.fps), "body_model": self.body_model, "dof_names": list(self.dof_names),
+                "sources": list(self.sources), "pose_step_rms": torch.tensor(self.pose_step_rms, dtype=torch.float64),
+                "normaliser": normaliser_to_tensors(self.normaliser),
+                "reconstruction_errors": [float(e) for e in self.reconstruction_errors],
+                "training_seconds": float(self.training_seconds), "time_warp": [float(s) for s in self.time_warp]}
+
+    def fit_note(self) -> str:
+        """How the reconstruction error went over training, for one-line summaries (empty if never trained)."""
+        errs = self.reconstruction_errors
+        return f"reconstruction error {errs[0]:.4f} (epoch 1) -> {errs[-1]:.4f} (epoch {len(errs)}), " if errs else ""
+
+    def check_compatible(self, body_model: str, dof_names: Sequence[str], fps: float | None,
+                         source: str | Path | None = None) -> None:
+        """Refuse a sequence this model was not trained for, saying what differs."""
+        check_model_fits(self.KIND, (self.body_model, self.dof_names, self.fps), body_model, dof_names, fps, source)
 
 
 def normaliser_to_tensors(n: FeatureNormaliser) -> dict:

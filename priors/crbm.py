@@ -36,17 +36,17 @@ import math
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, ClassVar, Sequence
 
 import numpy as np
 import torch
 
 from priors.common import (
-    GROUND_VELOCITY_OPTION, HEADING_NOISE_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION, UNLEARNED_MOTION_OPTIONS,
-    add_ground_diffusion, add_heading_diffusion, check_model_fits, check_weights, checked_data_settings,
+    GROUND_VELOCITY_OPTION, HEADING_NOISE_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION, TrainedModel,
+    UNLEARNED_MOTION_OPTIONS, add_ground_diffusion, add_heading_diffusion, check_weights, checked_data_settings,
     checked_time_warp, drift_log_pace, gibbs_steps_option, mix_in_random_walk, normaliser_from_tensors,
-    normaliser_to_tensors, persist_ground_step, read_model_file, robust_share, scale_ground_steps, shift_height,
-    start_log_pace, steps_taken, time_warp_note, torch_generator, torch_save_atomic,
+    persist_ground_step, read_model_file, robust_share, scale_ground_steps, shift_height, start_log_pace,
+    steps_taken, time_warp_note, torch_generator, torch_save_atomic,
 )
 from priors.contrastive import ContrastiveConfig
 from priors.ensemble import EnsemblePrior
@@ -238,23 +238,16 @@ def history_noise_scale(data: WindowData) -> torch.Tensor:
 # The trained model: CRBM + normaliser + the settings it was trained with
 # ---------------------------------------------------------------------------
 
-@dataclass
-class CRBMModel:
+@dataclass(kw_only=True)
+class CRBMModel(TrainedModel):
+    """A trained CRBM: its weights and settings, the lower orders it grows from, and what
+    :class:`~priors.common.TrainedModel` keeps."""
+
     crbm: CRBM
-    normaliser: FeatureNormaliser
     config: CRBMConfig
-    fps: float
-    body_model: str
-    dof_names: list[str]
-    sources: list[str]
-    pose_step_rms: np.ndarray
-    reconstruction_errors: list[float] = field(default_factory=list)
-    training_seconds: float = 0.0
     #: Lower-order CRBMs trained with this one on the same data, that grow the history from the known
     #: frames until this model's order is reached (Taylor 2009, Sec. 6.4); saved in the same file.
     growth: list["CRBMModel"] = field(default_factory=list)
-    #: Playback speeds the training clips were replayed at (``train --time-warp``; [1.0]: as given).
-    time_warp: list[float] = field(default_factory=lambda: [1.0])
     #: With ``config.pace_input``: the mean and std of the training frames' log pace, which normalise the pace
     #: input (:func:`~tracker.core.representation.clip_log_pace`); None otherwise.
     pace_label: tuple[float, float] | None = None
@@ -262,6 +255,8 @@ class CRBMModel:
     #: weights the model kept (0: no validation).
     validation_errors: list[list[float]] = field(default_factory=list)
     best_epoch: int = 0
+
+    KIND: ClassVar[str] = "CRBM"
 
     @property
     def order(self) -> int:
@@ -279,8 +274,7 @@ class CRBMModel:
 
     def summary(self) -> str:
         """One line on how training went."""
-        errs = self.reconstruction_errors
-        fit = f"reconstruction error {errs[0]:.4f} (epoch 1) -> {errs[-1]:.4f} (epoch {len(errs)}), " if errs else ""
+        fit = self.fit_note()
         grow = f" (grows from order {', '.join(str(g.order) for g in self.growth)})" if self.growth else ""
         pace = "" if self.pace_label is None else \
             f", paced (training paces {np.exp(self.pace_label[0]) - PACE_FLOOR_MM:.1f} mm/frame typical)"
@@ -292,10 +286,6 @@ class CRBMModel:
                 f"{pace}{height}: "
                 f"{fit}{self.training_seconds:.1f} s")
 
-    def save(self, path: str | Path) -> None:
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        torch.save(self.to_document(), path)
-
     def to_document(self) -> dict:
         """The model file's dictionary (tensors and plain values; ``torch.load(weights_only=True)`` reads it)."""
         config = asdict(self.config)
@@ -303,22 +293,11 @@ class CRBMModel:
             if config[key] == getattr(CRBMConfig, key):                      # before they existed (readable by them)
                 del config[key]
         return {
-            "format": FORMAT, "params": self.crbm.state_dict(), "config": config, "fps": float(self.fps),
-            "body_model": self.body_model, "dof_names": list(self.dof_names), "sources": list(self.sources),
-            "pose_step_rms": torch.tensor(self.pose_step_rms, dtype=torch.float64),
-            "normaliser": normaliser_to_tensors(self.normaliser),
-            "reconstruction_errors": [float(e) for e in self.reconstruction_errors],
-            "training_seconds": float(self.training_seconds),
+            "format": FORMAT, "params": self.crbm.state_dict(), "config": config, **self.data_document(),
             "validation_errors": [[float(e), float(x)] for e, x in self.validation_errors],
-            "best_epoch": int(self.best_epoch),
-            "growth": [g.to_document() for g in self.growth], "time_warp": [float(s) for s in self.time_warp],
+            "best_epoch": int(self.best_epoch), "growth": [g.to_document() for g in self.growth],
             "pace_label": None if self.pace_label is None else [float(x) for x in self.pace_label],
         }
-
-    def check_compatible(self, body_model: str, dof_names: Sequence[str], fps: float | None,
-                         source: str | Path | None = None) -> None:
-        """Refuse a sequence this model was not trained for, saying what differs."""
-        check_model_fits("CRBM", (self.body_model, self.dof_names, self.fps), body_model, dof_names, fps, source)
 
 
 def load_crbm(path: str | Path, device: str = "cpu") -> CRBMModel:
@@ -362,12 +341,13 @@ def _model_from_document(doc: dict, path: Path, device: str) -> CRBMModel:
         for key, what in INPUT_SETTINGS.items():
             if any(getattr(g.config, key) != getattr(cfg, key) for g in growth):
                 raise InputError(f"CRBM model file's growth models and main model differ in {what}", path)
-        return CRBMModel(crbm, normaliser, cfg, fps, body_model, dof_names, sources, step,
-                         [float(e) for e in doc["reconstruction_errors"]],
-                         float(doc["training_seconds"]), growth,
-                         checked_time_warp(doc.get("time_warp"), "CRBM", path), pace_label,
-                         [[float(e), float(x)] for e, x in doc.get("validation_errors", [])],
-                         int(doc.get("best_epoch", 0)))
+        return CRBMModel(crbm=crbm, normaliser=normaliser, config=cfg, fps=fps, body_model=body_model,
+                         dof_names=dof_names, sources=sources, pose_step_rms=step,
+                         reconstruction_errors=[float(e) for e in doc["reconstruction_errors"]],
+                         training_seconds=float(doc["training_seconds"]), growth=growth,
+                         time_warp=checked_time_warp(doc.get("time_warp"), "CRBM", path), pace_label=pace_label,
+                         validation_errors=[[float(e), float(x)] for e, x in doc.get("validation_errors", [])],
+                         best_epoch=int(doc.get("best_epoch", 0)))
     except InputError:
         raise
     except KeyError as exc:
@@ -431,8 +411,9 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
     rates = {"W": cfg.learning_rate, "A": cfg.autoregressive_learning_rate, "B": cfg.learning_rate,
              "a": cfg.learning_rate, "b": cfg.learning_rate}
     activity = torch.full((H,), cfg.sparsity_target or 0.0, device=device)
-    model = CRBMModel(crbm, data.normaliser, cfg, fps, body_model, list(dof_names), list(sources),
-                      step_rms(clips), pace_label=pace_label)
+    model = CRBMModel(crbm=crbm, normaliser=data.normaliser, config=cfg, fps=fps, body_model=body_model,
+                      dof_names=list(dof_names), sources=list(sources), pose_step_rms=step_rms(clips),
+                      pace_label=pace_label)
     starts, held_out = split_validation(data.starts, [len(c) for c in clips], N, cfg.validation)
     starts, held_out = starts.to(device), held_out.to(device)
 

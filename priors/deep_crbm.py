@@ -34,7 +34,7 @@ import torch
 
 from priors.common import (
     GROUND_VELOCITY_OPTION, HEADING_NOISE_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION, gibbs_steps_option, read_model_file,
-    torch_generator,
+    torch_generator, torch_save_atomic,
 )
 from priors.contrastive import ContrastiveConfig, minibatches, momentum_step, window_index
 from priors.crbm import (
@@ -166,8 +166,8 @@ class DeepCRBMModel:
                 f"{self.top.n_hidden} hidden units: {top}{self.training_seconds:.1f} s")
 
     def save(self, path: str | Path) -> None:
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        torch.save(self.to_document(), path)
+        """The model file at ``path`` (written atomically: never half-written)."""
+        torch_save_atomic(self.to_document(), Path(path))
 
     def to_document(self) -> dict:
         return {"format": FORMAT, "bottom": self.bottom.to_document(), "top": self.top.state_dict(),

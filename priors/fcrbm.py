@@ -51,9 +51,8 @@ import numpy as np
 import torch
 
 from priors.common import (
-    HEADING_NOISE_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION, check_model_fits, check_weights, checked_data_settings,
-    checked_time_warp, gibbs_steps_option, normaliser_from_tensors, normaliser_to_tensors, read_model_file,
-    time_warp_note, torch_generator,
+    HEADING_NOISE_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION, TrainedModel, check_weights, checked_data_settings,
+    checked_time_warp, gibbs_steps_option, normaliser_from_tensors, read_model_file, time_warp_note, torch_generator,
 )
 from priors.contrastive import ContrastiveConfig, balanced_starts, minibatches, momentum_step, window_index
 from priors.crbm import CRBM_TRAIN_OPTIONS, CRBMPrior, _growth_orders, bernoulli, history_noise_scale, make_windows
@@ -264,59 +263,38 @@ class FCRBM:
 # The trained model: FCRBM + labels + normaliser + the settings it was trained with
 # ---------------------------------------------------------------------------
 
-@dataclass
-class FCRBMModel:
+@dataclass(kw_only=True)
+class FCRBMModel(TrainedModel):
+    """A trained FCRBM: its weights, settings and labels (with each training clip's), the lower orders it grows
+    from, and what :class:`~priors.common.TrainedModel` keeps."""
+
     fcrbm: FCRBM
     labels: list[str]
-    normaliser: FeatureNormaliser
     config: FCRBMConfig
-    fps: float
-    body_model: str
-    dof_names: list[str]
-    sources: list[str]
     clip_labels: list[str]
-    pose_step_rms: np.ndarray
-    reconstruction_errors: list[float] = field(default_factory=list)
-    training_seconds: float = 0.0
     #: Lower-order FCRBMs trained with this one on the same clips and labels, which grow the history from the
     #: known frames (as the CRBM's, Taylor 2009 Sec. 6.4); saved in the same file.
     growth: list["FCRBMModel"] = field(default_factory=list)
-    #: Playback speeds the training clips were replayed at (``train --time-warp``; [1.0]: as given).
-    time_warp: list[float] = field(default_factory=lambda: [1.0])
+
+    KIND: ClassVar[str] = "FCRBM"
 
     @property
     def order(self) -> int:
         return self.fcrbm.order
 
     def summary(self) -> str:
-        errs = self.reconstruction_errors
-        fit = f"reconstruction error {errs[0]:.4f} (epoch 1) -> {errs[-1]:.4f} (epoch {len(errs)}), " if errs else ""
+        """One line on how training went."""
+        fit = self.fit_note()
         grow = f" (grows from order {', '.join(str(g.order) for g in self.growth)})" if self.growth else ""
         return (f"FCRBM order {self.order}{grow}, {self.fcrbm.n_hidden} hidden units, {self.fcrbm.n_factors} "
                 f"factors, labels {', '.join(self.labels)}{time_warp_note(self.time_warp)}: {fit}"
                 f"{self.training_seconds:.1f} s")
 
-    def save(self, path: str | Path) -> None:
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        torch.save(self.to_document(), path)
-
     def to_document(self) -> dict:
         """The model file's dictionary (tensors and plain values; ``torch.load(weights_only=True)`` reads it)."""
-        return {
-            "format": FORMAT, "params": self.fcrbm.state_dict(), "labels": list(self.labels),
-            "config": asdict(self.config), "fps": float(self.fps), "body_model": self.body_model,
-            "dof_names": list(self.dof_names), "sources": list(self.sources), "clip_labels": list(self.clip_labels),
-            "pose_step_rms": torch.tensor(self.pose_step_rms, dtype=torch.float64),
-            "normaliser": normaliser_to_tensors(self.normaliser),
-            "reconstruction_errors": [float(e) for e in self.reconstruction_errors],
-            "training_seconds": float(self.training_seconds), "growth": [g.to_document() for g in self.growth],
-            "time_warp": [float(s) for s in self.time_warp],
-        }
-
-    def check_compatible(self, body_model: str, dof_names: Sequence[str], fps: float | None,
-                         source: str | Path | None = None) -> None:
-        """Refuse a sequence this model was not trained for, saying what differs."""
-        check_model_fits("FCRBM", (self.body_model, self.dof_names, self.fps), body_model, dof_names, fps, source)
+        return {"format": FORMAT, "params": self.fcrbm.state_dict(), "labels": list(self.labels),
+                "config": asdict(self.config), **self.data_document(), "clip_labels": list(self.clip_labels),
+                "growth": [g.to_document() for g in self.growth]}
 
     def label_index(self, label: str) -> int:
         if label not in self.labels:
@@ -371,10 +349,11 @@ def _from_document(doc: dict, path: Path, device: str) -> FCRBMModel:
         growth = [_from_document(g, path, device) for g in doc.get("growth", [])]
         if any(g.labels != labels for g in growth):
             raise InputError("FCRBM model file's growth models have other labels", path)
-        return FCRBMModel(net, labels, normaliser, cfg, fps, body_model, dof_names, sources, clip_labels, step,
-                          [float(e) for e in doc["reconstruction_errors"]],
-                          float(doc["training_seconds"]), growth,
-                          checked_time_warp(doc.get("time_warp"), "FCRBM", path))
+        return FCRBMModel(fcrbm=net, labels=labels, normaliser=normaliser, config=cfg, fps=fps, body_model=body_model,
+                          dof_names=dof_names, sources=sources, clip_labels=clip_labels, pose_step_rms=step,
+                          reconstruction_errors=[float(e) for e in doc["reconstruction_errors"]],
+                          training_seconds=float(doc["training_seconds"]), growth=growth,
+                          time_warp=checked_time_warp(doc.get("time_warp"), "FCRBM", path))
     except InputError:
         raise
     except KeyError as exc:
@@ -426,8 +405,9 @@ def train_fcrbm(clips: Sequence[np.ndarray], clip_labels: Sequence[str], config:
     rates = {k: cfg.autoregressive_learning_rate if k in FCRBM.SLOW else cfg.learning_rate for k in FCRBM.PARAMS}
     ar_share = cfg.autoregressive_learning_rate / cfg.learning_rate if cfg.learning_rate else 0.0
     velocity = {k: torch.zeros_like(v) for k, v in net.params.items()}
-    model = FCRBMModel(net, labels, data.normaliser, cfg, fps, body_model, list(dof_names), sources,
-                       list(clip_labels), step_rms(clips))
+    model = FCRBMModel(fcrbm=net, labels=labels, normaliser=data.normaliser, config=cfg, fps=fps,
+                       body_model=body_model, dof_names=list(dof_names), sources=sources,
+                       clip_labels=list(clip_labels), pose_step_rms=step_rms(clips))
     for epoch in range(cfg.epochs):
         err_sum, count = 0.0, 0
         for batch in minibatches(starts, cfg.batch_size, g):
