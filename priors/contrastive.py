@@ -7,9 +7,10 @@ Every random draw comes from the ``torch.Generator`` passed in (derived from the
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from numbers import Integral
-from typing import ClassVar, Iterable, Iterator
+from typing import Callable, ClassVar, Iterable, Iterator
 
 import torch
 
@@ -77,6 +78,19 @@ def momentum_step(params: dict[str, torch.Tensor], velocity: dict[str, torch.Ten
         grad = grads[k] - weight_decay * param if k in decayed else grads[k]
         velocity[k] = momentum * velocity[k] + rates[k] * grad
         params[k] = param + velocity[k]
+
+
+def finish_epoch(errors: list[float], err_sum: float, count: int, epoch: int, kind: str,
+                 progress: Callable[[int, float], None] | None) -> None:
+    """End epoch ``epoch`` (0-based) of a CD training: append its mean squared reconstruction error
+    ``err_sum / count`` to ``errors``, refuse a diverged training (an :class:`InputError` saying what to change),
+    and report ``progress(epoch + 1, error)``."""
+    errors.append(err_sum / count)
+    if not math.isfinite(errors[-1]):
+        raise InputError(f"{kind} training diverged at epoch {epoch + 1} (reconstruction error is not finite); "
+                         "lower the learning rate")
+    if progress is not None:
+        progress(epoch + 1, errors[-1])
 
 
 def balanced_starts(starts: torch.Tensor, groups: torch.Tensor) -> torch.Tensor:

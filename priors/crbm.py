@@ -48,7 +48,7 @@ from priors.common import (
     persist_ground_step, read_model_file, robust_share, scale_ground_steps, shift_height, start_log_pace,
     steps_taken, time_warp_note, torch_generator, torch_save_atomic,
 )
-from priors.contrastive import ContrastiveConfig
+from priors.contrastive import ContrastiveConfig, finish_epoch, minibatches, momentum_step
 from priors.ensemble import EnsemblePrior
 from tracker.core.errors import InputError
 from tracker.core.representation import (
@@ -123,6 +123,17 @@ class CRBM:
         self.b = torch.zeros(n_hidden, **kw)
 
     PARAMS = ("W", "A", "B", "a", "b")
+    #: The parameters weight decay applies to (the weights, not the biases).
+    DECAYED = ("W", "A", "B")
+
+    def params(self) -> dict[str, torch.Tensor]:
+        """The parameter tensors by name (the tensors themselves, for an update; see :meth:`set_params`)."""
+        return {k: getattr(self, k) for k in self.PARAMS}
+
+    def set_params(self, params: dict[str, torch.Tensor]) -> None:
+        """Take updated parameter tensors (by name, as :meth:`params` gives them)."""
+        for k, v in params.items():
+            setattr(self, k, v)
 
     def state_dict(self) -> dict[str, torch.Tensor]:
         return {k: getattr(self, k).detach().cpu().clone() for k in self.PARAMS}
@@ -448,10 +459,9 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
             model.validation_errors = [list(map(float, x)) for x in resume["best"]["errors"]]
             model.best_epoch = int(resume["best"]["epoch"])
     for epoch in range(first_epoch, cfg.epochs):
-        order = starts[torch.randperm(len(starts), generator=g, device=device)]
         err_sum, count = 0.0, 0
-        for i in range(0, len(order), cfg.batch_size):
-            v0, hist = windows(order[i:i + cfg.batch_size])
+        for batch in minibatches(starts, cfg.batch_size, g):
+            v0, hist = windows(batch)
             if cfg.history_noise:
                 hist = hist + torch.randn(hist.shape, generator=g, device=device) * noise
             a_hat, b_hat = crbm.biases(hist)
@@ -472,19 +482,12 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
                 grads["b"] = grads["b"] + push
                 grads["W"] = grads["W"] + v0.mean(0)[:, None] * push[None, :]
                 grads["B"] = grads["B"] + hist.mean(0)[:, None] * push[None, :]
-            for k in CRBM.PARAMS:
-                param = getattr(crbm, k)
-                decay = cfg.weight_decay * param if k in ("W", "A", "B") else 0.0
-                velocity[k] = cfg.momentum * velocity[k] + rates[k] * (grads[k] - decay)
-                setattr(crbm, k, param + velocity[k])
+            params = crbm.params()
+            momentum_step(params, velocity, grads, rates, cfg.momentum, cfg.weight_decay, CRBM.DECAYED)
+            crbm.set_params(params)
             err_sum += float(((v0 - vk) ** 2).sum())
             count += n * K
-        model.reconstruction_errors.append(err_sum / count)
-        if not math.isfinite(model.reconstruction_errors[-1]):
-            raise InputError(f"CRBM training diverged at epoch {epoch + 1} (reconstruction error is not finite); "
-                             "lower the learning rate")
-        if progress is not None:
-            progress(epoch + 1, model.reconstruction_errors[-1])
+        finish_epoch(model.reconstruction_errors, err_sum, count, epoch, "CRBM", progress)
         if len(held_out) and ((epoch + 1) % cfg.validation_every == 0 or epoch + 1 == cfg.epochs):
             error = held_out_error()
             model.validation_errors.append([epoch + 1, error])

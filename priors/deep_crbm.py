@@ -23,7 +23,6 @@ so the history grows through the lower orders first (Sec. 6.4).
 """
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -36,7 +35,7 @@ from priors.common import (
     GROUND_VELOCITY_OPTION, HEADING_NOISE_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION, gibbs_steps_option, read_model_file,
     torch_generator, torch_save_atomic,
 )
-from priors.contrastive import ContrastiveConfig, minibatches, momentum_step, window_index
+from priors.contrastive import ContrastiveConfig, finish_epoch, minibatches, momentum_step, window_index
 from priors.crbm import (
     CRBM, CRBM_TRAIN_OPTIONS, CRBMModel, CRBMPrior, _growth_orders, _model_from_document, bernoulli, make_windows,
     train_crbm_prior,
@@ -111,8 +110,7 @@ def train_top(acts: torch.Tensor, follows: torch.Tensor, config: TopConfig, rng:
         raise InputError(f"the training clips are too short for a second layer of order {N} on top of the first")
     starts = (ends - N).to(device)
     top = CRBM(H1, cfg.hidden, N, generator=g, device=device)
-    params = {k: getattr(top, k) for k in CRBM.PARAMS}
-    velocity = {k: torch.zeros_like(v) for k, v in params.items()}
+    velocity = {k: torch.zeros_like(v) for k, v in top.params().items()}
     rates = {k: cfg.autoregressive_learning_rate if k == "A" else cfg.learning_rate for k in CRBM.PARAMS}
     errors: list[float] = []
     for epoch in range(cfg.epochs):
@@ -131,16 +129,12 @@ def train_top(acts: torch.Tensor, follows: torch.Tensor, config: TopConfig, rng:
             dv, dh = v0 - vk, p0 - pk
             grads = {"W": (v0.T @ p0 - vk.T @ pk) / n, "A": hist.T @ dv / n, "B": hist.T @ dh / n,
                      "a": dv.mean(0), "b": dh.mean(0)}
-            momentum_step(params, velocity, grads, rates, cfg.momentum, cfg.weight_decay, ("W", "A", "B"))
-            for k, v in params.items():
-                setattr(top, k, v)
+            params = top.params()
+            momentum_step(params, velocity, grads, rates, cfg.momentum, cfg.weight_decay, CRBM.DECAYED)
+            top.set_params(params)
             err_sum += float((dv ** 2).sum())
             count += n * H1
-        errors.append(err_sum / count)
-        if not math.isfinite(errors[-1]):
-            raise InputError(f"deep CRBM training diverged at epoch {epoch + 1}; lower the learning rate")
-        if progress is not None:
-            progress(epoch + 1, errors[-1])
+        finish_epoch(errors, err_sum, count, epoch, "deep CRBM (second layer)", progress)
     return top, errors
 
 

@@ -54,7 +54,9 @@ from priors.common import (
     HEADING_NOISE_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION, TrainedModel, check_weights, checked_data_settings,
     checked_time_warp, gibbs_steps_option, normaliser_from_tensors, read_model_file, time_warp_note, torch_generator,
 )
-from priors.contrastive import ContrastiveConfig, balanced_starts, minibatches, momentum_step, window_index
+from priors.contrastive import (
+    ContrastiveConfig, balanced_starts, finish_epoch, minibatches, momentum_step, window_index,
+)
 from priors.crbm import CRBM_TRAIN_OPTIONS, CRBMPrior, _growth_orders, bernoulli, history_noise_scale, make_windows
 from tracker.core.errors import InputError
 from tracker.core.representation import FeatureNormaliser, step_rms
@@ -430,12 +432,7 @@ def train_fcrbm(clips: Sequence[np.ndarray], clip_labels: Sequence[str], config:
             momentum_step(net.params, velocity, ascent, rates, cfg.momentum, cfg.weight_decay, FCRBM.DECAYED)
             err_sum += float(((v0 - vk) ** 2).sum())
             count += n * K
-        model.reconstruction_errors.append(err_sum / count)
-        if not math.isfinite(model.reconstruction_errors[-1]):
-            raise InputError(f"FCRBM training diverged at epoch {epoch + 1} (reconstruction error is not finite); "
-                             "lower the learning rate")
-        if progress is not None:
-            progress(epoch + 1, model.reconstruction_errors[-1])
+        finish_epoch(model.reconstruction_errors, err_sum, count, epoch, "FCRBM", progress)
     model.training_seconds = time.perf_counter() - t0
     return model
 
