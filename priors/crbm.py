@@ -821,18 +821,25 @@ class CRBMPrior(MotionPrior):
 # Registration: building from model files, training from clips
 # ---------------------------------------------------------------------------
 
+def parse_history_noise(value: str | float) -> str | float:
+    """The ``history_noise`` training option: 'auto', or a number of normalised units in [0, 100]; anything else
+    is an :class:`InputError` saying so."""
+    if value == "auto":
+        return value
+    try:
+        noise = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"history noise must be 'auto' or a number, got {value!r}") from None
+    if not 0 <= noise <= 100:
+        raise InputError(f"history noise must lie in [0, 100] (normalised units), got {value!r}")
+    return noise
+
+
 def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator,
                      progress: Callable[[int, int, dict], None] | None = None,
                      checkpoint: Path | None = None, resume: bool = False) -> CRBMModel:
     """``train --prior crbm``: a CRBM of ``options['order']`` on the clips of ``data``."""
-    noise = options["history_noise"]
-    if noise != "auto":
-        try:
-            noise = float(noise)
-        except ValueError:
-            raise InputError(f"history noise must be 'auto' or a number, got {noise!r}") from None
-        if not 0 <= noise <= 100:
-            raise InputError(f"history noise must lie in [0, 100] (normalised units), got {noise!r}")
+    noise = parse_history_noise(options["history_noise"])
     pace_input = options["pace_input"]
     if pace_input is None:  # auto: only clips of several paces can teach the model what a pace means
         pace_input = paces_vary(given_clips(data), data.fps)

@@ -57,7 +57,9 @@ from priors.common import (
 from priors.contrastive import (
     ContrastiveConfig, balanced_starts, finish_epoch, minibatches, momentum_step, window_index,
 )
-from priors.crbm import CRBM_TRAIN_OPTIONS, CRBMPrior, _growth_orders, bernoulli, history_noise_scale, make_windows
+from priors.crbm import (
+    CRBM_TRAIN_OPTIONS, CRBMPrior, _growth_orders, bernoulli, history_noise_scale, make_windows, parse_history_noise,
+)
 from tracker.core.errors import InputError
 from tracker.core.representation import FeatureNormaliser, step_rms
 from tracker.engine.mixture import Mixture, switching
@@ -695,14 +697,7 @@ def train_fcrbm_prior(data: TrainingData, options: dict, rng: np.random.Generato
     given = data.given_sources if data.origins else data.sources
     clip_labels = parse_labels(options["labels"], given or [f"clip {i + 1}" for i in range(data.n_given)])
     clip_labels = [clip_labels[data.origin_of(i)] for i in range(len(data.clips))]  # time-warped copies
-    noise = options["history_noise"]
-    if noise != "auto":
-        try:
-            noise = float(noise)
-        except ValueError:
-            raise InputError(f"history noise must be 'auto' or a number, got {noise!r}") from None
-        if not 0 <= noise <= 100:
-            raise InputError(f"history noise must lie in [0, 100] (normalised units), got {noise!r}")
+    noise = parse_history_noise(options["history_noise"])
     config = FCRBMConfig(order=options["order"], hidden=options["hidden"], factors=options["factors"],
                          features=options["features"], epochs=options["epochs"], cd_k=options["cd_k"],
                          batch_size=options["batch_size"], learning_rate=options["learning_rate"],

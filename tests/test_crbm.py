@@ -256,3 +256,12 @@ def test_training_with_validation_resumes_to_the_same_model(walks, tmp_path):
 def test_two_models_of_one_order_are_refused_not_silently_dropped(crbm3):
     with pytest.raises(InputError, match="one model per order"):
         CRBMPrior([crbm3, crbm3])
+
+
+def test_the_history_noise_option_is_auto_or_a_number_in_range():
+    from priors.crbm import parse_history_noise
+
+    assert parse_history_noise("auto") == "auto" and parse_history_noise("0.5") == 0.5 and parse_history_noise(0) == 0
+    for bad, expected in [("abc", "'auto' or a number"), ("200", r"\[0, 100\]"), (-1, r"\[0, 100\]")]:
+        with pytest.raises(InputError, match=expected):
+            parse_history_noise(bad)
