@@ -131,8 +131,11 @@ def test_ctrl_c_saves_a_checkpoint_and_resume_gives_the_uninterrupted_result(wal
             "--frames", "24", "--seed", "5", "--checkpoint-every", "2"]
     assert main([*args, "--out", str(tmp_path / "whole")]) == 0
     out = tmp_path / "cut"
+    # The child starts with Ctrl-C's default action whatever this process inherited or was left with (a SIGINT
+    # ignored here would be ignored by the child, which then tracks to the end; the whole suite once did that).
     proc = subprocess.Popen([sys.executable, "-m", "tracker", *args, "--out", str(out)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.time() + 120
     while not (out / "checkpoint.npz").exists() and time.time() < deadline:
         time.sleep(0.01)
