@@ -37,7 +37,8 @@ class TrainedModel:
     """What the CRBM-family model files keep besides their weights and training settings: the feature normaliser,
     the data they were trained on (frame rate, body model, pose layout, source clips, per-dof RMS frame-to-frame
     step in mm or rad, the playback speeds of ``train --time-warp``) and how training went. A subclass names its
-    kind (``KIND``, for messages) and adds its weights, settings and ``to_document``."""
+    kind (``KIND``, for messages) and adds its weights, settings and ``to_document()`` (the model file's
+    dictionary, which :meth:`save` writes)."""
 
     normaliser: FeatureNormaliser
     fps: float
@@ -51,9 +52,6 @@ class TrainedModel:
     time_warp: list[float] = field(default_factory=lambda: [1.0])
 
     KIND: ClassVar[str] = "learned prior"
-
-    def to_document(self) -> dict:  # pragma: no cover - every subclass defines it
-        raise NotImplementedError
 
     def save(self, path: str | Path) -> None:
         """The model file at ``path`` (written atomically: never half-written)."""
