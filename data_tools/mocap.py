@@ -13,7 +13,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from data_tools.checks import MAX_FPS, MIN_FPS, check_range
-from data_tools.textfiles import parse_floats, read_lines  # noqa: F401 -- re-exported for older imports
 from tracker.core.body import EXTRA_POINT_NAMES, MARKER_NAMES
 from tracker.core.errors import InputError
 

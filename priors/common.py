@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar, Sequence
+from typing import TYPE_CHECKING, ClassVar, Sequence
 
 import numpy as np
 
@@ -13,6 +13,9 @@ from tracker.core.errors import InputError
 from tracker.core.representation import STEP_FEATURES, FeatureNormaliser, poses_to_invariant
 from tracker.core.rotations import continuous_exp_maps, elementary_rotation, exp_map_to_matrix, matrix_to_exp_map
 from tracker.engine.registry import Option
+
+if TYPE_CHECKING:
+    import torch
 
 
 def read_model_file(path, fmt: str, kind: str) -> dict:
@@ -174,9 +177,9 @@ def robust_share(walked: np.ndarray | None, floor: float, adaptive: bool) -> flo
     Monte Carlo, Douc et al. 2007), kept within ``[floor, ROBUST_CAP]``. The prior sees the particles, not
     their weights, so the share is the posterior's only when the filter resampled after the last frame (it did
     on every frame of the measured runs: their mean effective sample size stayed far below the resampling
-    threshold); after a frame without resampling it repeats the last proposal's share. When the person does what the model
-    learned, the learned samples win and the share falls to ``floor``; at a start, a stop or a change of
-    pace the random walk wins and the share grows, without a setting tuned per sequence."""
+    threshold); after a frame without resampling it repeats the last proposal's share. When the person does what
+    the model learned, the learned samples win and the share falls to ``floor``; at a start, a stop or a change
+    of pace the random walk wins and the share grows, without a setting tuned per sequence."""
     if not adaptive or walked is None or len(walked) == 0:
         return floor
     return float(min(max(floor, np.mean(walked)), max(floor, ROBUST_CAP)))
@@ -223,16 +226,25 @@ GROUND_VELOCITY_OPTION = Option(
     "changed by Gaussian noise of this std in mm/frame per frame, instead of the step the model predicts; the model "
     "still drives the height, orientation, heading rate and joints, and a model with a pace input is told the "
     "particle's own ground speed (default: off, the model's steps)", minimum=0.0, maximum=1000.0)
+#: How fast each particle's own ground velocity decays toward standing still (:func:`persist_ground_step`).
+GROUND_VELOCITY_PULL_OPTION = Option(
+    "ground_velocity_pull", float, 0.0,
+    "with --ground-velocity-noise, the fraction of each particle's own ground velocity lost per frame, so that a "
+    "velocity the images do not keep selecting decays toward standing still instead of drifting (an "
+    "Ornstein-Uhlenbeck velocity; default 0, constant velocity)", minimum=0.0, maximum=1.0)
 
 
-def persist_ground_step(step: np.ndarray, std: float, rng: np.random.Generator) -> np.ndarray:
+def persist_ground_step(step: np.ndarray, std: float, rng: np.random.Generator, pull: float = 0.0) -> np.ndarray:
     """The forward and lateral ground step ``P x 2`` (mm/frame, the first two of
     :data:`~tracker.core.representation.STEP_FEATURES`) each particle takes out of its next pose: the step ``step``
-    ``P x 2+`` it takes now, plus Gaussian noise of ``std`` (nothing drawn when 0). A learned prior's integrated
-    steps carry the training walkers' pace and leave a slower or faster person behind (issue 13's folds 91 and
-    131); a step that persists follows whatever speed the likelihood has selected, as the baseline's random walk
-    does, while the model keeps the body's dynamics."""
-    out = np.array(step[:, :2], float)
+    ``P x 2+`` it takes now, shrunk by the fraction ``pull`` toward zero, plus Gaussian noise of ``std`` (nothing
+    drawn when 0). A learned prior's integrated steps carry the training walkers' pace and leave a slower or faster
+    person behind (issue 13's folds 91 and 131); a step that persists follows whatever speed the likelihood has
+    selected, as the baseline's random walk does, while the model keeps the body's dynamics. Without a pull the
+    velocity is a random walk, which drifts where the images do not constrain it (depth, with one view) and walks
+    on when the person stops; with one it is an Ornstein-Uhlenbeck process whose stationary std is
+    ``std / sqrt(1 - (1 - pull)^2)`` about standing still."""
+    out = (1.0 - pull) * np.array(step[:, :2], float)
     if std > 0:
         out += std * rng.standard_normal(out.shape)
     return out
@@ -283,7 +295,7 @@ def steps_taken(last: np.ndarray, poses: np.ndarray) -> np.ndarray:
     return poses_to_invariant(np.stack([last, poses], axis=1))[:, 0, list(STEP_FEATURES)]
 
 
-def torch_generator(rng: np.random.Generator, device) -> "torch.Generator":
+def torch_generator(rng: np.random.Generator, device) -> torch.Generator:
     """A ``torch.Generator`` on ``device`` seeded by one draw from ``rng`` (so the filter's generator fixes every
     torch draw, and a checkpointed ``rng`` state reproduces them)."""
     import torch

@@ -42,9 +42,10 @@ import numpy as np
 import torch
 
 from priors.common import (
-    GROUND_VELOCITY_OPTION, HEADING_NOISE_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION, TrainedModel,
-    UNLEARNED_MOTION_OPTIONS, add_ground_diffusion, add_heading_diffusion, check_weights, checked_data_settings,
-    checked_time_warp, drift_log_pace, gibbs_steps_option, mix_in_random_walk, normaliser_from_tensors,
+    GROUND_VELOCITY_OPTION, GROUND_VELOCITY_PULL_OPTION, HEADING_NOISE_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION,
+    TrainedModel, UNLEARNED_MOTION_OPTIONS, add_ground_diffusion, add_heading_diffusion, check_weights,
+    checked_data_settings, checked_time_warp, drift_log_pace, gibbs_steps_option, mix_in_random_walk,
+    normaliser_from_tensors,
     persist_ground_step, read_model_file, robust_share, scale_ground_steps, shift_height, start_log_pace,
     steps_taken, time_warp_note, torch_generator, torch_save_atomic,
 )
@@ -621,13 +622,15 @@ class CRBMPrior(MotionPrior):
     #: With a number (mm/frame per frame): each particle's ground step persists from frame to frame, changed by
     #: Gaussian noise of this std, instead of the model's predicted step (:func:`priors.common.persist_ground_step`).
     ground_velocity_noise: float | None = None
+    #: The fraction of a particle's own ground velocity lost per frame (with ``ground_velocity_noise``).
+    ground_velocity_pull: float = 0.0
 
     def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = GIBBS_STEPS,
                  device: str = "cpu", mode: str = "gibbs", root_noise_mm: float = ROOT_NOISE_MM,
                  robust_fraction: float = 0.0, heading_noise: float = 0.0, robust_adaptive: bool = False,
                  pace_spread: float | None = None, pace_drift: float | None = None, relative_height: bool = False,
                  pace_jump: float | None = None, standing_root_height: float | None = None,
-                 ground_velocity_noise: float | None = None):
+                 ground_velocity_noise: float | None = None, ground_velocity_pull: float = 0.0):
         if not models:
             raise InputError("the CRBM prior needs at least one model")
         orders = [m.order for m in models]
@@ -694,7 +697,13 @@ class CRBMPrior(MotionPrior):
                 raise InputError("pace jump draws a pace the particle's ground velocity would not follow; with "
                                  "ground velocity noise the pace is the particle's own ground speed")
             ground_velocity_noise = float(ground_velocity_noise)
+        if not 0 <= ground_velocity_pull <= 1:
+            raise InputError(f"ground velocity pull must be a fraction per frame in [0, 1], got {ground_velocity_pull}")
+        if ground_velocity_pull > 0 and ground_velocity_noise is None:
+            raise InputError("ground velocity pull acts on each particle's own ground velocity: give it with "
+                             "ground velocity noise")
         self.ground_velocity_noise = ground_velocity_noise
+        self.ground_velocity_pull = float(ground_velocity_pull)
         self.order = self.models[-1].order
         self.gibbs_steps = gibbs_steps
         self.device = torch.device(device)
@@ -709,7 +718,8 @@ class CRBMPrior(MotionPrior):
                 "pace_spread": self.pace_spread, "pace_drift": self.pace_drift,
                 "relative_height": self.relative_height, "pace_jump": self.pace_jump,
                 "standing_root_height_mm": self.standing_root_height,
-                "ground_velocity_noise_mm": self.ground_velocity_noise}
+                "ground_velocity_noise_mm": self.ground_velocity_noise,
+                "ground_velocity_pull": self.ground_velocity_pull}
 
     def model_for(self, available: int) -> CRBMModel:
         """The highest-order model whose history is all real poses (never a padded history)."""
@@ -775,7 +785,8 @@ class CRBMPrior(MotionPrior):
         add_heading_diffusion(poses, history[:, -1], self.heading_noise, rng)
         pending = f_next[:, step]
         if self.ground_velocity_noise is not None:  # the particle's own ground step persists, not the model's
-            pending[:, :2] = persist_ground_step(state["step"], self.ground_velocity_noise, rng)
+            pending[:, :2] = persist_ground_step(state["step"], self.ground_velocity_noise, rng,
+                                                  self.ground_velocity_pull)
         share = robust_share(state["walked"], self.robust_fraction, self.robust_adaptive)
         walked = mix_in_random_walk(poses, history[:, -1], model.pose_step_rms, share, rng)
         pending[walked] = steps_taken(history[walked, -1], poses[walked])
@@ -949,6 +960,7 @@ CRBM_TRAIN_OPTIONS = (
                                               f"the training paces (CRBMs trained with a pace input; default "
                                               f"{PACED_JUMP:g})", minimum=0.0, maximum=1.0),
              GROUND_VELOCITY_OPTION,
+             GROUND_VELOCITY_PULL_OPTION,
              Option("relative_height", bool, False, "keep the person's own root height, the model's heights moved "
                                                     "by the known frames' mean root height minus the training "
                                                     "frames' (default off; for models of absolute heights, not "
@@ -968,7 +980,8 @@ def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict
                          pace_spread=options["pace_spread"], pace_drift=options["pace_drift"],
                          relative_height=options["relative_height"], pace_jump=options["pace_jump"],
                          standing_root_height=context.body_model.rest_root_height,
-                         ground_velocity_noise=options["ground_velocity_noise"])
+                         ground_velocity_noise=options["ground_velocity_noise"],
+                         ground_velocity_pull=options["ground_velocity_pull"])
 
     if len(models) > 1 and len({m.order for m in models}) == 1:
         return EnsemblePrior([prior([m]) for m in models])

@@ -93,5 +93,35 @@ def test_bad_settings_are_refused(plain, paced):
 
 def test_the_crbm_and_deep_crbm_priors_declare_the_option():
     for name in ("crbm", "deep-crbm"):
-        option = {o.name: o for o in PRIORS.get(name).options}["ground_velocity_noise"]
-        assert option.default is None and option.flag == "--ground-velocity-noise"
+        options = {o.name: o for o in PRIORS.get(name).options}
+        assert options["ground_velocity_noise"].default is None
+        assert options["ground_velocity_noise"].flag == "--ground-velocity-noise"
+        assert options["ground_velocity_pull"].default == 0.0
+        assert options["ground_velocity_pull"].flag == "--ground-velocity-pull"
+
+
+def test_a_pull_decays_the_velocity_toward_standing_still(plain, poses_07_01):
+    step = np.tile([20.0, -4.0, 0.01], (4, 1))
+    assert np.allclose(persist_ground_step(step, 0.0, np.random.default_rng(0), pull=0.25), [[15.0, -3.0]] * 4)
+    # Without noise the velocity falls geometrically from the known frames' step toward zero.
+    known = poses_07_01[58:60]
+    expected = pending_step(known)[:2]
+    held = roll_out(CRBMPrior([plain], root_noise_mm=0.0, ground_velocity_noise=0.0, ground_velocity_pull=0.1),
+                    known, 3, 30, seed=1)
+    steps = poses_to_invariant(held)[:, 1:-1, :2]
+    assert np.allclose(steps, expected * 0.9 ** np.arange(steps.shape[1])[None, :, None], atol=1e-6)
+    # With noise the velocity stays bounded: its std settles at std / sqrt(1 - (1 - pull)^2), not sqrt(t) * std.
+    rng = np.random.default_rng(4)
+    v = np.zeros((20000, 3))
+    for _ in range(200):
+        v[:, :2] = persist_ground_step(v, 1.0, rng, pull=0.1)
+    assert np.std(v[:, :2], axis=0) == pytest.approx([1 / np.sqrt(1 - 0.9 ** 2)] * 2, rel=0.03)
+
+
+def test_a_pull_without_own_velocity_or_out_of_range_is_refused(plain):
+    with pytest.raises(InputError, match="with ground velocity noise"):
+        CRBMPrior([plain], ground_velocity_pull=0.1)
+    with pytest.raises(InputError, match="fraction per frame"):
+        CRBMPrior([plain], ground_velocity_noise=0.5, ground_velocity_pull=1.5)
+    assert CRBMPrior([plain], ground_velocity_noise=0.5, ground_velocity_pull=0.1).settings()[
+        "ground_velocity_pull"] == 0.1

@@ -26,7 +26,7 @@ from data_tools.load import load_mocap, load_training_clips
 from data_tools.retarget import RetargetResult, retarget
 from data_tools.samples import sample_walks
 from data_tools.sequence import Sequence, read_sequence
-from data_tools.synth import SynthConfig, SynthOutput, synthesize as render_sequence
+from data_tools.synth import SynthConfig, synthesize as render_sequence
 from tracker.app.plugins import load_plugins
 from tracker.app.tracking import (
     TrackingInterrupted, TrackingResult, check_views, run_tracking, seed_description,

@@ -22,7 +22,6 @@ import numpy as np
 
 from tracker.core.arrays import device, namespace
 from tracker.core.errors import InputError
-from tracker.core.rotations import exp_map_to_matrix
 
 
 @dataclass(frozen=True)
