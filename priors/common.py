@@ -234,6 +234,27 @@ GROUND_VELOCITY_PULL_OPTION = Option(
     "Ornstein-Uhlenbeck velocity; default 0, constant velocity)", minimum=0.0, maximum=1.0)
 
 
+def checked_ground_velocity(noise: float | None, pull: float,
+                            pace_jump: float = 0.0) -> tuple[float | None, float]:
+    """The settings of :func:`persist_ground_step` as ``(noise, pull)``: ``noise`` (mm/frame per frame, None for
+    the model's own steps) and ``pull`` (fraction per frame); bad values, a pull without an own velocity, or a
+    pace jump (a pace the particle's velocity would not follow) are an :class:`InputError`."""
+    if noise is not None:
+        if not noise >= 0:
+            raise InputError(f"ground velocity noise must be a non-negative number of mm per frame per frame, got "
+                             f"{noise}")
+        if pace_jump > 0:
+            raise InputError("pace jump draws a pace the particle's ground velocity would not follow; with ground "
+                             "velocity noise the pace is the particle's own ground speed")
+        noise = float(noise)
+    if not 0 <= pull <= 1:
+        raise InputError(f"ground velocity pull must be a fraction per frame in [0, 1], got {pull}")
+    if pull > 0 and noise is None:
+        raise InputError("ground velocity pull acts on each particle's own ground velocity: give it with ground "
+                         "velocity noise")
+    return noise, float(pull)
+
+
 def persist_ground_step(step: np.ndarray, std: float, rng: np.random.Generator, pull: float = 0.0) -> np.ndarray:
     """The forward and lateral ground step ``P x 2`` (mm/frame, the first two of
     :data:`~tracker.core.representation.STEP_FEATURES`) each particle takes out of its next pose: the step ``step``

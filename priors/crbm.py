@@ -44,10 +44,9 @@ import torch
 from priors.common import (
     GROUND_VELOCITY_OPTION, GROUND_VELOCITY_PULL_OPTION, HEADING_NOISE_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION,
     TrainedModel, UNLEARNED_MOTION_OPTIONS, add_ground_diffusion, add_heading_diffusion, check_weights,
-    checked_data_settings, checked_time_warp, drift_log_pace, gibbs_steps_option, mix_in_random_walk,
-    normaliser_from_tensors,
-    persist_ground_step, read_model_file, robust_share, scale_ground_steps, shift_height, start_log_pace,
-    steps_taken, time_warp_note, torch_generator, torch_save_atomic,
+    checked_data_settings, checked_ground_velocity, checked_time_warp, drift_log_pace, gibbs_steps_option,
+    mix_in_random_walk, normaliser_from_tensors, persist_ground_step, read_model_file, robust_share,
+    scale_ground_steps, shift_height, start_log_pace, steps_taken, time_warp_note, torch_generator, torch_save_atomic,
 )
 from priors.contrastive import ContrastiveConfig, finish_epoch, minibatches, momentum_step
 from priors.ensemble import EnsemblePrior
@@ -689,21 +688,8 @@ class CRBMPrior(MotionPrior):
             raise InputError(f"pace spread and drift must be non-negative (log units), got {pace_spread}, {pace_drift}")
         self.pace_spread, self.pace_drift = float(pace_spread), float(pace_drift)
         self.relative_height = bool(relative_height)
-        if ground_velocity_noise is not None:
-            if not ground_velocity_noise >= 0:
-                raise InputError("ground velocity noise must be a non-negative number of mm per frame per frame, "
-                                 f"got {ground_velocity_noise}")
-            if pace_jump > 0:
-                raise InputError("pace jump draws a pace the particle's ground velocity would not follow; with "
-                                 "ground velocity noise the pace is the particle's own ground speed")
-            ground_velocity_noise = float(ground_velocity_noise)
-        if not 0 <= ground_velocity_pull <= 1:
-            raise InputError(f"ground velocity pull must be a fraction per frame in [0, 1], got {ground_velocity_pull}")
-        if ground_velocity_pull > 0 and ground_velocity_noise is None:
-            raise InputError("ground velocity pull acts on each particle's own ground velocity: give it with "
-                             "ground velocity noise")
-        self.ground_velocity_noise = ground_velocity_noise
-        self.ground_velocity_pull = float(ground_velocity_pull)
+        self.ground_velocity_noise, self.ground_velocity_pull = checked_ground_velocity(
+            ground_velocity_noise, ground_velocity_pull, pace_jump)
         self.order = self.models[-1].order
         self.gibbs_steps = gibbs_steps
         self.device = torch.device(device)

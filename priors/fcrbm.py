@@ -51,8 +51,9 @@ import numpy as np
 import torch
 
 from priors.common import (
-    HEADING_NOISE_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION, TrainedModel, check_weights, checked_data_settings,
-    checked_time_warp, gibbs_steps_option, normaliser_from_tensors, read_model_file, time_warp_note, torch_generator,
+    GROUND_VELOCITY_OPTION, GROUND_VELOCITY_PULL_OPTION, HEADING_NOISE_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION,
+    TrainedModel, check_weights, checked_data_settings, checked_ground_velocity, checked_time_warp,
+    gibbs_steps_option, normaliser_from_tensors, read_model_file, time_warp_note, torch_generator,
 )
 from priors.contrastive import (
     ContrastiveConfig, balanced_starts, finish_epoch, minibatches, momentum_step, window_index,
@@ -560,7 +561,8 @@ class FCRBMPrior(CRBMPrior):
     def __init__(self, models: Sequence[FCRBMModel], gibbs_steps: int = 30, device: str = "cpu",
                  root_noise_mm: float = ROOT_NOISE_MM, heading_noise: float = 0.0, style_switch: float = 0.05,
                  style: str | None = None, style_inference: str = "mixture",
-                 style_temperature: float = STYLE_TEMPERATURE):
+                 style_temperature: float = STYLE_TEMPERATURE, ground_velocity_noise: float | None = None,
+                 ground_velocity_pull: float = 0.0):
         if not models:
             raise InputError("the FCRBM prior needs at least one model")
         by_order = {m.order: m for m in models}
@@ -593,6 +595,8 @@ class FCRBMPrior(CRBMPrior):
         self.mode, self.robust_fraction, self.robust_adaptive, self.pace_spread, self.pace_drift = \
             "gibbs", 0.0, False, 0.0, 0.0  # the pace input's attributes keep CRBMPrior's class defaults (off)
         self.root_noise_mm, self.heading_noise = float(root_noise_mm), float(heading_noise)
+        self.ground_velocity_noise, self.ground_velocity_pull = checked_ground_velocity(ground_velocity_noise,
+                                                                                        ground_velocity_pull)
         self.gibbs_steps, self.order = int(gibbs_steps), self.models[-1].order
         self.device = torch.device(device)
         for m in self.models:
@@ -604,7 +608,9 @@ class FCRBMPrior(CRBMPrior):
         return {"orders": [m.order for m in self.models], "gibbs_steps": self.gibbs_steps, "labels": self.labels,
                 "style": self.style, "style_switch": self.style_switch, "style_inference": self.style_inference,
                 "style_temperature": self.style_temperature,
-                "root_noise_mm": self.root_noise_mm, "heading_noise_rad": self.heading_noise}
+                "root_noise_mm": self.root_noise_mm, "heading_noise_rad": self.heading_noise,
+                "ground_velocity_noise_mm": self.ground_velocity_noise,
+                "ground_velocity_pull": self.ground_velocity_pull}
 
     def model_for(self, available: int) -> Drawer:  # type: ignore[override]
         m = super().model_for(available)
@@ -752,6 +758,8 @@ FCRBM_TRAIN_OPTIONS = (
     options=(gibbs_steps_option(30),
              ROOT_NOISE_OPTION,
              HEADING_NOISE_OPTION,
+             GROUND_VELOCITY_OPTION,
+             GROUND_VELOCITY_PULL_OPTION,
              Option("style_switch", float, 0.05, "probability per frame that the style switches to another label "
                                                  "(default 0.05)", minimum=0.0, maximum=1.0),
              Option("style", str, None, "give every particle this label and never switch (the oracle), or a "
@@ -769,4 +777,6 @@ def build_fcrbm(context: PriorContext, model_files: Sequence[Path], options: dic
     return FCRBMPrior([model], gibbs_steps=options["gibbs_steps"], device=context.device,
                       root_noise_mm=options["root_noise"], heading_noise=options["heading_noise"],
                       style_switch=options["style_switch"], style=options["style"],
-                      style_inference=options["style_inference"], style_temperature=options["style_temperature"])
+                      style_inference=options["style_inference"], style_temperature=options["style_temperature"],
+                      ground_velocity_noise=options["ground_velocity_noise"],
+                      ground_velocity_pull=options["ground_velocity_pull"])

@@ -7,6 +7,7 @@ import torch
 from priors.common import persist_ground_step
 from priors.crbm import CRBMConfig, CRBMPrior, train_crbm
 from priors.deep_crbm import DeepCRBMPrior  # noqa: F401  (registers the deep-crbm prior)
+from priors.fcrbm import FCRBMConfig, FCRBMPrior, train_fcrbm
 from tracker.core.body import DOF_NAMES
 from tracker.core.errors import InputError
 from tracker.core.representation import STANDING_LOG_PACE, log_pace, pending_step, poses_to_invariant
@@ -91,8 +92,24 @@ def test_bad_settings_are_refused(plain, paced):
     assert CRBMPrior([plain]).settings()["ground_velocity_noise_mm"] is None  # off by default
 
 
-def test_the_crbm_and_deep_crbm_priors_declare_the_option():
-    for name in ("crbm", "deep-crbm"):
+def test_the_fcrbm_keeps_each_particles_own_step_too(poses_07_01):
+    slow = poses_07_01.copy()
+    slow[:, :2] = slow[0, :2] + 0.5 * (slow[:, :2] - slow[0, :2])
+    model = train_fcrbm([poses_07_01, slow], ["walk", "slow walk"],
+                        FCRBMConfig(order=1, hidden=12, factors=6, features=3, epochs=3), 60.0, DOF_NAMES,
+                        rng=np.random.default_rng(0))
+    known = poses_07_01[58:60]
+    expected = pending_step(known)[:2]
+    held = roll_out(FCRBMPrior([model], root_noise_mm=0.0, ground_velocity_noise=0.0, ground_velocity_pull=0.5),
+                    known, 4, 8, seed=1)
+    steps = poses_to_invariant(held)[:, 1:-1, :2]
+    assert np.allclose(steps, expected * 0.5 ** np.arange(steps.shape[1])[None, :, None], atol=1e-6)
+    with pytest.raises(InputError, match="with ground velocity noise"):
+        FCRBMPrior([model], ground_velocity_pull=0.5)
+
+
+def test_the_crbm_family_declares_the_options():
+    for name in ("crbm", "deep-crbm", "fcrbm"):
         options = {o.name: o for o in PRIORS.get(name).options}
         assert options["ground_velocity_noise"].default is None
         assert options["ground_velocity_noise"].flag == "--ground-velocity-noise"
