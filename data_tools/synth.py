@@ -13,7 +13,7 @@ import os
 import shutil
 import tempfile
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Callable
 
@@ -25,6 +25,7 @@ from data_tools.files import check_output_folder
 from data_tools.sequence import frame_path, write_groundtruth, write_image, write_sequence_header
 from tracker.core.kinematics import standing_height
 from tracker.core.cameras import CameraRig, default_rig
+from tracker.core.rotations import continuous_exp_maps, elementary_rotation, exp_map_to_matrix, matrix_to_exp_map
 from tracker.core.errors import InputError
 
 
@@ -37,7 +38,10 @@ class SynthConfig:
     ``1 + lighting_change`` over the sequence (the background plate is taken
     at 1). ``occluder``: a pillar stands between camera 0 and the capture area.
     ``missing_camera``: index of a camera that delivers only black frames
-    (a dead camera; its plate is black too).
+    (a dead camera; its plate is black too). ``turn``: the whole clip is turned
+    by this many degrees about the vertical axis before it is placed (counter-
+    clockwise seen from above), so one motion can be rendered walking in another
+    direction through the same rig (:func:`turned`).
     """
 
     views: int = 4
@@ -51,6 +55,27 @@ class SynthConfig:
     lighting_change: float = 0.0
     occluder: bool = False
     missing_camera: int | None = None
+    turn: float = 0.0
+
+
+def turned(result: RetargetResult, degrees: float) -> RetargetResult:
+    """``result`` turned by ``degrees`` about the world's vertical axis through the origin: the root's ground
+    position and orientation and every marker. The body's motion is unchanged; only the direction it moves in
+    (and faces) is. Root orientations stay continuous exp maps."""
+    if isinstance(degrees, bool) or not isinstance(degrees, (int, float)) or not abs(degrees) <= 360:
+        raise InputError(f"turn must be a number of degrees in [-360, 360], got {degrees}")
+    if degrees == 0:
+        return result
+    Rz = elementary_rotation("z", np.radians(degrees))
+    poses = result.poses.copy()
+    poses[:, :2] = poses[:, :2] @ Rz[:2, :2].T
+    poses[:, 3:6] = continuous_exp_maps(matrix_to_exp_map(Rz @ exp_map_to_matrix(poses[:, 3:6])))
+
+    def turn_points(points: np.ndarray) -> np.ndarray:
+        return points @ Rz.T
+
+    return replace(result, poses=poses, markers=turn_points(result.markers),
+                   model_markers=turn_points(result.model_markers))
 
 
 def select_frames(result: RetargetResult, start: int, frames: int | None, source: str) -> slice:
@@ -118,6 +143,7 @@ def _render(result: RetargetResult, out: Path, settings: SynthConfig, source: st
     rig = rig or default_rig(s.views, s.width, s.height)
     if s.missing_camera is not None and not 0 <= s.missing_camera < len(rig):
         raise InputError(f"missing camera {s.missing_camera} is not one of the {len(rig)} cameras (0..{len(rig) - 1})")
+    result = turned(result, s.turn)
     span = select_frames(result, s.start, s.frames, source)
     poses = result.poses[span].copy()
     markers = result.markers[span].copy()

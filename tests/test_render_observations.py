@@ -82,6 +82,34 @@ def test_missing_camera_is_black(walk_07_11, tmp_path):
     assert not seq.image(1, 2).any() and seq.image(1, 1).any()
 
 
+def test_turn_moves_the_walk_in_another_direction_with_the_same_body(walk_07_11):
+    from data_tools.synth import turned
+    from tracker.core.errors import InputError
+    from tracker.core.kinematics import markers
+
+    quarter = turned(walk_07_11, 90.0)
+    step, quarter_step = (np.diff(r.poses[:, :2], axis=0).mean(axis=0) for r in (walk_07_11, quarter))
+    assert np.allclose(quarter_step, [-step[1], step[0]], atol=1e-9)  # +y becomes -x, counter-clockwise
+    # The model's markers at the turned poses are the turned markers: root position and orientation agree.
+    at_turned = markers(walk_07_11.model, quarter.poses)
+    assert np.abs(at_turned - quarter.model_markers).max() < 1e-6
+    assert np.abs(at_turned[..., 2] - walk_07_11.model_markers[..., 2]).max() < 1e-6  # heights unchanged
+    assert np.allclose(quarter.poses[:, 6:], walk_07_11.poses[:, 6:])  # the joints are untouched
+    assert np.abs(np.diff(quarter.poses[:, 3:6], axis=0)).max() < 0.5  # the orientation stays continuous
+    assert turned(walk_07_11, 0.0) is walk_07_11
+    for bad in (400.0, float("nan"), "left"):
+        with pytest.raises(InputError, match="turn must be"):
+            turned(walk_07_11, bad)
+
+
+def test_a_turned_sequence_renders_with_its_ground_truth_on_the_person(walk_07_11, tmp_path):
+    out = synthesize(walk_07_11, tmp_path / "t", SynthConfig(start=40, frames=2, seed=3, turn=90.0),
+                     keep_masks=True)
+    seq = read_sequence(out.root)
+    for v in range(seq.n_views):
+        assert iou(model_masks(seq.model, seq.groundtruth.poses[1], seq.rig)[v], out.masks[1][v]) > 0.6
+
+
 def test_projected_ground_truth_covers_rendered_person(synthetic_walk):
     seq = read_sequence(synthetic_walk.root)
     for k in range(seq.n_frames):

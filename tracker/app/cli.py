@@ -118,6 +118,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--occluder", action="store_true", help="put a pillar between camera 0 and the person")
     s.add_argument("--missing-camera", type=_non_negative_int, default=None, metavar="INDEX",
                    help="this camera delivers only black frames")
+    s.add_argument("--turn", type=_number(float, -360.0, strict=False, maximum=360.0), default=0.0,
+                   metavar="DEGREES", help="turn the whole clip about the vertical axis, so the person moves in "
+                                           "another direction through the rig (default 0)")
     s.add_argument("--length-unit", type=_length_unit, default=None, metavar="MM",
                    help="BVH only: millimetres per file unit (default: inferred)")
     s.add_argument("--overwrite", action="store_true", help="replace a non-empty output folder")
@@ -302,7 +305,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
     settings = SynthConfig(views=args.views, fps=args.fps, start=args.start, frames=args.frames, seed=args.seed,
                            width=args.width, height=args.height, noise=args.noise,
                            lighting_change=args.lighting_change, occluder=args.occluder,
-                           missing_camera=args.missing_camera)
+                           missing_camera=args.missing_camera, turn=args.turn)
     clip = load_mocap(args.mocap, args.skeleton, args.length_unit)
     for note in clip.notes:
         print(f"note: {Path(args.mocap).name}: {note}", file=sys.stderr)

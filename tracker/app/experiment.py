@@ -24,6 +24,7 @@ File layout (paths are relative to the experiment file; every key is checked, un
     mocap = "../../../shared/mocap/cmu/16/16_15.amc"
     start = 0                                # synth options: start, frames, views, seed, noise, ...
     frames = 150
+    turn = 90                                # degrees about the vertical: the walk in another direction
     [[sequence]]                             # ... or two clips cross-faded: a change of activity
     name = "subject 2 walk then run"         # (data_tools.transition; switch_at at the experiment's fps)
     mocap = "../../../shared/mocap/cmu/02/02_01.amc"
@@ -79,8 +80,8 @@ else:  # pragma: no cover
 TOP_KEYS = {"description", "seed", "seeds", "fps", "baseline", "paired", "tracking", "sequence", "prior",
             "likelihood"}
 TRACKING_KEYS = {"particles", "views", "annealing_layers", "frames", "known_frames", "resampling"}
-SEQUENCE_KEYS = {"name", "path", "mocap", "skeleton", "then", "then_skeleton", "switch_at", "fade", "start", "frames", "views", "seed", "noise", "width",
-                 "height", "lighting_change", "occluder", "missing_camera"}
+SEQUENCE_KEYS = {"name", "path", "mocap", "skeleton", "then", "then_skeleton", "switch_at", "fade", "start", "frames",
+                 "views", "seed", "noise", "width", "height", "lighting_change", "occluder", "missing_camera", "turn"}
 PRIOR_KEYS = {"label", "name", "options", "models", "train", "train_mocap", "train_seeds"}
 TRAIN_KEYS = {"mocap", "skeletons", "options", "seed"}
 LIKELIHOOD_KEYS = {"label", "name", "options"}
