@@ -21,6 +21,7 @@ import numpy as np
 
 from data_tools.render import compose, make_room, person_mesh, render_background, render_person
 from data_tools.retarget import RetargetResult
+from data_tools.checks import MAX_IMAGE_SIDE
 from data_tools.files import check_output_folder
 from data_tools.sequence import frame_path, write_groundtruth, write_image, write_sequence_header
 from tracker.core.kinematics import standing_height
@@ -56,6 +57,39 @@ class SynthConfig:
     occluder: bool = False
     missing_camera: int | None = None
     turn: float = 0.0
+
+    def __post_init__(self):
+        """Every setting checked on construction, so a bad one is an :class:`InputError` naming it before
+        anything is rendered."""
+        def number(v) -> bool:
+            return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) \
+                and bool(np.isfinite(v))
+
+        def whole(v) -> bool:
+            return isinstance(v, (int, np.integer)) and not isinstance(v, bool)
+
+        checks = {
+            "views": (whole(self.views) and self.views >= 1, "a whole number of at least 1"),
+            "fps": (number(self.fps) and self.fps > 0, "a positive number of frames per second"),
+            "start": (whole(self.start) and self.start >= 0, "a frame index of at least 0"),
+            "frames": (self.frames is None or (whole(self.frames) and self.frames >= 1), "a whole number of at "
+                                                                                          "least 1"),
+            "seed": (whole(self.seed) and self.seed >= 0, "a whole number of at least 0"),
+            "width": (whole(self.width) and 1 <= self.width <= MAX_IMAGE_SIDE,
+                      f"a whole number of pixels in [1, {MAX_IMAGE_SIDE}]"),
+            "height": (whole(self.height) and 1 <= self.height <= MAX_IMAGE_SIDE,
+                       f"a whole number of pixels in [1, {MAX_IMAGE_SIDE}]"),
+            "noise": (number(self.noise) and 0 <= self.noise <= 255, "a number of grey levels in [0, 255]"),
+            "lighting_change": (number(self.lighting_change) and -0.9 < self.lighting_change < 2.0,
+                                "a number in (-0.9, 2)"),
+            "occluder": (isinstance(self.occluder, bool), "true or false"),
+            "missing_camera": (self.missing_camera is None or (whole(self.missing_camera)
+                                                               and self.missing_camera >= 0), "a camera index"),
+            "turn": (number(self.turn) and abs(self.turn) <= 360, "a number of degrees in [-360, 360]"),
+        }
+        for name, (ok, expected) in checks.items():
+            if not ok:
+                raise InputError(f"synth setting {name} must be {expected}, got {getattr(self, name)!r}")
 
 
 def turned(result: RetargetResult, degrees: float) -> RetargetResult:
@@ -136,10 +170,6 @@ def _render(result: RetargetResult, out: Path, settings: SynthConfig, source: st
     import time
 
     s = settings
-    if s.noise < 0 or not np.isfinite(s.noise):
-        raise InputError(f"noise must be a non-negative number of grey levels, got {s.noise}")
-    if not -0.9 < s.lighting_change < 2.0:
-        raise InputError(f"lighting change must lie in (-0.9, 2), got {s.lighting_change}")
     rig = rig or default_rig(s.views, s.width, s.height)
     if s.missing_camera is not None and not 0 <= s.missing_camera < len(rig):
         raise InputError(f"missing camera {s.missing_camera} is not one of the {len(rig)} cameras (0..{len(rig) - 1})")

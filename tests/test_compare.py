@@ -72,6 +72,23 @@ def test_experiment_file_is_validated_whole(tmp_path, mutation, expected):
     assert expected in str(err.value) and str(path) in str(err.value)
 
 
+@pytest.mark.parametrize("setting, expected", [
+    ('noise = "x"', "synth setting noise must be a number of grey levels"),
+    ("turn = 400", "synth setting turn must be a number of degrees in [-360, 360]"),
+    ("occluder = 1", "synth setting occluder must be true or false"),
+    ("seed = -1", "synth setting seed must be a whole number"),
+    ('switch_at = "a"', "switch_at: expected an integer"),
+])
+def test_rendering_settings_are_checked_with_the_file(tmp_path, setting, expected):
+    path = write_experiment(tmp_path)
+    path.write_text(path.read_text().replace("frames = 6\n", f"frames = 6\n{setting}\n"))
+    with pytest.raises(InputError) as err:
+        load_experiment(path)
+    assert expected in str(err.value) and "sequence 'walk'" in str(err.value)
+    path.write_text(path.read_text().replace(setting, "turn = 90"))
+    assert load_experiment(path).sequences[0].synth["turn"] == 90  # the turn itself is a rendering setting
+
+
 def test_views_out_of_range_and_unfit_model_refused_before_any_run(tmp_path):
     path = write_experiment(tmp_path, tracking="particles = 40\nframes = 5\nviews = [0, 7]")
     with pytest.raises(InputError, match=r"views \[0, 7\] out of range for sequence 'walk'"):

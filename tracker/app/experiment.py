@@ -82,6 +82,8 @@ TOP_KEYS = {"description", "seed", "seeds", "fps", "baseline", "paired", "tracki
 TRACKING_KEYS = {"particles", "views", "annealing_layers", "frames", "known_frames", "resampling"}
 SEQUENCE_KEYS = {"name", "path", "mocap", "skeleton", "then", "then_skeleton", "switch_at", "fade", "start", "frames",
                  "views", "seed", "noise", "width", "height", "lighting_change", "occluder", "missing_camera", "turn"}
+#: A rendered sequence's keys that describe a change of activity (data_tools.transition), not the rendering.
+TRANSITION_KEYS = {"then", "then_skeleton", "switch_at", "fade"}
 PRIOR_KEYS = {"label", "name", "options", "models", "train", "train_mocap", "train_seeds"}
 TRAIN_KEYS = {"mocap", "skeletons", "options", "seed"}
 LIKELIHOOD_KEYS = {"label", "name", "options"}
@@ -281,6 +283,7 @@ def load_experiment(path: str | Path) -> Experiment:
         if grid["known_frames"] >= grid["frames"]:
             raise w.error("[tracking] frames", f"must exceed known_frames ({grid['known_frames']}), got "
                                                f"{grid['frames']}")
+    from data_tools.synth import SynthConfig
     from tracker.engine.resampling import SCHEMES
 
     if grid["resampling"] not in SCHEMES:
@@ -301,6 +304,13 @@ def load_experiment(path: str | Path) -> Experiment:
             sequences.append(SequenceSpec(name, path=w.file(s["path"], entry, folder=True)))
         else:
             synth = {k: v for k, v in s.items() if k not in ("name", "mocap", "skeleton")}
+            try:  # every rendering setting checked now, not when the runner reaches this sequence
+                SynthConfig(fps=float(fps), **{k: v for k, v in synth.items() if k not in TRANSITION_KEYS})
+            except InputError as exc:
+                raise w.error(entry, exc.reason) from None
+            for key in ("switch_at", "fade"):
+                if key in synth:
+                    w.int_(synth[key], f"{entry} {key}", 0 if key == "fade" else 1)
             for key in ("then", "then_skeleton"):  # a transition's second clip, relative to the file like mocap
                 if key in s:
                     synth[key] = str(w.file(s[key], entry))
