@@ -45,6 +45,14 @@ def roll_out(prior: CRBMPrior, known: np.ndarray, n: int, frames: int, seed: int
     return history
 
 
+def assert_steps_decay(prior, known: np.ndarray, frames: int, kept: float) -> None:
+    """Without noise, every particle's ground steps after ``known`` are the known frames' step times
+    ``kept ** k`` at the k-th tracked frame (``kept`` = 1 - pull)."""
+    expected = pending_step(known)[:2]
+    steps = poses_to_invariant(roll_out(prior, known, 3, frames, seed=1))[:, 1:-1, :2]
+    assert np.allclose(steps, expected * kept ** np.arange(steps.shape[1])[None, :, None], atol=1e-6)
+
+
 def test_without_noise_each_particle_keeps_the_known_frames_ground_step(plain, poses_07_01):
     known = poses_07_01[58:60]
     expected = pending_step(known)[:2]  # forward, lateral (mm/frame) out of the last known pose
@@ -98,12 +106,8 @@ def test_the_fcrbm_keeps_each_particles_own_step_too(poses_07_01):
     model = train_fcrbm([poses_07_01, slow], ["walk", "slow walk"],
                         FCRBMConfig(order=1, hidden=12, factors=6, features=3, epochs=3), 60.0, DOF_NAMES,
                         rng=np.random.default_rng(0))
-    known = poses_07_01[58:60]
-    expected = pending_step(known)[:2]
-    held = roll_out(FCRBMPrior([model], root_noise_mm=0.0, ground_velocity_noise=0.0, ground_velocity_pull=0.5),
-                    known, 4, 8, seed=1)
-    steps = poses_to_invariant(held)[:, 1:-1, :2]
-    assert np.allclose(steps, expected * 0.5 ** np.arange(steps.shape[1])[None, :, None], atol=1e-6)
+    assert_steps_decay(FCRBMPrior([model], root_noise_mm=0.0, ground_velocity_noise=0.0, ground_velocity_pull=0.5),
+                       poses_07_01[58:60], 8, 0.5)
     with pytest.raises(InputError, match="with ground velocity noise"):
         FCRBMPrior([model], ground_velocity_pull=0.5)
 
@@ -121,12 +125,8 @@ def test_a_pull_decays_the_velocity_toward_standing_still(plain, poses_07_01):
     step = np.tile([20.0, -4.0, 0.01], (4, 1))
     assert np.allclose(persist_ground_step(step, 0.0, np.random.default_rng(0), pull=0.25), [[15.0, -3.0]] * 4)
     # Without noise the velocity falls geometrically from the known frames' step toward zero.
-    known = poses_07_01[58:60]
-    expected = pending_step(known)[:2]
-    held = roll_out(CRBMPrior([plain], root_noise_mm=0.0, ground_velocity_noise=0.0, ground_velocity_pull=0.1),
-                    known, 3, 30, seed=1)
-    steps = poses_to_invariant(held)[:, 1:-1, :2]
-    assert np.allclose(steps, expected * 0.9 ** np.arange(steps.shape[1])[None, :, None], atol=1e-6)
+    assert_steps_decay(CRBMPrior([plain], root_noise_mm=0.0, ground_velocity_noise=0.0, ground_velocity_pull=0.1),
+                       poses_07_01[58:60], 30, 0.9)
     # With noise the velocity stays bounded: its std settles at std / sqrt(1 - (1 - pull)^2), not sqrt(t) * std.
     rng = np.random.default_rng(4)
     v = np.zeros((20000, 3))
