@@ -87,15 +87,50 @@ class ConstantVelocityPrior(MotionPrior):
 
 SCALE_OPTION = Option("prior_scale", float, 1.0, "multiply the random-walk noise (default 1)", minimum=0.0,
                       strict=True, maximum=1000.0)
+ISOTROPIC_OPTION = Option("isotropic_ground", bool, False,
+                          "give the root's two ground coordinates one noise, the RMS of their two scales, so the "
+                          "walk does not favour the direction the training clips moved in (default off: a scale "
+                          "per axis; every shared CMU walk goes along world y)")
+#: The root's ground-plane coordinates (mm) in the 15-cone model's pose layout.
+GROUND_DOFS = ("root_x", "root_y")
 
 
-@register_prior("zero-velocity", summary="first-order Gaussian random walk (the baseline)", options=(SCALE_OPTION,))
+def isotropic_ground(std: np.ndarray, dof_names: Sequence[str]) -> np.ndarray:
+    """The per-dof scale ``std`` ``(D,)`` with both ground coordinates of the root set to their RMS,
+    ``sqrt((s_x^2 + s_y^2) / 2)`` (mm per frame): the same spread of ground steps in every direction. Scales
+    taken from clips that all move along one axis would otherwise let the random walk follow a person along
+    that axis and hardly at all across it (issue 13's turned folds). A layout without ``root_x`` and ``root_y``
+    is an :class:`InputError`."""
+    names = list(dof_names)
+    if not all(n in names for n in GROUND_DOFS):
+        raise InputError(f"isotropic ground noise needs the root's ground coordinates {', '.join(GROUND_DOFS)}; "
+                         f"this pose layout starts {', '.join(names[:6])}")
+    idx = [names.index(n) for n in GROUND_DOFS]
+    out = np.array(std, float)
+    out[idx] = np.sqrt(np.mean(out[idx] ** 2))
+    return out
+
+
+def random_walk_std(context: PriorContext, options: dict) -> np.ndarray:
+    """The random-walk priors' per-dof noise ``(D,)``: the context's RMS frame step times ``prior_scale``,
+    with the ground coordinates made isotropic when ``isotropic_ground``."""
+    std = context.step_std() * options["prior_scale"]
+    if options["isotropic_ground"]:
+        try:
+            std = isotropic_ground(std, context.body_model.dof_names)
+        except InputError as exc:
+            raise InputError(exc.reason, context.source) from None
+    return std
+
+
+@register_prior("zero-velocity", summary="first-order Gaussian random walk (the baseline)",
+                options=(SCALE_OPTION, ISOTROPIC_OPTION))
 def build_zero_velocity(context: PriorContext, model_files: Sequence[Path], options: dict) -> ZeroVelocityPrior:
-    return ZeroVelocityPrior(context.step_std() * options["prior_scale"])
+    return ZeroVelocityPrior(random_walk_std(context, options))
 
 
 @register_prior("constant-velocity", summary="second-order random walk keeping half of each particle's velocity",
-                options=(SCALE_OPTION,))
+                options=(SCALE_OPTION, ISOTROPIC_OPTION))
 def build_constant_velocity(context: PriorContext, model_files: Sequence[Path], options: dict
                             ) -> ConstantVelocityPrior:
-    return ConstantVelocityPrior(context.step_std() * options["prior_scale"])
+    return ConstantVelocityPrior(random_walk_std(context, options))
