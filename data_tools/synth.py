@@ -9,6 +9,7 @@ project's layout (:mod:`data_tools.sequence`).
 """
 from __future__ import annotations
 
+import math
 import os
 import shutil
 import tempfile
@@ -19,9 +20,9 @@ from typing import Callable
 
 import numpy as np
 
+from data_tools.checks import MAX_IMAGE_SIDE
 from data_tools.render import compose, make_room, person_mesh, render_background, render_person
 from data_tools.retarget import RetargetResult
-from data_tools.checks import MAX_IMAGE_SIDE
 from data_tools.files import check_output_folder
 from data_tools.sequence import frame_path, write_groundtruth, write_image, write_sequence_header
 from tracker.core.kinematics import standing_height
@@ -61,42 +62,57 @@ class SynthConfig:
     def __post_init__(self):
         """Every setting checked on construction, so a bad one is an :class:`InputError` naming it before
         anything is rendered."""
-        def number(v) -> bool:
-            return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) \
-                and bool(np.isfinite(v))
-
-        def whole(v) -> bool:
-            return isinstance(v, (int, np.integer)) and not isinstance(v, bool)
 
         checks = {
-            "views": (whole(self.views) and self.views >= 1, "a whole number of at least 1"),
-            "fps": (number(self.fps) and self.fps > 0, "a positive number of frames per second"),
-            "start": (whole(self.start) and self.start >= 0, "a frame index of at least 0"),
-            "frames": (self.frames is None or (whole(self.frames) and self.frames >= 1), "a whole number of at "
+            "views": (_whole(self.views) and self.views >= 1, "a whole number of at least 1"),
+            "fps": (_number(self.fps) and self.fps > 0, "a positive number of frames per second"),
+            "start": (_whole(self.start) and self.start >= 0, "a frame index of at least 0"),
+            "frames": (self.frames is None or (_whole(self.frames) and self.frames >= 1), "a whole number of at "
                                                                                           "least 1"),
-            "seed": (whole(self.seed) and self.seed >= 0, "a whole number of at least 0"),
-            "width": (whole(self.width) and 1 <= self.width <= MAX_IMAGE_SIDE,
+            "seed": (_whole(self.seed) and self.seed >= 0, "a whole number of at least 0"),
+            "width": (_whole(self.width) and 1 <= self.width <= MAX_IMAGE_SIDE,
                       f"a whole number of pixels in [1, {MAX_IMAGE_SIDE}]"),
-            "height": (whole(self.height) and 1 <= self.height <= MAX_IMAGE_SIDE,
+            "height": (_whole(self.height) and 1 <= self.height <= MAX_IMAGE_SIDE,
                        f"a whole number of pixels in [1, {MAX_IMAGE_SIDE}]"),
-            "noise": (number(self.noise) and 0 <= self.noise <= 255, "a number of grey levels in [0, 255]"),
-            "lighting_change": (number(self.lighting_change) and -0.9 < self.lighting_change < 2.0,
+            "noise": (_number(self.noise) and 0 <= self.noise <= 255, "a number of grey levels in [0, 255]"),
+            "lighting_change": (_number(self.lighting_change) and -0.9 < self.lighting_change < 2.0,
                                 "a number in (-0.9, 2)"),
             "occluder": (isinstance(self.occluder, bool), "true or false"),
-            "missing_camera": (self.missing_camera is None or (whole(self.missing_camera)
+            "missing_camera": (self.missing_camera is None or (_whole(self.missing_camera)
                                                                and self.missing_camera >= 0), "a camera index"),
-            "turn": (number(self.turn) and abs(self.turn) <= 360, "a number of degrees in [-360, 360]"),
+            "turn": (_number(self.turn) and abs(self.turn) <= 360, "a number of degrees in [-360, 360]"),
         }
         for name, (ok, expected) in checks.items():
             if not ok:
                 raise InputError(f"synth setting {name} must be {expected}, got {getattr(self, name)!r}")
+        for name in ("views", "start", "frames", "seed", "width", "height", "missing_camera"):  # plain Python
+            value = getattr(self, name)  # values, so numpy scalars given here reach meta.json as numbers
+            if value is not None:
+                object.__setattr__(self, name, int(value))
+        for name in ("fps", "noise", "lighting_change", "turn"):
+            object.__setattr__(self, name, float(getattr(self, name)))
+
+
+def _number(v) -> bool:
+    """Whether ``v`` is a finite real number (not a bool; an int too large for a float is not)."""
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+        return False
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:
+        return False
+
+
+def _whole(v) -> bool:
+    """Whether ``v`` is an integer (not a bool)."""
+    return isinstance(v, (int, np.integer)) and not isinstance(v, bool)
 
 
 def turned(result: RetargetResult, degrees: float) -> RetargetResult:
     """``result`` turned by ``degrees`` about the world's vertical axis through the origin: the root's ground
     position and orientation and every marker. The body's motion is unchanged; only the direction it moves in
     (and faces) is. Root orientations stay continuous exp maps."""
-    if isinstance(degrees, bool) or not isinstance(degrees, (int, float)) or not abs(degrees) <= 360:
+    if not _number(degrees) or not abs(degrees) <= 360:
         raise InputError(f"turn must be a number of degrees in [-360, 360], got {degrees}")
     if degrees == 0:
         return result

@@ -154,3 +154,13 @@ def test_bodytrack_initial_pose_inside_masks(bodytrack_dir):
         assert inside.mean() > 0.8, v
     obs = observe([seq.image(0, v) for v in range(4)], masks=[seq.mask(0, v) for v in range(4)])
     assert obs.silhouettes.shape == (4, 480, 640) and 0 < obs.edges.mean() < 0.5
+
+
+def test_synth_settings_take_numpy_numbers_and_refuse_what_is_not_a_number():
+    from tracker.core.errors import InputError
+
+    config = SynthConfig(views=np.int64(2), seed=np.int64(3), turn=np.float32(45.0))
+    assert type(config.views) is int and type(config.seed) is int and type(config.turn) is float
+    for bad in ({"noise": 10 ** 400}, {"turn": float("inf")}, {"views": True}, {"frames": 0}, {"width": 2.5}):
+        with pytest.raises(InputError, match="synth setting"):
+            SynthConfig(**bad)
