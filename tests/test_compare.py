@@ -78,6 +78,7 @@ def test_experiment_file_is_validated_whole(tmp_path, mutation, expected):
     ("occluder = 1", "synth setting occluder must be true or false"),
     ("seed = -1", "synth setting seed must be a whole number"),
     ('switch_at = "a"', "switch_at: expected an integer"),
+    ("missing_camera = 4", "missing_camera 4 is not one of the 4 rendered cameras"),
 ])
 def test_rendering_settings_are_checked_with_the_file(tmp_path, setting, expected):
     path = write_experiment(tmp_path)
