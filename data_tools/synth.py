@@ -9,7 +9,6 @@ project's layout (:mod:`data_tools.sequence`).
 """
 from __future__ import annotations
 
-import math
 import os
 import shutil
 import tempfile
@@ -20,7 +19,7 @@ from typing import Callable
 
 import numpy as np
 
-from data_tools.checks import MAX_IMAGE_SIDE
+from data_tools.checks import MAX_IMAGE_SIDE, real_number
 from data_tools.render import compose, make_room, person_mesh, render_background, render_person
 from data_tools.retarget import RetargetResult
 from data_tools.files import check_output_folder
@@ -92,15 +91,20 @@ class SynthConfig:
         for name in ("fps", "noise", "lighting_change", "turn"):
             object.__setattr__(self, name, float(getattr(self, name)))
 
+    def check_missing_camera(self, n_cameras: int) -> None:
+        """An :class:`InputError` unless ``missing_camera`` (if any) is one of ``n_cameras`` rendered cameras."""
+        if self.missing_camera is not None and self.missing_camera >= n_cameras:
+            raise InputError(f"missing_camera {self.missing_camera} is not one of the {n_cameras} rendered cameras "
+                             f"(0..{n_cameras - 1})")
+
 
 def _number(v) -> bool:
-    """Whether ``v`` is a finite real number (not a bool; an int too large for a float is not)."""
-    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-        return False
+    """Whether ``v`` is a finite real number (:func:`data_tools.checks.real_number`'s test)."""
     try:
-        return math.isfinite(float(v))
-    except OverflowError:
+        real_number(v, "value")
+    except InputError:
         return False
+    return True
 
 
 def _whole(v) -> bool:
@@ -187,8 +191,7 @@ def _render(result: RetargetResult, out: Path, settings: SynthConfig, source: st
 
     s = settings
     rig = rig or default_rig(s.views, s.width, s.height)
-    if s.missing_camera is not None and not 0 <= s.missing_camera < len(rig):
-        raise InputError(f"missing camera {s.missing_camera} is not one of the {len(rig)} cameras (0..{len(rig) - 1})")
+    s.check_missing_camera(len(rig))
     result = turned(result, s.turn)
     span = select_frames(result, s.start, s.frames, source)
     poses = result.poses[span].copy()

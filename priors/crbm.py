@@ -46,7 +46,8 @@ from priors.common import (
     TrainedModel, UNLEARNED_MOTION_OPTIONS, add_ground_diffusion, add_heading_diffusion, check_weights,
     checked_data_settings, checked_ground_velocity, checked_time_warp, drift_log_pace, gibbs_steps_option,
     mix_in_random_walk, normaliser_from_tensors, persist_ground_step, read_model_file, robust_share,
-    scale_ground_steps, shift_height, start_log_pace, steps_taken, time_warp_note, torch_generator, torch_save_atomic,
+    scale_ground_steps, shift_height, start_log_pace, steps_taken, time_warp_note, torch_generator,
+    torch_save_atomic,
 )
 from priors.contrastive import ContrastiveConfig, finish_epoch, minibatches, momentum_step
 from priors.ensemble import EnsemblePrior

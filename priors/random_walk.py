@@ -95,16 +95,16 @@ ISOTROPIC_OPTION = Option("isotropic_ground", bool, False,
 GROUND_DOFS = ("root_x", "root_y")
 
 
-def isotropic_ground(std: np.ndarray, dof_names: Sequence[str]) -> np.ndarray:
+def isotropic_ground(std: np.ndarray, dof_names: Sequence[str], source: str | None = None) -> np.ndarray:
     """The per-dof scale ``std`` ``(D,)`` with both ground coordinates of the root set to their RMS,
     ``sqrt((s_x^2 + s_y^2) / 2)`` (mm per frame): the same spread of ground steps in every direction. Scales
     taken from clips that all move along one axis would otherwise let the random walk follow a person along
     that axis and hardly at all across it (issue 13's turned folds). A layout without ``root_x`` and ``root_y``
-    is an :class:`InputError`."""
+    is an :class:`InputError` naming ``source``."""
     names = list(dof_names)
     if not all(n in names for n in GROUND_DOFS):
         raise InputError(f"isotropic ground noise needs the root's ground coordinates {', '.join(GROUND_DOFS)}; "
-                         f"this pose layout starts {', '.join(names[:6])}")
+                         f"this pose layout starts {', '.join(names[:6])}", source)
     idx = [names.index(n) for n in GROUND_DOFS]
     out = np.array(std, float)
     out[idx] = np.sqrt(np.mean(out[idx] ** 2))
@@ -116,10 +116,7 @@ def random_walk_std(context: PriorContext, options: dict) -> np.ndarray:
     with the ground coordinates made isotropic when ``isotropic_ground``."""
     std = context.step_std() * options["prior_scale"]
     if options["isotropic_ground"]:
-        try:
-            std = isotropic_ground(std, context.body_model.dof_names)
-        except InputError as exc:
-            raise InputError(exc.reason, context.source) from None
+        std = isotropic_ground(std, context.body_model.dof_names, context.source)
     return std
 
 

@@ -306,11 +306,9 @@ def load_experiment(path: str | Path) -> Experiment:
             synth = {k: v for k, v in s.items() if k not in ("name", "mocap", "skeleton")}
             try:  # every rendering setting checked now, not when the runner reaches this sequence
                 rendering = SynthConfig(fps=float(fps), **{k: v for k, v in synth.items() if k not in TRANSITION_KEYS})
+                rendering.check_missing_camera(rendering.views)
             except InputError as exc:
                 raise w.error(entry, exc.reason) from None
-            if rendering.missing_camera is not None and rendering.missing_camera >= rendering.views:
-                raise w.error(entry, f"missing_camera {rendering.missing_camera} is not one of the "
-                                     f"{rendering.views} rendered cameras (0..{rendering.views - 1})")
             for key in ("switch_at", "fade"):
                 if key in synth:
                     w.int_(synth[key], f"{entry} {key}", 0 if key == "fade" else 1)
