@@ -91,10 +91,11 @@ class SynthConfig:
         for name in ("fps", "noise", "lighting_change", "turn"):
             object.__setattr__(self, name, float(getattr(self, name)))
 
-    def check_missing_camera(self, n_cameras: int) -> None:
-        """An :class:`InputError` unless ``missing_camera`` (if any) is one of ``n_cameras`` rendered cameras."""
+    def check_missing_camera(self, n_cameras: int, name: str = "missing camera") -> None:
+        """An :class:`InputError` unless ``missing_camera`` (if any) is one of ``n_cameras`` rendered cameras; the
+        message calls the setting ``name`` (as the user wrote it: an experiment file's key, say)."""
         if self.missing_camera is not None and self.missing_camera >= n_cameras:
-            raise InputError(f"missing_camera {self.missing_camera} is not one of the {n_cameras} rendered cameras "
+            raise InputError(f"{name} {self.missing_camera} is not one of the {n_cameras} rendered cameras "
                              f"(0..{n_cameras - 1})")
 
 

@@ -306,7 +306,7 @@ def load_experiment(path: str | Path) -> Experiment:
             synth = {k: v for k, v in s.items() if k not in ("name", "mocap", "skeleton")}
             try:  # every rendering setting checked now, not when the runner reaches this sequence
                 rendering = SynthConfig(fps=float(fps), **{k: v for k, v in synth.items() if k not in TRANSITION_KEYS})
-                rendering.check_missing_camera(rendering.views)
+                rendering.check_missing_camera(rendering.views, "missing_camera")
             except InputError as exc:
                 raise w.error(entry, exc.reason) from None
             for key in ("switch_at", "fade"):
