@@ -3,8 +3,9 @@
 The same computation as :mod:`tracker.core.kinematics` (whose compiled loop over poses is the CPU path:
 measured faster there than any batched form), written for a device that wants few, large kernels: local
 joint rotations for every link at once (one Rodrigues formula over all exp-map joints, one over all
-fixed-axis factors), then the tree composed one depth level at a time (the 15-cone model has 5 levels, so
-about 30 kernels whatever the batch). Both read the same index tables (``kinematics._tables``), and
+fixed-axis factors), then the tree composed one depth level at a time (the 15-cone model has 5 levels), the
+3 x 3 products as broadcast multiply-adds (:func:`small_matmul`): about 150 elementwise kernels whatever the
+batch. Both read the same index tables (``kinematics._tables``), and
 ``tests/test_torch_path.py`` checks that they agree to float precision.
 
 Shapes: poses ``B x D`` (mm, radians); results ``B x S x 3 x 3`` (segment rotations, world from segment)
@@ -33,6 +34,16 @@ def exp_map_to_matrix_torch(v: torch.Tensor) -> torch.Tensor:
             bxy + a * z, 1.0 - b * (x * x + z * z), byz - a * x,
             bxz - a * y, byz + a * x, 1.0 - b * (x * x + y * y))
     return torch.stack(rows, dim=-1).reshape(v.shape[:-1] + (3, 3))
+
+
+def small_matmul(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """``a @ b`` for stacks of small matrices ``(..., n, k) @ (..., k, m)`` (broadcast batch dimensions), as
+    ``k`` broadcast multiply-adds. A GPU's batched matrix product is made for large matrices: on an H100 it
+    took half the likelihood's device time on these 3 x 3 products (``docs/tracking.md``, "GPU path")."""
+    out = a[..., :, 0:1] * b[..., 0:1, :]
+    for j in range(1, a.shape[-1]):
+        out = out + a[..., :, j:j + 1] * b[..., j:j + 1, :]
+    return out
 
 
 class TorchKinematics:
@@ -81,9 +92,9 @@ class TorchKinematics:
             local[:, self.exp_links] = exp_map_to_matrix_torch(poses[:, self.exp_dofs])
         for k, (links, dofs, axes) in enumerate(self.factor_steps):
             factor = exp_map_to_matrix_torch(poses[:, dofs, None] * axes)  # B x n x 3 x 3
-            local[:, links] = factor if k == 0 else local[:, links] @ factor
+            local[:, links] = factor if k == 0 else small_matmul(local[:, links], factor)
         if len(self.fixed_links):
-            local[:, self.fixed_links] = self.fixed @ local[:, self.fixed_links]
+            local[:, self.fixed_links] = small_matmul(self.fixed, local[:, self.fixed_links])
         return local
 
     def links(self, poses: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -94,15 +105,15 @@ class TorchKinematics:
         o[:, 0] = poses[:, self.root_dofs] + self.root_offset
         for links, parents, offsets in self.levels:
             parent_R = R[:, parents]
-            R[:, links] = parent_R @ R[:, links]
-            o[:, links] = o[:, parents] + (parent_R @ offsets[..., None])[..., 0]
+            R[:, links] = small_matmul(parent_R, R[:, links])
+            o[:, links] = o[:, parents] + small_matmul(parent_R, offsets[..., None])[..., 0]
         return R, o
 
     def __call__(self, poses: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Segment rotations ``B x S x 3 x 3`` (world from segment) and origins ``B x S x 3`` (mm) of poses
         ``B x D``, as :meth:`tracker.core.kinematics.Kinematics.segment_rotations`."""
         R, o = self.links(poses)
-        return R[:, self.seg_link] @ self.seg_in_link, o[:, self.seg_link]
+        return small_matmul(R[:, self.seg_link], self.seg_in_link), o[:, self.seg_link]
 
 
 def torch_kinematics(model: BodyModel, device: str | torch.device, dtype: torch.dtype = torch.float64
