@@ -234,6 +234,39 @@ GROUND_VELOCITY_PULL_OPTION = Option(
     "Ornstein-Uhlenbeck velocity; default 0, constant velocity)", minimum=0.0, maximum=1.0)
 
 
+#: The learned priors' option to give each particle its own root-height offset (:func:`drift_height_offset`).
+HEIGHT_SPREAD_OPTION = Option(
+    "height_spread", float, 0.0,
+    "give each particle its own offset between the person's root height and the heights the model learned, "
+    "Gaussian with this std in mm at the start, so that the images select the height of a shorter, taller or "
+    "crouching person (default 0: the model's heights)", minimum=0.0, maximum=1000.0)
+#: How fast each particle's root-height offset drifts (:func:`drift_height_offset`).
+HEIGHT_DRIFT_OPTION = Option(
+    "height_drift", float, 0.0,
+    "std in mm per frame of the random walk of each particle's root-height offset, so that it can follow a person "
+    "who crouches or straightens up (default 0: the offset keeps its start value)", minimum=0.0, maximum=100.0)
+
+
+def checked_height_offset(spread: float, drift: float) -> tuple[float, float]:
+    """The settings of :func:`drift_height_offset` as ``(spread, drift)`` (mm, mm/frame); a negative or
+    non-finite value is an :class:`InputError`."""
+    for name, value in (("spread", spread), ("drift", drift)):
+        if not 0 <= value < np.inf:
+            unit = "mm per frame" if name == "drift" else "mm"
+            raise InputError(f"height {name} must be a non-negative number of {unit}, got {value}")
+    return float(spread), float(drift)
+
+
+def drift_height_offset(offset: np.ndarray, drift: float, rng: np.random.Generator) -> np.ndarray:
+    """Each particle's root-height offset ``(P,)`` (mm: the person's root height minus the height the model
+    would predict) after one frame's random walk of std ``drift`` (nothing drawn when 0). A learned prior predicts
+    the root heights of the people it was trained on; a person 90 mm shorter (issue 13's fold 91) or crouching
+    (fold 131) is followed only if the particles carry heights that the likelihood can select."""
+    if drift <= 0:
+        return offset
+    return offset + drift * rng.standard_normal(len(offset))
+
+
 def checked_ground_velocity(noise: float | None, pull: float,
                             pace_jump: float = 0.0) -> tuple[float | None, float]:
     """The settings of :func:`persist_ground_step` as ``(noise, pull)``: ``noise`` (mm/frame per frame, None for

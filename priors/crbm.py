@@ -42,9 +42,10 @@ import numpy as np
 import torch
 
 from priors.common import (
-    GROUND_VELOCITY_OPTION, GROUND_VELOCITY_PULL_OPTION, HEADING_NOISE_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION,
-    TrainedModel, UNLEARNED_MOTION_OPTIONS, add_ground_diffusion, add_heading_diffusion, check_weights,
-    checked_data_settings, checked_ground_velocity, checked_time_warp, drift_log_pace, gibbs_steps_option,
+    GROUND_VELOCITY_OPTION, GROUND_VELOCITY_PULL_OPTION, HEADING_NOISE_OPTION, HEIGHT_DRIFT_OPTION,
+    HEIGHT_SPREAD_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION, TrainedModel, UNLEARNED_MOTION_OPTIONS,
+    add_ground_diffusion, add_heading_diffusion, check_weights, checked_data_settings, checked_ground_velocity,
+    checked_height_offset, checked_time_warp, drift_height_offset, drift_log_pace, gibbs_steps_option,
     mix_in_random_walk, normaliser_from_tensors, persist_ground_step, read_model_file, robust_share,
     scale_ground_steps, shift_height, start_log_pace, steps_taken, time_warp_note, torch_generator,
     torch_save_atomic,
@@ -603,9 +604,9 @@ class CRBMPrior(MotionPrior):
     still (``log_pace`` then stays 0); with ``relative_height``, ``height`` ``(P,)``, the known frames' mean root
     height (mm), by which the model's heights are shifted (see :func:`priors.common.shift_height`; a model trained
     with ``standing_height`` is shifted by the person's standing root height instead, ``standing_root_height``,
-    and needs no state); and
-    ``walked`` ``(P,)``,
-    whether its latest sample came from
+    and needs no state); with ``height_spread`` or ``height_drift``, ``height_offset`` ``(P,)``, the particle's own
+    root-height offset (mm, the person's height minus the model's; :func:`priors.common.drift_height_offset`),
+    by which the model's heights are shifted as well; and ``walked`` ``(P,)``, whether its latest sample came from
     the robust option's random walk (``robust_fraction``, adapted to the posterior when ``robust_adaptive``,
     see :func:`priors.common.robust_share`). Each sample's torch generator is seeded from the filter's
     generator.
@@ -624,13 +625,18 @@ class CRBMPrior(MotionPrior):
     ground_velocity_noise: float | None = None
     #: The fraction of a particle's own ground velocity lost per frame (with ``ground_velocity_noise``).
     ground_velocity_pull: float = 0.0
+    #: The std (mm) of each particle's root-height offset at the start, and of its drift per frame (mm/frame); both
+    #: 0: no offset (:func:`priors.common.drift_height_offset`).
+    height_spread: float = 0.0
+    height_drift: float = 0.0
 
     def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = GIBBS_STEPS,
                  device: str = "cpu", mode: str = "gibbs", root_noise_mm: float = ROOT_NOISE_MM,
                  robust_fraction: float = 0.0, heading_noise: float = 0.0, robust_adaptive: bool = False,
                  pace_spread: float | None = None, pace_drift: float | None = None, relative_height: bool = False,
                  pace_jump: float | None = None, standing_root_height: float | None = None,
-                 ground_velocity_noise: float | None = None, ground_velocity_pull: float = 0.0):
+                 ground_velocity_noise: float | None = None, ground_velocity_pull: float = 0.0,
+                 height_spread: float = 0.0, height_drift: float = 0.0):
         if not models:
             raise InputError("the CRBM prior needs at least one model")
         orders = [m.order for m in models]
@@ -660,8 +666,6 @@ class CRBMPrior(MotionPrior):
                                  f"it (the body model's rest root height, mm), got {standing_root_height}")
             self.standing_root_height = float(standing_root_height)
         self.paced = first.pace_label is not None
-        if self.paced:
-            self.summary_names, self.summary_kind = ("pace (mm/frame)",), "quantity"
         pace_spread = (PACED_SPREAD if self.paced else 0.0) if pace_spread is None else pace_spread
         pace_drift = (PACED_DRIFT if self.paced else 0.0) if pace_drift is None else pace_drift
         pace_jump = (PACED_JUMP if self.paced else 0.0) if pace_jump is None else pace_jump
@@ -691,6 +695,11 @@ class CRBMPrior(MotionPrior):
         self.relative_height = bool(relative_height)
         self.ground_velocity_noise, self.ground_velocity_pull = checked_ground_velocity(
             ground_velocity_noise, ground_velocity_pull, pace_jump)
+        self.height_spread, self.height_drift = checked_height_offset(height_spread, height_drift)
+        if self.paced:
+            self.summary_names, self.summary_kind = ("pace (mm/frame)",), "quantity"
+        if self.height_offsets:
+            self.summary_names, self.summary_kind = self.summary_names + ("height offset (mm)",), "quantity"
         self.order = self.models[-1].order
         self.gibbs_steps = gibbs_steps
         self.device = torch.device(device)
@@ -706,7 +715,13 @@ class CRBMPrior(MotionPrior):
                 "relative_height": self.relative_height, "pace_jump": self.pace_jump,
                 "standing_root_height_mm": self.standing_root_height,
                 "ground_velocity_noise_mm": self.ground_velocity_noise,
-                "ground_velocity_pull": self.ground_velocity_pull}
+                "ground_velocity_pull": self.ground_velocity_pull,
+                "height_spread_mm": self.height_spread, "height_drift_mm": self.height_drift}
+
+    @property
+    def height_offsets(self) -> bool:
+        """Whether each particle carries its own root-height offset (``height_spread`` or ``height_drift``)."""
+        return self.height_spread > 0 or self.height_drift > 0
 
     def model_for(self, available: int) -> CRBMModel:
         """The highest-order model whose history is all real poses (never a padded history)."""
@@ -734,6 +749,9 @@ class CRBMPrior(MotionPrior):
                                        STANDING_LOG_PACE)
         if self.relative_height:
             state["height"] = np.full(n_particles, float(np.mean(np.atleast_2d(known)[:, 2])))
+        if self.height_offsets:
+            state["height_offset"] = (self.height_spread * rng.standard_normal(n_particles) if self.height_spread > 0
+                                      else np.zeros(n_particles))
         return state
 
     def sample(self, history: np.ndarray, available: int, state: PriorState,
@@ -745,6 +763,8 @@ class CRBMPrior(MotionPrior):
                                    np.concatenate([history[:, :1], history], axis=1))[:, -n:]
         feats[:, -1, step] = state["step"]
         previous = feats[:, -1].copy()  # the newest frame's features with the step the particle takes
+        if self.height_offsets:
+            state = {**state, "height_offset": drift_height_offset(state["height_offset"], self.height_drift, rng)}
         to_model = self.height_to_model(model, state, len(feats))
         if to_model is not None:  # the history at the heights the model was trained on
             shift_height(feats, to_model)
@@ -782,17 +802,23 @@ class CRBMPrior(MotionPrior):
             new["pace"] = pace
         if self.relative_height:
             new["height"] = state["height"]
+        if self.height_offsets:
+            new["height_offset"] = state["height_offset"]
         return poses, new
 
     def height_to_model(self, model: CRBMModel, state: PriorState, n: int) -> np.ndarray | None:
         """The shift ``(n,)`` (mm) from the person's root heights to the heights ``model`` was trained on, or None
         when there is none: minus the person's standing root height for a model of heights above standing, the
-        training frames' mean height minus the known frames' with ``relative_height``."""
+        training frames' mean height minus the known frames' with ``relative_height``; less each particle's own
+        height offset when it carries one."""
+        shift = None
         if model.standing_height:
-            return np.full(n, -self.standing_root_height)
-        if self.relative_height:
-            return model.normaliser.mean[2] - state["height"]
-        return None
+            shift = np.full(n, -self.standing_root_height)
+        elif self.relative_height:
+            shift = model.normaliser.mean[2] - state["height"]
+        if self.height_offsets:
+            shift = (0.0 if shift is None else shift) - state["height_offset"]
+        return shift
 
     def next_pace(self, model: CRBMModel, pace: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Each particle's log pace ``(P,)`` one frame on: a random-walk step of ``pace_drift``, with probability
@@ -806,10 +832,14 @@ class CRBMPrior(MotionPrior):
         return np.maximum(pace, STANDING_LOG_PACE)
 
     def summarize(self, state: PriorState, weights: np.ndarray) -> np.ndarray | None:
-        """With a pace input: the posterior mean pace ``(1,)`` in mm/frame (ground speed); else None."""
-        if not self.paced:
-            return None
-        return np.array([float(np.sum(weights * (np.exp(state["pace"]) - PACE_FLOOR_MM)))])
+        """The posterior means of :attr:`summary_names`: with a pace input the pace (mm/frame, ground speed), with
+        height offsets the offset (mm); None with neither."""
+        values = []
+        if self.paced:
+            values.append(float(np.sum(weights * (np.exp(state["pace"]) - PACE_FLOOR_MM))))
+        if self.height_offsets:
+            values.append(float(np.sum(weights * state["height_offset"])))
+        return np.array(values) if values else None
 
     def diffusion_std(self) -> np.ndarray:
         return self.models[-1].pose_step_rms
@@ -948,6 +978,8 @@ CRBM_TRAIN_OPTIONS = (
                                               f"{PACED_JUMP:g})", minimum=0.0, maximum=1.0),
              GROUND_VELOCITY_OPTION,
              GROUND_VELOCITY_PULL_OPTION,
+             HEIGHT_SPREAD_OPTION,
+             HEIGHT_DRIFT_OPTION,
              Option("relative_height", bool, False, "keep the person's own root height, the model's heights moved "
                                                     "by the known frames' mean root height minus the training "
                                                     "frames' (default off; for models of absolute heights, not "
@@ -968,7 +1000,8 @@ def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict
                          relative_height=options["relative_height"], pace_jump=options["pace_jump"],
                          standing_root_height=context.body_model.rest_root_height,
                          ground_velocity_noise=options["ground_velocity_noise"],
-                         ground_velocity_pull=options["ground_velocity_pull"])
+                         ground_velocity_pull=options["ground_velocity_pull"],
+                         height_spread=options["height_spread"], height_drift=options["height_drift"])
 
     if len(models) > 1 and len({m.order for m in models}) == 1:
         return EnsemblePrior([prior([m]) for m in models])

@@ -32,7 +32,8 @@ import numpy as np
 import torch
 
 from priors.common import (
-    GROUND_VELOCITY_OPTION, GROUND_VELOCITY_PULL_OPTION, HEADING_NOISE_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION,
+    GROUND_VELOCITY_OPTION, GROUND_VELOCITY_PULL_OPTION, HEADING_NOISE_OPTION, HEIGHT_DRIFT_OPTION,
+    HEIGHT_SPREAD_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION,
     gibbs_steps_option, read_model_file, torch_generator, torch_save_atomic,
 )
 from priors.contrastive import ContrastiveConfig, finish_epoch, minibatches, momentum_step, window_index
@@ -232,10 +233,12 @@ class DeepCRBMPrior(CRBMPrior):
 
     def __init__(self, model: DeepCRBMModel, gibbs_steps: int = 30, device: str = "cpu",
                  root_noise_mm: float = ROOT_NOISE_MM, heading_noise: float = 0.0,
-                 ground_velocity_noise: float | None = None, ground_velocity_pull: float = 0.0):
+                 ground_velocity_noise: float | None = None, ground_velocity_pull: float = 0.0,
+                 height_spread: float = 0.0, height_drift: float = 0.0):
         super().__init__([model.bottom], gibbs_steps=gibbs_steps, device=device, root_noise_mm=root_noise_mm,
                          heading_noise=heading_noise, ground_velocity_noise=ground_velocity_noise,
-                         ground_velocity_pull=ground_velocity_pull)
+                         ground_velocity_pull=ground_velocity_pull, height_spread=height_spread,
+                         height_drift=height_drift)
         self.deep = model
         for k in CRBM.PARAMS:
             setattr(model.top, k, getattr(model.top, k).to(self.device))
@@ -299,11 +302,14 @@ DEEP_TRAIN_OPTIONS = tuple(o for o in CRBM_TRAIN_OPTIONS if o.name not in ("chec
              ROOT_NOISE_OPTION,
              HEADING_NOISE_OPTION,
              GROUND_VELOCITY_OPTION,
-             GROUND_VELOCITY_PULL_OPTION))
+             GROUND_VELOCITY_PULL_OPTION,
+             HEIGHT_SPREAD_OPTION,
+             HEIGHT_DRIFT_OPTION))
 def build_deep_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> DeepCRBMPrior:
     model = load_deep_crbm(model_files[0], device=context.device)
     model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, model_files[0])
     return DeepCRBMPrior(model, gibbs_steps=options["gibbs_steps"], device=context.device,
                          root_noise_mm=options["root_noise"], heading_noise=options["heading_noise"],
                          ground_velocity_noise=options["ground_velocity_noise"],
-                         ground_velocity_pull=options["ground_velocity_pull"])
+                         ground_velocity_pull=options["ground_velocity_pull"],
+                         height_spread=options["height_spread"], height_drift=options["height_drift"])

@@ -170,6 +170,67 @@ def test_relative_height_keeps_a_shorter_persons_own_height(paced, walk_07_01):
     assert abs(errors[True]) < 25 and errors[False] > 50, errors
 
 
+def test_a_particles_height_offset_moves_the_models_heights_by_exactly_that_offset(paced, walk_07_01):
+    """A particle whose history and offset are both 70 mm higher samples the same pose 70 mm higher: the model
+    sees the same input."""
+    prior = CRBMPrior([paced], pace_spread=0.0, pace_drift=0.0, pace_jump=0.0, height_spread=30.0)
+    history = np.repeat(walk_07_01[None, 57:60], 20, axis=0)
+    raised = history.copy()
+    raised[..., 2] += 70.0
+    out = []
+    for h, offset in ((history, 0.0), (raised, 70.0)):
+        rng = np.random.default_rng(4)
+        state = prior.start(walk_07_01[:60], 20, rng)
+        state["height_offset"] = np.full(20, offset)
+        poses, new = prior.sample(h, 3, state, rng)
+        assert np.all(new["height_offset"] == offset)  # no drift: the offset keeps its value
+        out.append(poses)
+    assert np.allclose(out[1][:, 2] - out[0][:, 2], 70.0, atol=1e-6)
+    assert np.allclose(np.delete(out[1], 2, axis=1), np.delete(out[0], 2, axis=1), atol=1e-6)
+
+
+def test_height_offsets_start_spread_drift_and_are_summarised(paced, walk_07_01):
+    rng = np.random.default_rng(5)
+    prior = CRBMPrior([paced], height_spread=40.0, height_drift=2.0)
+    assert prior.summary_names == ("pace (mm/frame)", "height offset (mm)")
+    state = prior.start(walk_07_01[:60], 4000, rng)
+    assert np.std(state["height_offset"]) == pytest.approx(40.0, rel=0.05)
+    history = np.repeat(walk_07_01[None, 57:60], 4000, axis=0)
+    _, new = prior.sample(history, 3, state, rng)
+    assert np.std(new["height_offset"] - state["height_offset"]) == pytest.approx(2.0, rel=0.05)
+    weights = np.zeros(4000)
+    weights[:2] = 0.5
+    summary = prior.summarize(new, weights)
+    assert summary[1] == pytest.approx(np.mean(new["height_offset"][:2]))
+    plain = CRBMPrior([paced])
+    assert "height_offset" not in plain.start(walk_07_01[:60], 10, rng) and len(plain.summary_names) == 1
+    for bad in ({"height_spread": -1.0}, {"height_drift": float("nan")}):
+        with pytest.raises(InputError, match="height"):
+            CRBMPrior([paced], **bad)
+
+
+def test_height_offsets_selected_by_the_images_follow_a_shorter_person(paced, walk_07_01):
+    """The same walk 100 mm lower, each frame's particles weighted by how close their root height is to the
+    person's (a stand-in for the likelihood) and resampled: with height offsets the sampled heights follow the
+    person, without them the model keeps pulling the particles back up to the training subject's height."""
+    lowered = walk_07_01.copy()
+    lowered[:, 2] -= 100.0
+    errors = {}
+    for spread in (0.0, 60.0):
+        prior = CRBMPrior([paced], pace_spread=0.0, pace_drift=0.0, pace_jump=0.0, height_spread=spread)
+        rng = np.random.default_rng(6)
+        history = np.repeat(lowered[None, 57:60], 300, axis=0)
+        state = prior.start(lowered[:60], 300, rng)
+        for t in range(60, 100):
+            poses, state = prior.sample(history, 3, state, rng)
+            history = np.concatenate([history[:, 1:], poses[:, None]], axis=1)
+            w = np.exp(-0.5 * ((poses[:, 2] - lowered[t, 2]) / 20.0) ** 2) + 1e-300
+            keep = rng.choice(300, 300, p=w / w.sum())
+            history, state = history[keep], {k: v[keep] for k, v in state.items()}
+        errors[spread] = float(np.mean(prior.sample(history, 3, state, rng)[0][:, 2]) - lowered[100, 2])
+    assert abs(errors[60.0]) < 25 and errors[0.0] > 40, errors
+
+
 def test_by_default_a_pace_input_only_for_clips_of_several_paces(walk_07_01):
     from priors.crbm import given_clips, paces_vary
     from tracker.engine.registry import TrainingData
