@@ -152,21 +152,34 @@ def test_train_and_track_a_paced_model_from_the_command_line(mocap_dir, walk_32_
     assert (out / "prior_summary.png").stat().st_size > 0
 
 
+def height_error_on_a_lowered_walk(prior, walk: np.ndarray, particles: int, frames: int, seed: int,
+                                   select_sd: float | None = None) -> float:
+    """Rolls ``prior`` out from frame 60 of ``walk`` lowered by 100 mm (a shorter person) for ``frames`` frames with
+    ``particles`` particles. With ``select_sd`` (mm) each frame's particles are weighted by how close their root
+    height is to the person's and resampled (a stand-in for the likelihood). Returns the mean sampled root height
+    of the last frame above the person's (mm)."""
+    lowered = walk.copy()
+    lowered[:, 2] -= 100.0
+    rng = np.random.default_rng(seed)
+    history = np.repeat(lowered[None, 57:60], particles, axis=0)
+    state = prior.start(lowered[:60], particles, rng)
+    for t in range(60, 60 + frames):
+        poses, state = prior.sample(history, 3, state, rng)
+        history = np.concatenate([history[:, 1:], poses[:, None]], axis=1)
+        error = float(np.mean(poses[:, 2]) - lowered[t, 2])
+        if select_sd is not None:
+            w = np.exp(-0.5 * ((poses[:, 2] - lowered[t, 2]) / select_sd) ** 2) + 1e-300
+            keep = rng.choice(particles, particles, p=w / w.sum())
+            history, state = history[keep], {k: v[keep] for k, v in state.items()}
+    return error
+
+
 def test_relative_height_keeps_a_shorter_persons_own_height(paced, walk_07_01):
     """The same walk 100 mm lower (a shorter person): with ``relative_height`` the sampled root heights follow
     the person's, without it the model pulls them back up toward the training subject's."""
-    lowered = walk_07_01.copy()
-    lowered[:, 2] -= 100.0
-    errors = {}
-    for relative in (False, True):
-        prior = CRBMPrior([paced], pace_spread=0.0, pace_drift=0.0, pace_jump=0.0, relative_height=relative)
-        rng = np.random.default_rng(2)
-        history = np.repeat(lowered[None, 57:60], 50, axis=0)
-        state = prior.start(lowered[:60], 50, rng)
-        for t in range(60, 90):
-            poses, state = prior.sample(history, 3, state, rng)
-            history = np.concatenate([history[:, 1:], poses[:, None]], axis=1)
-        errors[relative] = float(np.mean(history[:, -1, 2]) - lowered[89, 2])  # mm above the person's root
+    errors = {relative: height_error_on_a_lowered_walk(
+        CRBMPrior([paced], pace_spread=0.0, pace_drift=0.0, pace_jump=0.0, relative_height=relative),
+        walk_07_01, particles=50, frames=30, seed=2) for relative in (False, True)}
     assert abs(errors[True]) < 25 and errors[False] > 50, errors
 
 
@@ -213,21 +226,9 @@ def test_height_offsets_selected_by_the_images_follow_a_shorter_person(paced, wa
     """The same walk 100 mm lower, each frame's particles weighted by how close their root height is to the
     person's (a stand-in for the likelihood) and resampled: with height offsets the sampled heights follow the
     person, without them the model keeps pulling the particles back up to the training subject's height."""
-    lowered = walk_07_01.copy()
-    lowered[:, 2] -= 100.0
-    errors = {}
-    for spread in (0.0, 60.0):
-        prior = CRBMPrior([paced], pace_spread=0.0, pace_drift=0.0, pace_jump=0.0, height_spread=spread)
-        rng = np.random.default_rng(6)
-        history = np.repeat(lowered[None, 57:60], 300, axis=0)
-        state = prior.start(lowered[:60], 300, rng)
-        for t in range(60, 100):
-            poses, state = prior.sample(history, 3, state, rng)
-            history = np.concatenate([history[:, 1:], poses[:, None]], axis=1)
-            w = np.exp(-0.5 * ((poses[:, 2] - lowered[t, 2]) / 20.0) ** 2) + 1e-300
-            keep = rng.choice(300, 300, p=w / w.sum())
-            history, state = history[keep], {k: v[keep] for k, v in state.items()}
-        errors[spread] = float(np.mean(prior.sample(history, 3, state, rng)[0][:, 2]) - lowered[100, 2])
+    errors = {spread: height_error_on_a_lowered_walk(
+        CRBMPrior([paced], pace_spread=0.0, pace_drift=0.0, pace_jump=0.0, height_spread=spread),
+        walk_07_01, particles=300, frames=40, seed=6, select_sd=20.0) for spread in (0.0, 60.0)}
     assert abs(errors[60.0]) < 25 and errors[0.0] > 40, errors
 
 
