@@ -234,13 +234,16 @@ GROUND_VELOCITY_PULL_OPTION = Option(
     "Ornstein-Uhlenbeck velocity; default 0, constant velocity)", minimum=0.0, maximum=1.0)
 
 
-#: The learned priors' option to give each particle its own root-height offset (:func:`drift_height_offset`).
+#: The learned priors' option to give each particle its own root-height offset (mm, the person's root height minus
+#: the heights the model learned): a learned prior predicts the root heights of the people it was trained on, and
+#: a shorter or crouching person (issue 13's folds 91 and 131) is followed only if the particles carry heights
+#: that the likelihood can select.
 HEIGHT_SPREAD_OPTION = Option(
     "height_spread", float, 0.0,
     "give each particle its own offset between the person's root height and the heights the model learned, "
     "Gaussian with this std in mm at the start, so that the images select the height of a shorter, taller or "
     "crouching person (default 0: the model's heights)", minimum=0.0, maximum=1000.0)
-#: How fast each particle's root-height offset drifts (:func:`drift_height_offset`).
+#: How fast each particle's root-height offset drifts (:func:`gaussian_drift`).
 HEIGHT_DRIFT_OPTION = Option(
     "height_drift", float, 0.0,
     "std in mm per frame of the random walk of each particle's root-height offset, so that it can follow a person "
@@ -248,23 +251,14 @@ HEIGHT_DRIFT_OPTION = Option(
 
 
 def checked_height_offset(spread: float, drift: float) -> tuple[float, float]:
-    """The settings of :func:`drift_height_offset` as ``(spread, drift)`` (mm, mm/frame); a negative or
-    non-finite value is an :class:`InputError`."""
-    for name, value in (("spread", spread), ("drift", drift)):
-        if not 0 <= value < np.inf:
-            unit = "mm per frame" if name == "drift" else "mm"
-            raise InputError(f"height {name} must be a non-negative number of {unit}, got {value}")
+    """The height-offset settings as ``(spread, drift)`` (mm, mm/frame), within the bounds of
+    :data:`HEIGHT_SPREAD_OPTION` and :data:`HEIGHT_DRIFT_OPTION`; a value outside them (or not a number) is an
+    :class:`InputError`."""
+    for option, value, unit in ((HEIGHT_SPREAD_OPTION, spread, "mm"), (HEIGHT_DRIFT_OPTION, drift, "mm per frame")):
+        if not option.minimum <= value <= option.maximum:
+            raise InputError(f"height {option.name.split('_')[1]} must be between {option.minimum:g} and "
+                             f"{option.maximum:g} {unit}, got {value}")
     return float(spread), float(drift)
-
-
-def drift_height_offset(offset: np.ndarray, drift: float, rng: np.random.Generator) -> np.ndarray:
-    """Each particle's root-height offset ``(P,)`` (mm: the person's root height minus the height the model
-    would predict) after one frame's random walk of std ``drift`` (nothing drawn when 0). A learned prior predicts
-    the root heights of the people it was trained on; a person 90 mm shorter (issue 13's fold 91) or crouching
-    (fold 131) is followed only if the particles carry heights that the likelihood can select."""
-    if drift <= 0:
-        return offset
-    return offset + drift * rng.standard_normal(len(offset))
 
 
 def checked_ground_velocity(noise: float | None, pull: float,
@@ -304,20 +298,22 @@ def persist_ground_step(step: np.ndarray, std: float, rng: np.random.Generator, 
     return out
 
 
-def start_log_pace(n_particles: int, spread: float, rng: np.random.Generator) -> np.ndarray:
-    """Each particle's initial log pace ``(P,)``: the log of the factor between the person's ground steps and the
-    steps the learned model would take (0: the model's own pace), Gaussian with std ``spread``. Nothing is
-    drawn when ``spread`` is 0."""
-    if spread <= 0:
+def gaussian_start(n_particles: int, std: float, rng: np.random.Generator) -> np.ndarray:
+    """Each particle's initial value ``(P,)`` of a per-particle latent that starts at 0, Gaussian with std
+    ``std`` (nothing drawn when 0): the log pace (the log of the factor between the person's ground steps and the
+    steps the learned model would take) and the root-height offset (mm, the person's root height minus the
+    model's)."""
+    if std <= 0:
         return np.zeros(n_particles)
-    return spread * rng.standard_normal(n_particles)
+    return std * rng.standard_normal(n_particles)
 
 
-def drift_log_pace(log_pace: np.ndarray, drift: float, rng: np.random.Generator) -> np.ndarray:
-    """The log pace ``(P,)`` after one frame's random walk of std ``drift`` (nothing drawn when 0)."""
-    if drift <= 0:
-        return log_pace
-    return log_pace + drift * rng.standard_normal(len(log_pace))
+def gaussian_drift(values: np.ndarray, std: float, rng: np.random.Generator) -> np.ndarray:
+    """Per-particle latents ``(P,)`` (a log pace, a root-height offset) after one frame's random walk of std
+    ``std`` (nothing drawn when 0)."""
+    if std <= 0:
+        return values
+    return values + std * rng.standard_normal(len(values))
 
 
 def scale_ground_steps(features: np.ndarray, factor: np.ndarray) -> np.ndarray:

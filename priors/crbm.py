@@ -45,9 +45,9 @@ from priors.common import (
     GROUND_VELOCITY_OPTION, GROUND_VELOCITY_PULL_OPTION, HEADING_NOISE_OPTION, HEIGHT_DRIFT_OPTION,
     HEIGHT_SPREAD_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION, TrainedModel, UNLEARNED_MOTION_OPTIONS,
     add_ground_diffusion, add_heading_diffusion, check_weights, checked_data_settings, checked_ground_velocity,
-    checked_height_offset, checked_time_warp, drift_height_offset, drift_log_pace, gibbs_steps_option,
+    checked_height_offset, checked_time_warp, gaussian_drift, gaussian_start, gibbs_steps_option,
     mix_in_random_walk, normaliser_from_tensors, persist_ground_step, read_model_file, robust_share,
-    scale_ground_steps, shift_height, start_log_pace, steps_taken, time_warp_note, torch_generator,
+    scale_ground_steps, shift_height, steps_taken, time_warp_note, torch_generator,
     torch_save_atomic,
 )
 from priors.contrastive import ContrastiveConfig, finish_epoch, minibatches, momentum_step
@@ -605,7 +605,7 @@ class CRBMPrior(MotionPrior):
     height (mm), by which the model's heights are shifted (see :func:`priors.common.shift_height`; a model trained
     with ``standing_height`` is shifted by the person's standing root height instead, ``standing_root_height``,
     and needs no state); with ``height_spread`` or ``height_drift``, ``height_offset`` ``(P,)``, the particle's own
-    root-height offset (mm, the person's height minus the model's; :func:`priors.common.drift_height_offset`),
+    root-height offset (mm, the person's height minus the model's; :data:`priors.common.HEIGHT_SPREAD_OPTION`),
     by which the model's heights are shifted as well; and ``walked`` ``(P,)``, whether its latest sample came from
     the robust option's random walk (``robust_fraction``, adapted to the posterior when ``robust_adaptive``,
     see :func:`priors.common.robust_share`). Each sample's torch generator is seeded from the filter's
@@ -625,9 +625,9 @@ class CRBMPrior(MotionPrior):
     ground_velocity_noise: float | None = None
     #: The fraction of a particle's own ground velocity lost per frame (with ``ground_velocity_noise``).
     ground_velocity_pull: float = 0.0
-    #: The std (mm) of each particle's root-height offset at the start, and of its drift per frame (mm/frame); both
-    #: 0: no offset (:func:`priors.common.drift_height_offset`).
+    #: The std (mm) of each particle's root-height offset at the start (with ``height_drift`` both 0: no offset).
     height_spread: float = 0.0
+    #: The std (mm/frame) of each frame's random-walk step of the root-height offset.
     height_drift: float = 0.0
 
     def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = GIBBS_STEPS,
@@ -742,16 +742,15 @@ class CRBMPrior(MotionPrior):
         self.model_for(min(len(np.atleast_2d(known)), self.order))
         step = pending_step(known)
         state = {"step": np.repeat(step[None], n_particles, axis=0),
-                 "log_pace": start_log_pace(n_particles, 0.0 if self.paced else self.pace_spread, rng),
+                 "log_pace": gaussian_start(n_particles, 0.0 if self.paced else self.pace_spread, rng),
                  "walked": np.zeros(n_particles, bool)}
         if self.paced:
-            state["pace"] = np.maximum(log_pace(step) + start_log_pace(n_particles, self.pace_spread, rng),
+            state["pace"] = np.maximum(log_pace(step) + gaussian_start(n_particles, self.pace_spread, rng),
                                        STANDING_LOG_PACE)
         if self.relative_height:
             state["height"] = np.full(n_particles, float(np.mean(np.atleast_2d(known)[:, 2])))
         if self.height_offsets:
-            state["height_offset"] = (self.height_spread * rng.standard_normal(n_particles) if self.height_spread > 0
-                                      else np.zeros(n_particles))
+            state["height_offset"] = gaussian_start(n_particles, self.height_spread, rng)
         return state
 
     def sample(self, history: np.ndarray, available: int, state: PriorState,
@@ -764,7 +763,7 @@ class CRBMPrior(MotionPrior):
         feats[:, -1, step] = state["step"]
         previous = feats[:, -1].copy()  # the newest frame's features with the step the particle takes
         if self.height_offsets:
-            state = {**state, "height_offset": drift_height_offset(state["height_offset"], self.height_drift, rng)}
+            state = {**state, "height_offset": gaussian_drift(state["height_offset"], self.height_drift, rng)}
         to_model = self.height_to_model(model, state, len(feats))
         if to_model is not None:  # the history at the heights the model was trained on
             shift_height(feats, to_model)
@@ -784,7 +783,7 @@ class CRBMPrior(MotionPrior):
             if self.mode == "gibbs":
                 v = model.crbm.gibbs(hist, self.gibbs_steps, generator)
         f_next = model.normaliser.inverse(v.cpu().double().numpy())
-        step_factor = state["log_pace"] if self.paced else drift_log_pace(state["log_pace"], self.pace_drift, rng)
+        step_factor = state["log_pace"] if self.paced else gaussian_drift(state["log_pace"], self.pace_drift, rng)
         scale_ground_steps(f_next, np.exp(step_factor))  # the predicted step at the particle's pace
         if to_model is not None:  # and the prediction at the person's
             shift_height(f_next, -to_model)
@@ -824,7 +823,7 @@ class CRBMPrior(MotionPrior):
         """Each particle's log pace ``(P,)`` one frame on: a random-walk step of ``pace_drift``, with probability
         ``pace_jump`` a fresh draw from the training frames' paces (Gaussian, ``model.pace_label``), never below
         standing still (:data:`~tracker.core.representation.STANDING_LOG_PACE`)."""
-        pace = np.array(drift_log_pace(pace, self.pace_drift, rng), float)
+        pace = np.array(gaussian_drift(pace, self.pace_drift, rng), float)
         if self.pace_jump > 0:
             jump = rng.random(len(pace)) < self.pace_jump
             mean, std = model.pace_label

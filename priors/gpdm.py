@@ -51,7 +51,7 @@ import torch
 from priors.common import (
     ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS, check_model_fits, check_weights, checked_data_settings,
     mix_in_random_walk, normaliser_from_tensors, normaliser_to_tensors, read_model_file, robust_share,
-    scale_ground_steps, start_log_pace, steps_taken, torch_save_atomic, checked_time_warp, time_warp_note,
+    scale_ground_steps, gaussian_start, steps_taken, torch_save_atomic, checked_time_warp, time_warp_note,
 )
 from tracker.core.errors import InputError
 from tracker.core.representation import (
@@ -942,7 +942,7 @@ class GPDMPrior(MotionPrior):
         history = torch.cat([latent[-1 - k] for k in range(o)]).numpy()  # newest first
         return {"latent": np.repeat(history[None], n_particles, axis=0),
                 "step": np.repeat(pending_step(known)[None], n_particles, axis=0),
-                "log_pace": start_log_pace(n_particles, self.pace_spread, rng),
+                "log_pace": gaussian_start(n_particles, self.pace_spread, rng),
                 "walked": np.zeros(n_particles, bool)}
 
     def draw(self, n_particles: int, rng: np.random.Generator) -> dict[str, np.ndarray]:

@@ -41,6 +41,20 @@ def test_exp_maps_match_the_cpu_rotations_also_near_zero(device, rng):
 
 
 @pytest.mark.parametrize("device", DEVICES)
+def test_small_matmul_is_the_matrix_product_for_every_shape_the_kinematics_uses(device, rng):
+    from tracker.core.torch_kinematics import small_matmul
+
+    def t(*shape):
+        return torch.as_tensor(rng.normal(size=shape), device=device)
+
+    for a, b in ((t(7, 4, 3, 3), t(7, 4, 3, 3)), (t(4, 3, 3), t(7, 4, 3, 3)), (t(7, 4, 3, 3), t(4, 3, 1)),
+                 (t(7, 15, 3, 3), t(15, 3, 3))):
+        np.testing.assert_allclose(small_matmul(a, b).cpu().numpy(), (a @ b).cpu().numpy(), atol=1e-12)
+    with pytest.raises(ValueError, match="do not multiply"):
+        small_matmul(t(2, 3, 3), t(2, 2, 3))
+
+
+@pytest.mark.parametrize("device", DEVICES)
 def test_torch_kinematics_equal_the_compiled_kinematics(device, rng, bodytrack_dir):
     from data_tools.bodytrack import bodytrack_model
 

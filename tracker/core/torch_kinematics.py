@@ -40,6 +40,8 @@ def small_matmul(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     """``a @ b`` for stacks of small matrices ``(..., n, k) @ (..., k, m)`` (broadcast batch dimensions), as
     ``k`` broadcast multiply-adds. A GPU's batched matrix product is made for large matrices: on an H100 it
     took half the likelihood's device time on these 3 x 3 products (``docs/tracking.md``, "GPU path")."""
+    if a.shape[-1] != b.shape[-2] or a.dtype != b.dtype:
+        raise ValueError(f"small_matmul: {tuple(a.shape)} {a.dtype} @ {tuple(b.shape)} {b.dtype} do not multiply")
     out = a[..., :, 0:1] * b[..., 0:1, :]
     for j in range(1, a.shape[-1]):
         out = out + a[..., :, j:j + 1] * b[..., j:j + 1, :]
