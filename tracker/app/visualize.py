@@ -236,32 +236,41 @@ def error_plot(path, curves: dict[str, tuple[np.ndarray, np.ndarray]], title: st
 def summary_plot(path, summary: dict, title: str, truth: list[tuple[int, int, str]] | None = None) -> None:
     """The prior's per-frame summary (``TrackingResult.prior_summary``: e.g. the posterior over style labels) as
     stacked areas over the tracked frames, with optional true segments ``(first, last, name)`` drawn as a bar
-    above; a summary of kind ``"quantity"`` (e.g. the paced CRBM's posterior mean pace) is drawn as lines, its
-    names on the vertical axis. PNG via matplotlib (a bare Figure, as :func:`error_plot`)."""
+    above; a summary of kind ``"quantity"`` (e.g. the paced CRBM's posterior mean pace, a height offset) is drawn as
+    one line per quantity, each in its own panel with its own scale (a signed quantity may go below 0). PNG via
+    matplotlib (a bare Figure, as :func:`error_plot`)."""
     from matplotlib.figure import Figure
 
     from data_tools.files import atomic_path
 
     rows = np.asarray(summary["per_frame"], float)
     frames = summary["first_frame"] + np.arange(len(rows))
-    fig = Figure(figsize=(7, 3), dpi=120)
-    ax = fig.subplots()
     colours = [f"C{i}" for i in range(len(summary["names"]))]
     if summary.get("kind", "posterior") == "quantity":
-        for k, name in enumerate(summary["names"]):
-            ax.plot(frames, rows[:, k], color=colours[k], label=name)
-        ax.set_ylabel(", ".join(summary["names"]))
-        ax.set_ylim(0, max(1.0, 1.1 * float(np.nanmax(rows))) if rows.size else 1.0)
+        n = len(summary["names"])
+        fig = Figure(figsize=(7, 1.2 + 1.8 * n), dpi=120)
+        axes = np.atleast_1d(fig.subplots(n, 1, sharex=True))
+        for k, (ax, name) in enumerate(zip(axes, summary["names"])):
+            values = rows[:, k] if rows.size else np.zeros(0)
+            ax.plot(frames, values, color=colours[k], label=name)
+            ax.set_ylabel(name, fontsize=8)
+            finite = values[np.isfinite(values)]
+            if finite.size == 0 or finite.min() >= 0:  # a speed: from standing still
+                ax.set_ylim(0, max(1.0, 1.1 * float(finite.max())) if finite.size else 1.0)
+        axes[0].set_title(title)
+        ax = axes[-1]
     else:
+        fig = Figure(figsize=(7, 3), dpi=120)
+        ax = fig.subplots()
         ax.stackplot(frames, rows.T, labels=summary["names"], colors=colours, alpha=0.8, step="mid")
         for first, last, name in truth or []:
             k = summary["names"].index(name) if name in summary["names"] else 0
             ax.plot([first, last], [1.04, 1.04], color=colours[k], lw=6, solid_capstyle="butt")
         ax.set_ylabel("posterior")
         ax.set_ylim(0, 1.08)
+        ax.set_title(title)
+        ax.legend(loc="lower left", fontsize=8)
     ax.set_xlabel("frame")
-    ax.set_title(title)
-    ax.legend(loc="lower left", fontsize=8)
     fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp)
