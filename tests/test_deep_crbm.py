@@ -68,6 +68,23 @@ def test_the_prior_grows_its_history_through_the_first_layer(deep, walks):
         prior.start(walks[0][:1], 30, rng)
 
 
+def test_the_deep_prior_carries_height_offsets_through_both_layers(deep, walks):
+    """A particle whose history and offset are both 60 mm higher samples, through both layers, the same pose 60 mm
+    higher (the first layer sees the same heights)."""
+    prior = DeepCRBMPrior(deep, gibbs_steps=5, height_spread=40.0)
+    assert prior.summary_names == ("height offset (mm)",)
+    out = []
+    for lift in (0.0, 60.0):
+        rng = np.random.default_rng(2)
+        state = prior.start(walks[0][:4], 20, rng)
+        state["height_offset"] = np.full(20, lift)
+        hist = np.repeat(walks[0][None, :4], 20, axis=0)
+        hist[..., 2] += lift
+        out.append(prior.sample(hist, 4, state, rng)[0])
+    assert np.allclose(out[1][:, 2] - out[0][:, 2], 60.0, atol=1e-6)
+    assert np.allclose(np.delete(out[1], 2, axis=1), np.delete(out[0], 2, axis=1), atol=1e-6)
+
+
 def test_model_file_round_trip_and_broken_files(deep, walks, tmp_path):
     deep.save(tmp_path / "d.pt")
     loaded = load_deep_crbm(tmp_path / "d.pt")
