@@ -30,19 +30,45 @@ def save_checkpoint(path: str | Path, state: FilterState, recording: Recording, 
     }
     ps = state.prior_state
     kind = "none" if ps is None else ("dict" if isinstance(ps, dict) else "array")
-    if kind == "array":
-        arrays["prior_state"] = np.asarray(ps)
-    elif kind == "dict":
-        for k, v in ps.items():
-            arrays[f"prior_state.{k}"] = np.asarray(v)
+    prior_arrays, nones = _flat_state(ps, "prior_state") if kind != "none" else ({}, [])
+    arrays.update(prior_arrays)
     for name, values in recording.values.items():
         arrays[f"record.{name}"] = np.array(values)
     meta = {"format": FORMAT, "available": state.available, "tracked": state.tracked, "prior_state": kind,
-            "records": list(recording.values), "rng": rng_state, "fingerprint": fingerprint,
-            "extra": extra or {}}
+            "prior_state_none": nones, "records": list(recording.values), "rng": rng_state,
+            "fingerprint": fingerprint, "extra": extra or {}}
     arrays["meta"] = np.array(json.dumps(meta, default=_jsonable))
     with atomic_path(path) as tmp:
         np.savez(tmp, **arrays)
+
+
+def _flat_state(state: Any, name: str) -> tuple[dict[str, np.ndarray], list[str]]:
+    """A prior's per-particle state as named arrays: an array under ``name``, a dict's entries under
+    ``name.key``, nested dicts (an ensemble's members' states) one level further each; also the names of its
+    None entries, which have no array."""
+    if state is None:
+        return {}, [name]
+    if not isinstance(state, dict):
+        return {name: np.asarray(state)}, []
+    arrays: dict[str, np.ndarray] = {}
+    nones: list[str] = []
+    for key, value in state.items():
+        a, n = _flat_state(value, f"{name}.{key}")
+        arrays.update(a)
+        nones += n
+    return arrays, nones
+
+
+def _nested_state(arrays: dict, nones: list[str], name: str) -> dict:
+    """The dict state that :func:`_flat_state` wrote under ``name``."""
+    out: dict = {}
+    for path in [k for k in arrays if k.startswith(name + ".")] + [k for k in nones if k.startswith(name + ".")]:
+        *parents, leaf = path[len(name) + 1:].split(".")
+        node = out
+        for p in parents:
+            node = node.setdefault(p, {})
+        node[leaf] = arrays.get(path)
+    return out
 
 
 def _jsonable(x: Any) -> Any:
@@ -76,7 +102,7 @@ def load_checkpoint(path: str | Path, fingerprint: dict, recording: Recording,
     elif kind == "array":
         prior_state = arrays["prior_state"]
     else:
-        prior_state = {k[len("prior_state."):]: v for k, v in arrays.items() if k.startswith("prior_state.")}
+        prior_state = _nested_state(arrays, meta.get("prior_state_none", []), "prior_state")
     stages = [f"record.{k}_seconds" for k in STAGES]
     if "record.wall_seconds" not in arrays and all(k in arrays for k in stages):
         # written before frames recorded their wall time, when a frame's stages did not overlap
