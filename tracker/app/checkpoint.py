@@ -30,7 +30,7 @@ def save_checkpoint(path: str | Path, state: FilterState, recording: Recording, 
     }
     ps = state.prior_state
     kind = "none" if ps is None else ("dict" if isinstance(ps, dict) else "array")
-    prior_arrays, nones = _flat_state(ps, "prior_state") if kind != "none" else ({}, [])
+    prior_arrays, nones = _flat_state(ps, "prior_state")
     arrays.update(prior_arrays)
     for name, values in recording.values.items():
         arrays[f"record.{name}"] = np.array(values)
