@@ -100,9 +100,11 @@ INPUT_SETTINGS = {"pace_input": "pace input", "standing_height": "height referen
 
 
 def bernoulli(p: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
-    """Binary samples with probabilities ``p`` (``torch.rand < p``: several times faster than
-    ``torch.bernoulli`` with an explicit generator on CPU)."""
-    return (torch.rand(p.shape, generator=generator, device=p.device, dtype=p.dtype) < p).to(p.dtype)
+    """Binary samples (0 or 1 in ``p``'s dtype) with probabilities ``p``: uniforms compared with ``p``, the result
+    written over the uniforms (several times faster than ``torch.bernoulli`` with an explicit generator on CPU,
+    and than converting a boolean comparison)."""
+    u = torch.rand(p.shape, generator=generator, device=p.device, dtype=p.dtype)
+    return torch.lt(u, p, out=u)
 
 
 class CRBM:

@@ -232,8 +232,7 @@ class FCRBM:
         a_hat, b_hat = self.biases(history, s)
         v = history[:, -self.n_visible:] if init is None else init
         B, H = len(v), self.n_hidden
-        styles, inverse = torch.unique(y, dim=0, return_inverse=True)
-        order = torch.argsort(inverse, stable=True)
+        styles, inverse, order = group_rows(y)
         if grouped is None:
             grouped = len(styles) <= GROUPED_STYLES_MAX
         if not grouped:
@@ -241,27 +240,45 @@ class FCRBM:
             rank[order] = torch.arange(B, device=order.device)
             for step in range(steps):
                 p = self.hidden_probabilities(v, s, b_hat)
-                h = p if step == steps - 1 else \
-                    (torch.rand((B, H), generator=generator, device=v.device, dtype=v.dtype)[rank] < p).to(v.dtype)
+                h = p if step == steps - 1 else torch.lt(
+                    torch.rand((B, H), generator=generator, device=v.device, dtype=v.dtype)[rank], p, out=p)
                 v = self.visible_means(h, s, a_hat)
             return v
         weights = torch.einsum("kf,sf,hf->skh", self.Wv, self.style_factors(styles), self.Wh)  # S x K x H
         bounds = [0] + torch.cumsum(torch.bincount(inverse, minlength=len(styles)), 0).tolist()
-        groups = [(slice(bounds[i], bounds[i + 1]), weights[i]) for i in range(len(styles))
-                  if bounds[i + 1] > bounds[i]]
+        groups = [(slice(bounds[i], bounds[i + 1]), weights[i]) for i in range(len(styles))]
         a_hat, b_hat, v = a_hat[order], b_hat[order], v[order]
         h = torch.empty((B, H), device=v.device, dtype=v.dtype)
         for step in range(steps):
             u = None if step == steps - 1 else torch.rand((B, H), generator=generator, device=v.device, dtype=v.dtype)
-            for rows, W in groups:
-                p = torch.sigmoid(torch.addmm(b_hat[rows], v[rows], W))
-                h[rows] = p if u is None else (u[rows] < p).to(v.dtype)
+            for rows, W in groups:  # h[rows], v[rows]: views of contiguous row blocks, written in place
+                torch.addmm(b_hat[rows], v[rows], W, out=h[rows]).sigmoid_()
+                if u is not None:
+                    torch.lt(u[rows], h[rows], out=h[rows])
             v = torch.empty_like(v)
             for rows, W in groups:
-                v[rows] = torch.addmm(a_hat[rows], h[rows], W.T)
+                torch.addmm(a_hat[rows], h[rows], W.T, out=v[rows])
         out = torch.empty_like(v)
         out[order] = v
         return out
+
+
+def group_rows(y: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The distinct rows of ``y`` ``B x P`` in lexicographic order ``S x P`` (as ``torch.unique(y, dim=0)``), each
+    row's index among them ``(B,)``, and the stable permutation ``(B,)`` that sorts the rows by it.
+
+    Successive stable sorts of the columns, last column first: a few 1-D sorts instead of ``torch.unique``'s
+    row-by-row comparisons (about ten times faster for 1000 rows on CPU).
+    """
+    order = torch.arange(len(y), device=y.device)
+    for column in reversed(range(y.shape[1])):
+        order = order[torch.argsort(y[order, column], stable=True)]
+    ordered = y[order]
+    first = torch.ones(len(y), dtype=torch.bool, device=y.device)
+    first[1:] = (ordered[1:] != ordered[:-1]).any(1)
+    inverse = torch.empty_like(order)
+    inverse[order] = torch.cumsum(first, 0) - 1
+    return ordered[first], inverse, order
 
 
 # ---------------------------------------------------------------------------

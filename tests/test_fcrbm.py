@@ -9,7 +9,8 @@ import pytest
 import torch
 
 from priors.fcrbm import (
-    FCRBM, FCRBMConfig, FCRBMPrior, generate, load_fcrbm, parse_labels, train_fcrbm, transition_styles,
+    FCRBM, FCRBMConfig, FCRBMPrior, generate, group_rows, load_fcrbm, parse_labels, train_fcrbm,
+    transition_styles,
 )
 from tracker.core.body import DOF_NAMES
 from tracker.core.errors import InputError
@@ -88,6 +89,17 @@ def test_grouped_sampling_equals_factored_and_batched_equals_looped():
     batched = net.gibbs(hist, y, 1, None)  # one step is the mean-field prediction: no random draw
     looped = torch.cat([net.gibbs(hist[i:i + 1], y[i:i + 1], 1, None) for i in range(12)])
     assert torch.allclose(batched, looped, atol=1e-12)
+
+
+def test_style_rows_are_grouped_as_torch_unique_groups_them():
+    g = torch.Generator().manual_seed(4)
+    for y in (torch.eye(3)[torch.randint(0, 3, (200,), generator=g)],
+              torch.randint(0, 3, (300, 4), generator=g).float() / 2,  # ties in the first columns, not the last
+              torch.tensor([[0.5, 0.5]]), torch.rand(50, 3, generator=g)):
+        styles, inverse, order = group_rows(y)
+        expected_styles, expected_inverse = torch.unique(y, dim=0, return_inverse=True)
+        assert torch.equal(styles, expected_styles) and torch.equal(inverse, expected_inverse)
+        assert torch.equal(order, torch.argsort(expected_inverse, stable=True))
 
 
 def test_training_is_deterministic_per_seed_and_lowers_the_error(clips):
