@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from priors.crbm import CRBM, CRBMConfig, CRBMPrior, load_crbm, make_windows, train_crbm
+from priors.crbm import CRBM, CRBMConfig, CRBMPrior, bernoulli, load_crbm, make_windows, train_crbm
 
 CRBM_PARAMS = CRBM.PARAMS
 from tracker.core.body import DOF_NAMES
@@ -29,6 +29,16 @@ def walks(mocap_dir):
 def crbm3(walks):
     return train_crbm(walks, CRBMConfig(order=3, hidden=100, epochs=150), 60.0, DOF_NAMES,
                       rng=np.random.default_rng(1))
+
+
+def test_binary_samples_are_uniforms_below_the_probabilities():
+    """The sampler's contract, which every seeded CRBM/FCRBM result depends on: one uniform per unit from the
+    generator, 1 where it is below ``p``; float 0/1 in ``p``'s dtype."""
+    for dtype in (torch.float32, torch.float64):
+        p = torch.rand(40, 7, generator=torch.Generator().manual_seed(1), dtype=dtype)
+        h = bernoulli(p, torch.Generator().manual_seed(2))
+        expected = (torch.rand(p.shape, generator=torch.Generator().manual_seed(2), dtype=dtype) < p).to(dtype)
+        assert h.dtype == dtype and torch.equal(h, expected) and 0 < h.sum() < h.numel()
 
 
 def test_windows_are_indexed_not_copied(walks):

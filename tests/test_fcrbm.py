@@ -94,7 +94,7 @@ def test_grouped_sampling_equals_factored_and_batched_equals_looped():
 def test_style_rows_are_grouped_as_torch_unique_groups_them():
     g = torch.Generator().manual_seed(4)
     for y in (torch.eye(3)[torch.randint(0, 3, (200,), generator=g)],
-              torch.randint(0, 3, (300, 4), generator=g).float() / 2,  # ties in the first columns, not the last
+              torch.randint(0, 3, (300, 4), generator=g).float() / 2,  # rows equal in leading columns, not later ones
               torch.tensor([[0.5, 0.5]]), torch.rand(50, 3, generator=g)):
         styles, inverse, order = group_rows(y)
         expected_styles, expected_inverse = torch.unique(y, dim=0, return_inverse=True)
