@@ -141,6 +141,21 @@ def test_a_mixture_prior_with_annealing_layers_is_refused_before_any_run(tmp_pat
     assert not any((tmp_path / "out" / "runs").iterdir())
 
 
+def test_unset_annealing_layers_are_tracks_default_one_value_for_every_prior(tmp_path):
+    def layers(out):
+        return {json.loads((d / "result.json").read_text())["annealing_layers"] for d in (out / "runs").iterdir()}
+
+    path = write_experiment(tmp_path, priors=("zero-velocity",), seeds=1, tracking="particles = 30\nframes = 4")
+    compare(path, tmp_path / "a", say=lambda s: None, progress=False)
+    assert layers(tmp_path / "a") == {3}
+    clips = f'["{CLIP}", "{SAMPLE / "07_02.amc"}"]'
+    path.write_text(path.read_text() + f'\n[[prior]]\nname = "fcrbm"\n'
+                    f'train = [{{ mocap = {clips}, options = {{ order = 1, labels = "walk,run", epochs = 2, '
+                    'hidden = 10, factors = 5, features = 3 } }]\n')
+    compare(path, tmp_path / "b", say=lambda s: None, progress=False)  # the FCRBM infers the style: a mixture
+    assert layers(tmp_path / "b") == {1}
+
+
 def test_a_train_seeds_group_is_no_baseline_but_its_rows_are(tmp_path):
     path = write_experiment(tmp_path, priors=())
     entry = f'\n[[prior]]\nlabel = "C"\nname = "crbm"\ntrain_seeds = [0, 1]\ntrain = [{{ mocap = ["{CLIP}"] }}]\n'

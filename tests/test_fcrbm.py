@@ -268,6 +268,22 @@ def test_train_and_track_through_the_api(s2, walk_32_frames, tmp_path):
         tracker.train("fcrbm", files, epochs=1)
 
 
+def test_mixture_inference_tracks_with_one_layer_by_default_and_refuses_more(s2, walk_32_frames, tmp_path):
+    import tracker
+
+    files = [s2 / "02_01.amc", s2 / "02_03.amc"]
+    tracker.train("fcrbm", files, labels="walk,run", order=1, epochs=2, hidden=10, factors=5, features=3,
+                  rng=0).save(tmp_path / "f.pt")
+    models = [tmp_path / "f.pt"]
+    res = tracker.track(walk_32_frames, "fcrbm", models=models, particles=40, frames=4, seed=0)
+    assert res.settings["annealing_layers"] == 1 and len(res.prior_summary["per_frame"]) == 2
+    given = tracker.track(walk_32_frames, "fcrbm", models=models, particles=40, frames=4, seed=0,
+                          prior_options={"style": "walk"})
+    assert given.settings["annealing_layers"] == 3  # a given style is no mixture: annealed as every other prior
+    with pytest.raises(InputError, match="mixture tracking does not combine with annealing"):
+        tracker.track(walk_32_frames, "fcrbm", models=models, particles=40, frames=4, seed=0, annealing_layers=2)
+
+
 def test_train_and_track_through_the_cli(s2, walk_32_frames, tmp_path, capsys):
     from tracker.app.cli import main
 

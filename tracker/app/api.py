@@ -34,7 +34,7 @@ from tracker.app.tracking import (
 from tracker.core.arrays import torch_device
 from tracker.core.errors import InputError
 from tracker.core.representation import step_rms
-from tracker.engine.filter import FilterConfig
+from tracker.engine.filter import FilterConfig, default_annealing_layers
 from tracker.engine.likelihood import Likelihood
 from tracker.engine.prior import MotionPrior
 from tracker.engine.recording import DEFAULT_RECORD, FrameStep
@@ -232,8 +232,8 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
           models: Seq[str | Path] = (), prior_options: Mapping[str, Any] | None = None,
           likelihood: str | Likelihood = "edge-silhouette", likelihood_options: Mapping[str, Any] | None = None,
           particles: int = 1000, views: Iterable[int] | None = None, frames: int | None = None,
-          seed: SeedLike = 0, annealing_layers: int = 1, resampling: str = "systematic", known_frames: int = 2,
-          init: np.ndarray | None = None, train_mocap: Iterable[str | Path] | None = None,
+          seed: SeedLike = 0, annealing_layers: int | None = None, resampling: str = "systematic",
+          known_frames: int = 2, init: np.ndarray | None = None, train_mocap: Iterable[str | Path] | None = None,
           step_std: np.ndarray | None = None, device: str = "cpu",
           record: Iterable[str] | Mapping[str, Callable[[FrameStep], Any]] = DEFAULT_RECORD,
           on_frame: Callable[[FrameStep, float | None], None] | None = None,
@@ -243,8 +243,10 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     ``prior`` and ``likelihood`` are registered names (built from ``models`` and the option dicts) or ready
     objects. The filter tracks frames ``known_frames .. frames-1`` (default: to the end) from the ground truth's
     first poses (or ``init``, or a bodytrack ``InitialPose.txt``) with ``particles`` particles in ``views``
-    (default all), ``annealing_layers`` layers per frame. Random-walk priors take their scale from ``step_std``
-    or ``train_mocap`` (:func:`build_prior`). ``record`` chooses what is kept per frame
+    (default all), ``annealing_layers`` layers per frame (default 3, the setting that won on unseen people in
+    ``docs/unseen_people.md``; 1, plain SIR, for a prior that tracks a mixture, which annealing does not
+    combine with: :func:`~tracker.engine.filter.default_annealing_layers`). Random-walk priors take their scale
+    from ``step_std`` or ``train_mocap`` (:func:`build_prior`). ``record`` chooses what is kept per frame
     (:mod:`tracker.engine.recording`; add ``"particles"`` and ``"weights"`` to keep those); ``on_frame(step,
     error_mm)`` sees every frame as it is tracked. ``result.save(dir)`` writes ``result.json`` and
     ``estimates.npz`` exactly as ``python -m tracker track`` does.
@@ -257,7 +259,6 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     views = check_views(views, seq.n_views, seq.root)
     if isinstance(known_frames, bool) or not isinstance(known_frames, (int, np.integer)) or known_frames < 1:
         raise InputError(f"known_frames must be an integer of at least 1, got {known_frames!r}")
-    config = FilterConfig(n_particles=particles, resampling=resampling, annealing_layers=annealing_layers).check()
     if frames is not None and not 1 <= int(frames) <= seq.n_frames:
         raise InputError(f"frames {frames} is outside 1..{seq.n_frames} (the sequence's length)", seq.root)
     rng = make_rng(seed)
@@ -272,6 +273,8 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
         lik_obj = build_likelihood(likelihood, seq, views, device=device, **dict(likelihood_options or {}))
     else:
         lik_obj = likelihood
+    layers = default_annealing_layers(prior_obj) if annealing_layers is None else annealing_layers
+    config = FilterConfig(n_particles=particles, resampling=resampling, annealing_layers=layers).check()
     settings = {
         "prior": prior if isinstance(prior, str) else prior_obj.name,
         "particles": config.n_particles, "views": views, "seed": seed_description(seed),

@@ -172,8 +172,9 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--frames", type=_positive_int, default=None,
                    help="track frames 0..N-1 (default: the whole sequence)")
     t.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
-    t.add_argument("--annealing-layers", type=_layers, default=1,
-                   help="annealed layers per frame (default 1: plain SIR)")
+    t.add_argument("--annealing-layers", type=_layers, default=None,
+                   help="annealed layers per frame (default 3; 1, plain SIR, for a prior that tracks a mixture "
+                        "of style labels)")
     t.add_argument("--resampling", default="systematic", choices=list(SCHEMES),
                    help="resampling scheme (default systematic)")
     t.add_argument("--init", help="POSES.npz whose 'poses' are the known first frames (default: ground truth, or "

@@ -28,6 +28,7 @@ from tracker.app.experiment import (
     Experiment, RunSpec, config_hash, expand_runs, file_hash, load_experiment, run_seed,
 )
 from tracker.core.errors import InputError
+from tracker.engine.filter import default_annealing_layers
 
 BACKENDS = ("joblib", "dask", "ray")
 
@@ -120,11 +121,15 @@ def prepare_scales(exp: Experiment) -> dict[str, np.ndarray | None]:
 
 
 def check_grid(exp: Experiment, sequence_paths: dict[str, Path], models: dict[str, tuple[Path, ...]],
-               scales: dict[str, np.ndarray | None]) -> None:
+               scales: dict[str, np.ndarray | None]) -> Experiment:
     """Views in range, enough frames, and every prior (with its models) fits every sequence: one line naming
-    the experiment file and the entry otherwise."""
+    the experiment file and the entry otherwise. Returns the experiment with its annealing layers set: track's
+    default when the file leaves them unset (:func:`~tracker.engine.filter.default_annealing_layers`; one value
+    for every prior, so 1 if any tracks a mixture)."""
     from tracker.app.api import build_prior, load_sequence
 
+    layers = [a for a in exp.tracking["annealing_layers"] if a is not None]
+    defaults: dict[str, int] = {}
     for name, path in sequence_paths.items():
         seq = load_sequence(path)
         for vs in exp.tracking["views"]:
@@ -140,11 +145,13 @@ def check_grid(exp: Experiment, sequence_paths: dict[str, Path], models: dict[st
                 prior = build_prior(p.name, seq, models[p.label], step_std=scales[p.label], **p.options)
             except InputError as exc:
                 raise InputError(f"prior {p.label!r} on sequence {name!r}: {exc}", exp.path) from None
-            if max(exp.tracking["annealing_layers"]) > 1:  # the filter refuses a mixture with annealing layers
-                known = np.repeat(seq.model.rest_pose()[None], max(prior.order, 2), axis=0)
-                if prior.mixture(prior.start(known, 2, np.random.default_rng(0))) is not None:
-                    raise InputError(f"prior {p.label!r}: its mixture tracking does not combine with [tracking] "
-                                     "annealing_layers > 1", exp.path)
+            defaults[p.label] = default_annealing_layers(prior)
+            if prior.tracks_mixture and max(layers or [1]) > 1:  # the filter refuses a mixture with layers
+                raise InputError(f"prior {p.label!r}: its mixture tracking does not combine with [tracking] "
+                                 "annealing_layers > 1", exp.path)
+    if not layers:  # unset: track's default, the lowest of the priors' so that they all share one filter
+        layers = [min(defaults.values())]
+    return replace(exp, tracking={**exp.tracking, "annealing_layers": layers})
 
 
 # -- one run (executed in a worker) ---------------------------------------------------------------------------
@@ -303,7 +310,7 @@ def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str
     sequence_paths, sequence_hashes = prepare_sequences(exp, out, version, say)
     models = prepare_models(exp, out, version, say)
     scales = prepare_scales(exp)
-    check_grid(exp, sequence_paths, models, scales)
+    exp = check_grid(exp, sequence_paths, models, scales)
     specs = expand_runs(exp, sequence_paths, sequence_hashes, models, scales, runs_dir, version)
     per_worker = threads or share_of_cores(jobs if backend == "joblib" or not address else 1)
     specs = [replace(s, threads=per_worker) for s in specs]

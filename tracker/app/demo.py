@@ -9,6 +9,7 @@ import numpy as np
 
 from data_tools.samples import CMU_ATTRIBUTION, sample_walks
 from tracker.app.api import load_clip, synthesize, track, train
+from tracker.engine.filter import DEFAULT_ANNEALING_LAYERS
 
 
 def run_demo(out: Path, frames: int = 90) -> int:
@@ -26,7 +27,8 @@ def run_demo(out: Path, frames: int = 90) -> int:
     crbm = train("crbm", [clip], fps=60.0, rng=0, order=1, hidden=150, epochs=300)
     crbm.save(out / "crbm1.pt")
     print(f"   {crbm.summary()} -> {out / 'crbm1.pt'}")
-    print("3/4 Tracking with each prior, 1000 particles, 4 views, seed 0")
+    print(f"3/4 Tracking with each prior, 1000 particles, {DEFAULT_ANNEALING_LAYERS} annealing layers (the default), "
+          "4 views, seed 0")
     runs = {}
     for name, models in (("zero-velocity", ()), ("crbm", (out / "crbm1.pt",))):
         with tqdm(total=frames - 2, desc=name, unit="frame") as bar:
@@ -37,7 +39,8 @@ def run_demo(out: Path, frames: int = 90) -> int:
               f"{res['frames']} frames, {runs[name].seconds_per_frame:.3f} s per frame -> {out / f'track_{name}'}")
     print("4/4 Writing the error plot and the overlay video (CRBM estimates)")
     curves = {name: (np.arange(r.first_tracked, len(r.poses)), r.errors) for name, r in runs.items()}
-    error_plot(out / "error_per_frame.png", curves, f"Tracking CMU {test_walk.stem}, 4 views, 1000 particles")
+    error_plot(out / "error_per_frame.png", curves,
+               f"Tracking CMU {test_walk.stem}, 4 views, 1000 particles, {DEFAULT_ANNEALING_LAYERS} annealing layers")
     best = runs["crbm"]
     write_video(out / "overlay.mp4", overlay_frames(seq, best.poses, list(range(seq.n_views)), best.errors,
                                                     best.first_tracked, estimate_name="CRBM"), seq.fps)

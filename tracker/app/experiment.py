@@ -13,7 +13,7 @@ File layout (paths are relative to the experiment file; every key is checked, un
     [tracking]                               # grid axes; each a value or a list of values
     particles = 1000
     views = [[0, 1, 2, 3], [0]]              # view sets
-    annealing_layers = 1
+    annealing_layers = 3                     # default: track's (3; 1 if a prior tracks a mixture), one for all
     frames = 150                             # track frames 0..frames-1 (default: whole sequences)
 
     [[sequence]]                             # a sequence folder ...
@@ -262,8 +262,9 @@ def load_experiment(path: str | Path) -> Experiment:
     tracking = w.keys(doc.get("tracking", {}), TRACKING_KEYS, "[tracking]")
     grid = {
         "particles": [w.int_(p, "[tracking] particles", 1) for p in _as_list(tracking.get("particles", 1000))],
-        "annealing_layers": [w.int_(a, "[tracking] annealing_layers", 1)
-                             for a in _as_list(tracking.get("annealing_layers", 1))],
+        "annealing_layers": ([None] if "annealing_layers" not in tracking  # track's default, set by the runner
+                             else [w.int_(a, "[tracking] annealing_layers", 1)
+                                   for a in _as_list(tracking["annealing_layers"])]),
         "views": [],
         "frames": tracking.get("frames"),
         "known_frames": w.int_(tracking.get("known_frames", 2), "[tracking] known_frames", 1),

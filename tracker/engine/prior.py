@@ -78,6 +78,12 @@ class MotionPrior(ABC):
         """Per-particle state after resampling picked particles ``idx``."""
         return reindex_state(state, idx)
 
+    @property
+    def tracks_mixture(self) -> bool:
+        """Whether :meth:`mixture` splits the particles into components (then the filter does not anneal, and
+        :func:`tracker.engine.filter.default_annealing_layers` is 1). False by default."""
+        return False
+
     def mixture(self, state: PriorState) -> "Mixture | None":
         """The components the filter must keep apart (mixture tracking, :mod:`tracker.engine.mixture`) for the
         per-particle ``state``, or None (the default): plain SIR."""
