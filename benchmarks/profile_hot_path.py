@@ -106,7 +106,8 @@ def main() -> None:
         seq = tracker.load_sequence(folder)
         std = tracker.random_walk_scale(seq)  # (retargets the shipped walks: not part of a frame's work)
         profile(f"synthetic 15-cone, 1000 particles x 4 views, {seq.n_frames - 2} frames",
-                lambda: tracker.track(seq, "zero-velocity", particles=1000, seed=0, step_std=std), args.top)
+                lambda: tracker.track(seq, "zero-velocity", particles=1000, seed=0, step_std=std,
+                                      annealing_layers=1), args.top)
         stage_times(seq)
 
 

@@ -128,12 +128,12 @@ def test_records_chosen_by_the_caller(walk_32_frames):
 
 
 def test_track_anneals_with_three_layers_unless_told_otherwise(walk_32_frames):
-    from tracker.engine.filter import DEFAULT_ANNEALING_LAYERS
+    from tracker.app.api import TRACK_ANNEALING_LAYERS
 
     default = tracker.track(walk_32_frames, "zero-velocity", particles=50, frames=4, seed=3)
     three = tracker.track(walk_32_frames, "zero-velocity", particles=50, frames=4, seed=3, annealing_layers=3)
     one = tracker.track(walk_32_frames, "zero-velocity", particles=50, frames=4, seed=3, annealing_layers=1)
-    assert DEFAULT_ANNEALING_LAYERS == 3 and default.settings["annealing_layers"] == 3
+    assert TRACK_ANNEALING_LAYERS == 3 and default.settings["annealing_layers"] == 3
     assert np.array_equal(default.poses, three.poses) and not np.array_equal(default.poses, one.poses)
     assert one.settings["annealing_layers"] == 1
 

@@ -154,6 +154,9 @@ def test_unset_annealing_layers_are_tracks_default_one_value_for_every_prior(tmp
                     'hidden = 10, factors = 5, features = 3 } }]\n')
     compare(path, tmp_path / "b", say=lambda s: None, progress=False)  # the FCRBM infers the style: a mixture
     assert layers(tmp_path / "b") == {1}
+    path.write_text(path.read_text().replace("particles = 30", "particles = 30\nannealing_layers = []"))
+    with pytest.raises(InputError, match=r"annealing_layers: expected a value or a non-empty list"):
+        load_experiment(path)
 
 
 def test_a_train_seeds_group_is_no_baseline_but_its_rows_are(tmp_path):

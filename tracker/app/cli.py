@@ -564,8 +564,10 @@ def cmd_track(args: argparse.Namespace) -> int:
               f"around its last estimate", file=sys.stderr)
     err = "" if run.mean_error is None else (f", mean error {result['mean_error_mm']:.1f} "
                                              f"± {result['std_error_mm']:.1f} mm")
-    print(f"{result['frames']} frames tracked with {args.particles} particles, {len(views)} view(s), "
-          f"{args.prior}{err}, {run.seconds_per_frame:.3f} s per frame -> {out}")
+    layers = run.settings["annealing_layers"]
+    print(f"{result['frames']} frames tracked with {args.particles} particles"
+          f"{f' x {layers} annealing layers' if layers > 1 else ''}, {len(views)} view(s), {args.prior}{err}, "
+          f"{run.seconds_per_frame:.3f} s per frame -> {out}")
     if args.video:
         write_video(Path(args.video), overlay_frames(seq, run.poses, views, run.errors, run.first_tracked,
                                                      estimate_name=args.prior), seq.fps or 25.0)

@@ -28,7 +28,6 @@ from tracker.app.experiment import (
     Experiment, RunSpec, config_hash, expand_runs, file_hash, load_experiment, run_seed,
 )
 from tracker.core.errors import InputError
-from tracker.engine.filter import default_annealing_layers
 
 BACKENDS = ("joblib", "dask", "ray")
 
@@ -123,12 +122,13 @@ def prepare_scales(exp: Experiment) -> dict[str, np.ndarray | None]:
 def check_grid(exp: Experiment, sequence_paths: dict[str, Path], models: dict[str, tuple[Path, ...]],
                scales: dict[str, np.ndarray | None]) -> Experiment:
     """Views in range, enough frames, and every prior (with its models) fits every sequence: one line naming
-    the experiment file and the entry otherwise. Returns the experiment with its annealing layers set: track's
-    default when the file leaves them unset (:func:`~tracker.engine.filter.default_annealing_layers`; one value
-    for every prior, so 1 if any tracks a mixture)."""
-    from tracker.app.api import build_prior, load_sequence
+    the experiment file and the entry otherwise. Returns the experiment with its annealing layers set: when the
+    file leaves them unset, track's default (:func:`~tracker.app.api.default_annealing_layers`), one value for
+    every prior so that they share one filter: 1 if any tracks a mixture."""
+    from tracker.app.api import build_prior, default_annealing_layers, load_sequence
 
-    layers = [a for a in exp.tracking["annealing_layers"] if a is not None]
+    unset = exp.tracking["annealing_layers"] == [None]
+    layers = [] if unset else exp.tracking["annealing_layers"]
     defaults: dict[str, int] = {}
     for name, path in sequence_paths.items():
         seq = load_sequence(path)
@@ -149,7 +149,7 @@ def check_grid(exp: Experiment, sequence_paths: dict[str, Path], models: dict[st
             if prior.tracks_mixture and max(layers or [1]) > 1:  # the filter refuses a mixture with layers
                 raise InputError(f"prior {p.label!r}: its mixture tracking does not combine with [tracking] "
                                  "annealing_layers > 1", exp.path)
-    if not layers:  # unset: track's default, the lowest of the priors' so that they all share one filter
+    if unset:
         layers = [min(defaults.values())]
     return replace(exp, tracking={**exp.tracking, "annealing_layers": layers})
 

@@ -8,8 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from data_tools.samples import CMU_ATTRIBUTION, sample_walks
-from tracker.app.api import load_clip, synthesize, track, train
-from tracker.engine.filter import DEFAULT_ANNEALING_LAYERS
+from tracker.app.api import TRACK_ANNEALING_LAYERS, load_clip, synthesize, track, train
 
 
 def run_demo(out: Path, frames: int = 90) -> int:
@@ -27,7 +26,7 @@ def run_demo(out: Path, frames: int = 90) -> int:
     crbm = train("crbm", [clip], fps=60.0, rng=0, order=1, hidden=150, epochs=300)
     crbm.save(out / "crbm1.pt")
     print(f"   {crbm.summary()} -> {out / 'crbm1.pt'}")
-    print(f"3/4 Tracking with each prior, 1000 particles, {DEFAULT_ANNEALING_LAYERS} annealing layers (the default), "
+    print(f"3/4 Tracking with each prior, 1000 particles, {TRACK_ANNEALING_LAYERS} annealing layers (the default), "
           "4 views, seed 0")
     runs = {}
     for name, models in (("zero-velocity", ()), ("crbm", (out / "crbm1.pt",))):
@@ -40,7 +39,7 @@ def run_demo(out: Path, frames: int = 90) -> int:
     print("4/4 Writing the error plot and the overlay video (CRBM estimates)")
     curves = {name: (np.arange(r.first_tracked, len(r.poses)), r.errors) for name, r in runs.items()}
     error_plot(out / "error_per_frame.png", curves,
-               f"Tracking CMU {test_walk.stem}, 4 views, 1000 particles, {DEFAULT_ANNEALING_LAYERS} annealing layers")
+               f"Tracking CMU {test_walk.stem}, 4 views, 1000 particles, {TRACK_ANNEALING_LAYERS} annealing layers")
     best = runs["crbm"]
     write_video(out / "overlay.mp4", overlay_frames(seq, best.poses, list(range(seq.n_views)), best.errors,
                                                     best.first_tracked, estimate_name="CRBM"), seq.fps)

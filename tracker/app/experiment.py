@@ -270,6 +270,9 @@ def load_experiment(path: str | Path) -> Experiment:
         "known_frames": w.int_(tracking.get("known_frames", 2), "[tracking] known_frames", 1),
         "resampling": tracking.get("resampling", "systematic"),
     }
+    for axis in ("particles", "annealing_layers"):
+        if not grid[axis]:
+            raise w.error(f"[tracking] {axis}", "expected a value or a non-empty list, got []")
     views = tracking.get("views")
     if views is not None and not isinstance(views, list):
         raise w.error("[tracking] views", f"expected a list of camera indices or a list of such lists, got {views!r}")
@@ -440,6 +443,8 @@ def expand_runs(exp: Experiment, sequence_paths: dict[str, Path], sequence_hashe
                 model_paths: dict[str, tuple[Path, ...]], scales: dict[str, np.ndarray | None], out: Path,
                 version: str) -> list[RunSpec]:
     """Every run of the grid, each with its content hash as key."""
+    if None in exp.tracking["annealing_layers"]:
+        raise ValueError("annealing layers unset: resolve them with tracker.app.compare.check_grid first")
     runs = []
     model_hashes = {label: [file_hash(m) for m in paths] for label, paths in model_paths.items()}
     for seq, prior, lik, views, particles, layers in itertools.product(

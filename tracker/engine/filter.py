@@ -103,18 +103,6 @@ class FilterState:
     tracked: int = 0
 
 
-#: Annealing layers per frame that ``track`` (API, command line, experiments) uses when none are asked for:
-#: 3 won rounds 17 and 17b of ``docs/unseen_people.md`` for the zero-velocity baseline and the paced CRBM on
-#: people the priors were not trained on (the engine's own :class:`FilterConfig` default stays plain SIR).
-DEFAULT_ANNEALING_LAYERS = 3
-
-
-def default_annealing_layers(prior: MotionPrior) -> int:
-    """The layers ``track`` uses for ``prior`` when none are asked for: :data:`DEFAULT_ANNEALING_LAYERS`, or 1
-    for a prior that tracks a mixture (its components are resampled apart, which annealing does not do)."""
-    return 1 if prior.tracks_mixture else DEFAULT_ANNEALING_LAYERS
-
-
 def choose_beta(log_lik: np.ndarray, survival_rate: float, iterations: int = 40) -> float:
     """The exponent ``beta`` with ``ESS(exp(beta * log_lik)) ~= survival_rate * P`` (bisection on log beta)."""
     finite = np.isfinite(log_lik)
