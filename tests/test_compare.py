@@ -129,18 +129,6 @@ def test_numbers_do_not_depend_on_workers_and_finished_runs_are_skipped(tmp_path
     assert "zv-scaled" in rows and rows.count("mean_error_mm") == 3
 
 
-def test_a_mixture_prior_with_annealing_layers_is_refused_before_any_run(tmp_path):
-    path = write_experiment(tmp_path, priors=("zero-velocity",), tracking="particles = 40\nframes = 5\n"
-                                                                          "annealing_layers = [1, 2]")
-    clips = f'["{CLIP}", "{SAMPLE / "07_02.amc"}"]'
-    path.write_text(path.read_text() + f'\n[[prior]]\nname = "fcrbm"\noptions = {{ style_inference = "mixture" }}\n'
-                    f'train = [{{ mocap = {clips}, options = {{ order = 1, labels = "walk,run", epochs = 2, '
-                    'hidden = 10, factors = 5, features = 3 } }]\n')
-    with pytest.raises(InputError, match="mixture tracking does not combine with .tracking. annealing_layers"):
-        compare(path, tmp_path / "out", say=lambda s: None, progress=False)
-    assert not any((tmp_path / "out" / "runs").iterdir())
-
-
 def test_unset_annealing_layers_are_tracks_default_one_value_for_every_prior(tmp_path):
     def layers(out):
         return {json.loads((d / "result.json").read_text())["annealing_layers"] for d in (out / "runs").iterdir()}

@@ -268,7 +268,7 @@ def test_train_and_track_through_the_api(s2, walk_32_frames, tmp_path):
         tracker.train("fcrbm", files, epochs=1)
 
 
-def test_mixture_inference_tracks_with_one_layer_by_default_and_refuses_more(s2, walk_32_frames, tmp_path):
+def test_mixture_inference_tracks_with_one_layer_by_default_and_anneals_when_asked(s2, walk_32_frames, tmp_path):
     import tracker
 
     files = [s2 / "02_01.amc", s2 / "02_03.amc"]
@@ -280,8 +280,10 @@ def test_mixture_inference_tracks_with_one_layer_by_default_and_refuses_more(s2,
     given = tracker.track(walk_32_frames, "fcrbm", models=models, particles=40, frames=4, seed=0,
                           prior_options={"style": "walk"})
     assert given.settings["annealing_layers"] == 3  # a given style is no mixture: annealed as every other prior
-    with pytest.raises(InputError, match="mixture tracking does not combine with annealing"):
-        tracker.track(walk_32_frames, "fcrbm", models=models, particles=40, frames=4, seed=0, annealing_layers=2)
+    annealed = tracker.track(walk_32_frames, "fcrbm", models=models, particles=40, frames=4, seed=0,
+                             annealing_layers=2, record=("mean_poses", "prior_summary", "particles"))
+    assert annealed.settings["annealing_layers"] == 2 and not np.array_equal(annealed.poses, res.poses)
+    assert np.allclose(np.array(annealed.prior_summary["per_frame"]).sum(1), 1, atol=1e-3)
 
 
 def test_train_and_track_through_the_cli(s2, walk_32_frames, tmp_path, capsys):

@@ -100,10 +100,6 @@ def test_the_mixture_is_checked():
         Mixture(np.arange(4) % 2, np.array([[0.5, 0.4], [0.0, 1.0]])).check(4)
     with pytest.raises(InputError, match="one component in 0..C-1 per particle"):
         Mixture(np.arange(3) % 2, switching(2, 0.1)).check(4)
-    pf = ParticleFilter(ModePrior(), Around([0.0]), FilterConfig(n_particles=10, annealing_layers=3),
-                        np.random.default_rng(0))
-    with pytest.raises(InputError, match="does not combine with annealing"):
-        pf.start(np.zeros((1, 1)))
 
 
 def test_a_prior_that_overrides_mixture_tracks_one_and_track_defaults_it_to_one_layer():
@@ -132,6 +128,66 @@ def test_the_filter_follows_a_change_of_mode_and_keeps_both_components():
     again = ParticleFilter(ModePrior(switch=0.05), Around(truth), FilterConfig(n_particles=200),
                            np.random.default_rng(3)).run(np.zeros((1, 1)), [Frame(k, ()) for k in range(len(truth))])
     assert np.allclose(again["mean_poses"][:, 0], estimates)  # run() and step() agree, deterministic per seed
+
+
+def test_annealed_components_keep_their_particles_and_still_follow_the_change():
+    truth = np.concatenate([np.arange(1, 21), 20 - np.arange(1, 21)]).astype(float)
+    pf = ParticleFilter(ModePrior(switch=0.05), Around(truth), FilterConfig(n_particles=200, annealing_layers=3),
+                        np.random.default_rng(3))
+    state = pf.start(np.zeros((1, 1)))
+    posterior, errors = [], []
+    for k in range(len(truth)):
+        state, step = pf.step(state, Frame(k, ()))
+        assert np.array_equal(state.prior_state["mode"], np.arange(200) % 2)  # each position keeps its component
+        posterior.append(step.prior_summary[0])
+        errors.append(abs(step.mean[0] - truth[k]))
+    posterior = np.array(posterior)
+    assert np.all(posterior[3:20] > 0.9) and np.all(posterior[24:] < 0.1)
+    assert max(errors) < 1.5
+
+
+def test_annealing_redraws_each_component_from_its_own_particles():
+    pf = ParticleFilter(ModePrior(), Around([0.0]), FilterConfig(n_particles=100, annealing_layers=4),
+                        np.random.default_rng(1))
+    state = pf.start(np.zeros((1, 1)))
+    mode = state.prior_state["mode"]
+    x = np.where(mode == 0, 0.0, 10.0)[:, None] + np.random.default_rng(2).random((100, 1))  # 1 far from the truth
+    frame_lik = pf.likelihood.prepare(Frame(0, ()))
+    out, _, st, weights = pf._anneal(x, state.history, state.prior_state, frame_lik(x), frame_lik,
+                                     pf._mixture(state.prior_state))
+    assert np.all(np.abs(out[mode == 1, 0] - 10.5) < 3) and np.all(np.abs(out[mode == 0, 0]) < 3)
+    assert np.array_equal(st["mode"], mode) and np.all(np.isfinite(weights.log_w))
+
+
+def test_annealed_components_are_weighed_on_the_priors_own_samples(monkeypatch):
+    import tracker.engine.filter as engine
+
+    class Exact(ModePrior):  # no noise: mode 0 steps to +1, mode 1 to -1
+        def sample(self, history, available, state, rng):
+            return history[:, -1] + np.where(state["mode"] == 0, 1.0, -1.0)[:, None], state
+
+    seen = []
+
+    def spy(carried, ll, mix, evidence=None):
+        seen.append(evidence)
+        return mixture_weights(carried, ll, mix, evidence)
+
+    monkeypatch.setattr(engine, "mixture_weights", spy)
+    pf = ParticleFilter(Exact(), Around([0.5]), FilterConfig(n_particles=10, annealing_layers=3),
+                        np.random.default_rng(0))
+    pf.step(pf.start(np.zeros((1, 1))), Frame(0, ()))
+    expected = -0.5 * ((np.where(np.arange(10) % 2 == 0, 1.0, -1.0) - 0.5) / 0.5) ** 2
+    assert seen[0] is not None and np.allclose(seen[0], expected)
+
+
+def test_the_components_are_weighed_on_the_evidence_and_particles_within_on_the_likelihood():
+    mix = Mixture(np.array([0, 0, 1, 1]), switching(2, 0.0))
+    carried = LogWeights(np.log(np.full(4, 0.25)))
+    ll = np.log(np.array([0.1, 0.3, 0.8, 0.8]))  # annealed: component 1 fits better now
+    evidence = np.log(np.array([0.5, 0.5, 0.1, 0.1]))  # the prior's own samples: component 0 predicted better
+    W = mixture_weights(carried, ll, mix, evidence)
+    assert np.allclose(W, [0.25 * 5 / 6, 0.75 * 5 / 6, 0.5 / 6, 0.5 / 6])
+    assert np.allclose(mixture_weights(carried, ll, mix), mixture_weights(carried, ll, mix, ll))
 
 
 def test_the_transition_is_read_from_row_to_column():

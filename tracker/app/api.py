@@ -238,7 +238,7 @@ TRACK_ANNEALING_LAYERS = 3
 
 def default_annealing_layers(prior: MotionPrior) -> int:
     """The layers :func:`track` uses for ``prior`` when none are asked for: :data:`TRACK_ANNEALING_LAYERS`, or 1
-    for a prior that tracks a mixture (its components are resampled apart, which the filter does not anneal)."""
+    for a prior that tracks a mixture (the FCRBM inferring a style: measured with one layer, ``docs/fcrbm.md``)."""
     return 1 if prior.tracks_mixture else TRACK_ANNEALING_LAYERS
 
 
@@ -258,8 +258,8 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     objects. The filter tracks frames ``known_frames .. frames-1`` (default: to the end) from the ground truth's
     first poses (or ``init``, or a bodytrack ``InitialPose.txt``) with ``particles`` particles in ``views``
     (default all), ``annealing_layers`` layers per frame (default 3, the setting that won on unseen people in
-    ``docs/unseen_people.md``; 1, plain SIR, for a prior that tracks a mixture, which annealing does not
-    combine with: :func:`default_annealing_layers`). Random-walk priors take their scale
+    ``docs/unseen_people.md``; 1, plain SIR, for a prior that tracks a mixture, as it was measured:
+    :func:`default_annealing_layers`). Random-walk priors take their scale
     from ``step_std`` or ``train_mocap`` (:func:`build_prior`). ``record`` chooses what is kept per frame
     (:mod:`tracker.engine.recording`; add ``"particles"`` and ``"weights"`` to keep those); ``on_frame(step,
     error_mm)`` sees every frame as it is tracked. ``result.save(dir)`` writes ``result.json`` and

@@ -146,9 +146,6 @@ def check_grid(exp: Experiment, sequence_paths: dict[str, Path], models: dict[st
             except InputError as exc:
                 raise InputError(f"prior {p.label!r} on sequence {name!r}: {exc}", exp.path) from None
             defaults[p.label] = default_annealing_layers(prior)
-            if prior.tracks_mixture and max(layers or [1]) > 1:  # the filter refuses a mixture with layers
-                raise InputError(f"prior {p.label!r}: its mixture tracking does not combine with [tracking] "
-                                 "annealing_layers > 1", exp.path)
     if unset:
         layers = [min(defaults.values())]
     return replace(exp, tracking={**exp.tracking, "annealing_layers": layers})

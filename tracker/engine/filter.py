@@ -21,6 +21,8 @@ and every frame ends with resampling.
 A prior may split the particles into components that resampling keeps apart (mixture tracking, for a
 discrete hypothesis such as the FCRBM's style label; :mod:`tracker.engine.mixture`): then the weights are
 normalised within components and times the components' weights, and every frame resamples each component.
+Annealing layers anneal each component on its own, and the components are weighed on the likelihood of the
+prior's own samples, before the layers moved them.
 
 If every weight is ``-inf`` (no particle explains the frame) the filter
 records the frame as recovered, re-diffuses the particles around the last
@@ -159,12 +161,7 @@ class ParticleFilter:
     def _mixture(self, prior_state: PriorState) -> Mixture | None:
         """The prior's components for ``prior_state`` (checked), or None for plain SIR."""
         mix = self.prior.mixture(prior_state)
-        if mix is None:
-            return None
-        if self.config.annealing_layers > 1:
-            raise InputError(f"the {self.prior.name} prior's mixture tracking does not combine with annealing "
-                             "layers: track with one layer")
-        return mix.check(self.config.n_particles)
+        return None if mix is None else mix.check(self.config.n_particles)
 
     def step(self, state: FilterState, frame: Frame, load_seconds: float = 0.0,
              prepared: FrameLikelihood | None = None) -> tuple[FilterState, FrameStep]:
@@ -178,11 +175,13 @@ class ParticleFilter:
         frame_lik = self.likelihood.prepare(frame) if prepared is None else prepared
         t1 = time.perf_counter()
         label = self.prior.label_for(state.available)
+        mix = self._mixture(state.prior_state)
         x, prior_state = self.prior.sample(state.history, state.available, state.prior_state, self.rng)
         history = state.history
-        ll = frame_lik(x)
+        ll = evidence = frame_lik(x)  # the components are judged on the prior's own samples, before annealing
         if cfg.annealing_layers > 1:
-            x, history, prior_state, weights = self._anneal(x, history, prior_state, ll, frame_lik)
+            x, history, prior_state, weights = self._anneal(x, history, prior_state, ll, frame_lik, mix)
+            ll = weights.log_w
         else:
             weights = state.weights.add(ll)
         recovered = not weights.any_finite
@@ -193,10 +192,9 @@ class ParticleFilter:
             mix = self._mixture(prior_state)
             if mix is not None:  # the components start afresh, each with an equal weight
                 carried_in, ll = mix.start_weights(), weights.log_w
-        else:
-            mix = self._mixture(state.prior_state)
+                evidence = ll
         if mix is not None:  # mixture tracking: weights within components, times the components' weights
-            W = mixture_weights(carried_in, ll, mix)
+            W = mixture_weights(carried_in, ll, mix, evidence)
             if not W.any():  # only the recovery's all-minus-infinity frame gets here: its particles, unweighted
                 W = np.full(len(W), 1.0 / len(W))
             weights = LogWeights(np.log(W, out=np.full(len(W), -np.inf), where=W > 0))
@@ -231,20 +229,35 @@ class ParticleFilter:
         return new_state, step
 
     def _anneal(self, x: np.ndarray, history: np.ndarray, prior_state: PriorState, ll: np.ndarray,
-                frame_lik: FrameLikelihood) -> tuple[np.ndarray, np.ndarray, PriorState, LogWeights]:
-        """Deutscher & Reid's layers: sharpen, resample, diffuse less each layer; the last layer's weights."""
+                frame_lik: FrameLikelihood, mix: Mixture | None = None
+                ) -> tuple[np.ndarray, np.ndarray, PriorState, LogWeights]:
+        """Deutscher & Reid's layers: sharpen, resample, diffuse less each layer; the last layer's weights.
+
+        With a mixture every component is annealed on its own (its exponents chosen on its particles, its
+        positions redrawn from its own particles), so the components keep their particles."""
         cfg = self.config
         diffusion = self.prior.diffusion_std()
+        groups = ([np.arange(len(ll))] if mix is None
+                  else [np.flatnonzero(mix.component == c) for c in range(mix.n_components)])
+
+        def tempered(ll: np.ndarray) -> np.ndarray:
+            out = np.full(len(ll), -np.inf)
+            for g in groups:
+                out[g] = choose_beta(ll[g], cfg.survival_rate) * ll[g]
+            return out
+
         for m in range(cfg.annealing_layers - 1):
             if not np.any(np.isfinite(ll)):
                 break
-            w = LogWeights(choose_beta(ll, cfg.survival_rate) * ll).normalised
-            idx = self.resample(w, self.rng)
+            log_w, idx = tempered(ll), np.arange(len(ll))
+            for g in groups:
+                if np.any(np.isfinite(log_w[g])):  # a component no particle of which fits stays as it is
+                    idx[g] = g[self.resample(LogWeights(log_w[g]).normalised, self.rng, len(g))]
             x, history, ll = x[idx], history[idx], ll[idx]
             prior_state = self.prior.reindex(prior_state, idx)
             x = x + self.rng.standard_normal(x.shape) * diffusion * cfg.layer_diffusion_decay ** (m + 1)
             ll = frame_lik(x)
-        return x, history, prior_state, LogWeights(choose_beta(ll, cfg.survival_rate) * ll)
+        return x, history, prior_state, LogWeights(tempered(ll))
 
     def _recover(self, state: FilterState, frame_lik: FrameLikelihood
                  ) -> tuple[np.ndarray, np.ndarray, LogWeights]:

@@ -24,6 +24,11 @@ particles at the positions where ``component == c`` with weights normalised with
 Arrays: ``component`` ``(P,)`` integers in ``0..C-1``, fixed per particle position; ``transition`` ``C x C``
 (row: from, column: to; rows sum to 1). Every mixture frame resamples (the filter's ESS threshold does not
 apply). With no switching (a zero off the diagonal) a component that lost all its weight stays lost.
+
+With annealing layers (:mod:`tracker.engine.filter`) each component is annealed on its own, so it keeps its
+particles; the weights within a component are its last layer's, and the components' evidence is the likelihood
+of the prior's own samples, before annealing moved them (annealing sharpens the pose within a hypothesis, and
+would otherwise flatter every hypothesis alike).
 """
 from __future__ import annotations
 
@@ -84,13 +89,20 @@ def _log_sum(a: np.ndarray) -> float:
     return float(top + np.log(np.sum(np.exp(a - top)))) if np.isfinite(top) else -np.inf
 
 
-def mixture_weights(carried: LogWeights, log_likelihood: np.ndarray, mix: Mixture) -> np.ndarray:
+def mixture_weights(carried: LogWeights, log_likelihood: np.ndarray, mix: Mixture,
+                    evidence: np.ndarray | None = None) -> np.ndarray:
     """The overall normalised weights ``(P,)``: within each component the carried weights times the likelihood,
-    normalised; times the component's posterior weight (its carried total times its tempered evidence).
-    All zero if no particle has a finite weight."""
+    normalised; times the component's posterior weight (its carried total times its tempered evidence, from
+    ``evidence`` ``(P,)`` if given: the log-likelihood of the prior's own samples when annealing layers have
+    moved the particles since). All zero if no particle has a finite weight."""
     log_w = carried.log_w
-    ll = np.asarray(log_likelihood, float)
-    ll = np.where(np.isnan(ll), -np.inf, ll)  # a broken likelihood value is a particle with no weight
+
+    def clean(values: np.ndarray) -> np.ndarray:  # a broken likelihood value is a particle with no weight
+        values = np.asarray(values, float)
+        return np.where(np.isnan(values), -np.inf, values)
+
+    ll = clean(log_likelihood)
+    ev = ll if evidence is None else clean(evidence)
     out = np.zeros(len(log_w))
     log_pi = np.full(mix.n_components, -np.inf)
     for c in range(mix.n_components):
@@ -102,7 +114,7 @@ def mixture_weights(carried: LogWeights, log_likelihood: np.ndarray, mix: Mixtur
         if not np.isfinite(total):
             continue
         out[m] = np.exp(within - total)
-        log_pi[c] = _log_sum(log_w[m] + ll[m] / mix.temperature)
+        log_pi[c] = _log_sum(log_w[m] + ev[m] / mix.temperature)
     if not np.any(np.isfinite(log_pi)):
         return np.zeros(len(log_w))
     pi = np.exp(log_pi - np.max(log_pi))

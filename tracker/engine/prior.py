@@ -80,9 +80,9 @@ class MotionPrior(ABC):
 
     @property
     def tracks_mixture(self) -> bool:
-        """Whether :meth:`mixture` splits the particles into components (then the filter does not anneal, and
-        ``track`` defaults to one layer: :func:`tracker.app.api.default_annealing_layers`). By default: whether
-        the prior's class overrides :meth:`mixture`; a prior whose mixture depends on its settings says so."""
+        """Whether :meth:`mixture` splits the particles into components (then ``track`` defaults to one layer:
+        :func:`tracker.app.api.default_annealing_layers`). By default: whether the prior's class overrides
+        :meth:`mixture`; a prior whose mixture depends on its settings says so."""
         return type(self).mixture is not MotionPrior.mixture
 
     def mixture(self, state: PriorState) -> "Mixture | None":
