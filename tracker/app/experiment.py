@@ -435,7 +435,7 @@ def row_label(prior: PriorSpec, likelihood: LikelihoodSpec, views, particles: in
     if len(exp.tracking["particles"]) > 1:
         parts.append(f"{particles} particles")
     if len(exp.tracking["annealing_layers"]) > 1:
-        parts.append(f"{layers} layers")
+        parts.append(f"{layers} layer{'s' if layers != 1 else ''}")
     return ", ".join(parts)
 
 
