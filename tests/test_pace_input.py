@@ -88,7 +88,7 @@ def test_each_particle_starts_at_the_known_pace_and_drifts(paced, walk_07_01):
     assert PACED_JUMP == 0 and np.std(moved) == pytest.approx(PACED_DRIFT, rel=0.05)  # no jumps by default
     weights = np.full(4000, 1 / 4000)
     assert prior.summarize(after, weights)[0] == pytest.approx(np.mean(np.exp(after["pace"]) - PACE_FLOOR_MM))
-    assert prior.summary_names == ("pace (mm/frame)",)
+    assert prior.summary_names == ("pace (mm/frame)", "height offset (mm)")  # both, by default since 0.8.0
 
 
 def test_a_paced_model_file_round_trips_and_samples_alike(paced, walk_07_01, tmp_path):
@@ -147,7 +147,8 @@ def test_train_and_track_a_paced_model_from_the_command_line(mocap_dir, walk_32_
     assert r.returncode == 0, r.stderr[-500:]
     result = json.loads((out / "result.json").read_text())
     summary = result["prior_summary"]
-    assert summary["names"] == ["pace (mm/frame)"] and len(summary["per_frame"]) == result["frames"]
+    assert summary["names"] == ["pace (mm/frame)", "height offset (mm)"]
+    assert len(summary["per_frame"]) == result["frames"]
     assert all(0 < row[0] < 100 for row in summary["per_frame"])  # a walker's ground speed, mm per frame
     assert (out / "prior_summary.png").stat().st_size > 0
 
@@ -215,11 +216,34 @@ def test_height_offsets_start_spread_drift_and_are_summarised(paced, walk_07_01)
     weights[:2] = 0.5
     summary = prior.summarize(new, weights)
     assert summary[1] == pytest.approx(np.mean(new["height_offset"][:2]))
-    plain = CRBMPrior([paced])
+    plain = CRBMPrior([paced], height_spread=0.0)
     assert "height_offset" not in plain.start(walk_07_01[:60], 10, rng) and len(plain.summary_names) == 1
     for bad in ({"height_spread": -1.0}, {"height_drift": float("nan")}):
         with pytest.raises(InputError, match="height"):
             CRBMPrior([paced], **bad)
+
+
+def test_a_paced_crbm_gives_each_particle_a_height_offset_by_default(paced, plain, walk_07_01):
+    from priors.crbm import PACED_HEIGHT_SPREAD
+    from tracker.app.api import prior_entry
+
+    assert PACED_HEIGHT_SPREAD == 50.0 and CRBMPrior([paced]).height_spread == PACED_HEIGHT_SPREAD
+    assert CRBMPrior([plain]).height_spread == 0.0 and CRBMPrior([paced], height_spread=0.0).height_spread == 0.0
+    option = {o.name: o for o in prior_entry("crbm").options}["height_spread"]
+    assert option.default is None and "50 for a CRBM trained with a pace input" in option.help
+    state = CRBMPrior([paced]).start(walk_07_01[:60], 4000, np.random.default_rng(8))
+    assert np.std(state["height_offset"]) == pytest.approx(PACED_HEIGHT_SPREAD, rel=0.05)
+
+
+def test_every_experiment_pins_the_height_offsets_of_its_crbms():
+    """A CRBM row made before a paced CRBM's height offsets became the default keeps measuring without them."""
+    import tomllib
+    from pathlib import Path
+
+    for f in sorted((Path(__file__).parents[1] / "benchmarks" / "experiments").rglob("*.toml")):
+        for prior in tomllib.loads(f.read_text()).get("prior", []):
+            if prior.get("name") == "crbm":
+                assert "height_spread" in prior.get("options", {}), (f.name, prior.get("label"))
 
 
 def test_height_offsets_selected_by_the_images_follow_a_shorter_person(paced, walk_07_01):
