@@ -665,15 +665,10 @@ class FCRBMPrior(CRBMPrior):
         frames, indices = self.schedule
         return indices[np.searchsorted(frames, clock, side="right") - 1]
 
-    @property
-    def tracks_mixture(self) -> bool:
-        """Mixture inference of an unknown style (no schedule given) among two labels or more."""
-        return self.schedule is None and self.style_inference == "mixture" and len(self.labels) >= 2
-
     def mixture(self, state: PriorState) -> Mixture | None:
         """With mixture inference of an unknown style: one component per label (the particles carrying it), the
         switching probability ``style_switch`` between them, the evidence tempered by ``style_temperature``."""
-        if not self.tracks_mixture:
+        if self.schedule is not None or self.style_inference != "mixture" or len(self.labels) < 2:
             return None
         return Mixture(np.asarray(state["style"]), switching(len(self.labels), self.style_switch),
                        self.style_temperature)

@@ -129,7 +129,7 @@ def test_numbers_do_not_depend_on_workers_and_finished_runs_are_skipped(tmp_path
     assert "zv-scaled" in rows and rows.count("mean_error_mm") == 3
 
 
-def test_unset_annealing_layers_are_tracks_default_one_value_for_every_prior(tmp_path):
+def test_unset_annealing_layers_are_tracks_default_for_every_prior(tmp_path):
     def layers(out):
         return {json.loads((d / "result.json").read_text())["annealing_layers"] for d in (out / "runs").iterdir()}
 
@@ -141,7 +141,7 @@ def test_unset_annealing_layers_are_tracks_default_one_value_for_every_prior(tmp
                     f'train = [{{ mocap = {clips}, options = {{ order = 1, labels = "walk,run", epochs = 2, '
                     'hidden = 10, factors = 5, features = 3 } }]\n')
     compare(path, tmp_path / "b", say=lambda s: None, progress=False)  # the FCRBM infers the style: a mixture
-    assert layers(tmp_path / "b") == {1}
+    assert layers(tmp_path / "b") == {3}
     path.write_text(path.read_text().replace("particles = 30", "particles = 30\nannealing_layers = []"))
     with pytest.raises(InputError, match=r"annealing_layers: expected a value or a non-empty list"):
         load_experiment(path)

@@ -102,15 +102,6 @@ def test_the_mixture_is_checked():
         Mixture(np.arange(3) % 2, switching(2, 0.1)).check(4)
 
 
-def test_a_prior_that_overrides_mixture_tracks_one_and_track_defaults_it_to_one_layer():
-    from priors.random_walk import ZeroVelocityPrior
-    from tracker.app.api import TRACK_ANNEALING_LAYERS, default_annealing_layers
-
-    walk = ZeroVelocityPrior(np.ones(1))
-    assert ModePrior().tracks_mixture and not walk.tracks_mixture
-    assert default_annealing_layers(ModePrior()) == 1 and default_annealing_layers(walk) == TRACK_ANNEALING_LAYERS
-
-
 def test_the_filter_follows_a_change_of_mode_and_keeps_both_components():
     truth = np.concatenate([np.arange(1, 21), 20 - np.arange(1, 21)]).astype(float)  # forward 20, back 20
     pf = ParticleFilter(ModePrior(switch=0.05), Around(truth), FilterConfig(n_particles=200),

@@ -17,7 +17,6 @@ global random state.
 """
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence as Seq
 
@@ -232,21 +231,16 @@ def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
 #: Annealing layers per frame that :func:`track` (and the command line, and experiment files that leave
 #: ``annealing_layers`` unset) uses when none are asked for: 3 won rounds 17 and 17b of
 #: ``docs/unseen_people.md`` for the zero-velocity baseline and the paced CRBM on people the priors were not
-#: trained on. The engine's own :class:`~tracker.engine.filter.FilterConfig` default stays plain SIR.
+#: trained on, and the FCRBM's tuning fold with its style inferred by mixture tracking (``docs/fcrbm.md``).
+#: The engine's own :class:`~tracker.engine.filter.FilterConfig` default stays plain SIR.
 TRACK_ANNEALING_LAYERS = 3
-
-
-def default_annealing_layers(prior: MotionPrior) -> int:
-    """The layers :func:`track` uses for ``prior`` when none are asked for: :data:`TRACK_ANNEALING_LAYERS`, or 1
-    for a prior that tracks a mixture (the FCRBM inferring a style: measured with one layer, ``docs/fcrbm.md``)."""
-    return 1 if prior.tracks_mixture else TRACK_ANNEALING_LAYERS
 
 
 def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velocity", *,
           models: Seq[str | Path] = (), prior_options: Mapping[str, Any] | None = None,
           likelihood: str | Likelihood = "edge-silhouette", likelihood_options: Mapping[str, Any] | None = None,
           particles: int = 1000, views: Iterable[int] | None = None, frames: int | None = None,
-          seed: SeedLike = 0, annealing_layers: int | None = None, resampling: str = "systematic",
+          seed: SeedLike = 0, annealing_layers: int = TRACK_ANNEALING_LAYERS, resampling: str = "systematic",
           known_frames: int = 2, init: np.ndarray | None = None, train_mocap: Iterable[str | Path] | None = None,
           step_std: np.ndarray | None = None, device: str = "cpu",
           record: Iterable[str] | Mapping[str, Callable[[FrameStep], Any]] = DEFAULT_RECORD,
@@ -257,9 +251,8 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     ``prior`` and ``likelihood`` are registered names (built from ``models`` and the option dicts) or ready
     objects. The filter tracks frames ``known_frames .. frames-1`` (default: to the end) from the ground truth's
     first poses (or ``init``, or a bodytrack ``InitialPose.txt``) with ``particles`` particles in ``views``
-    (default all), ``annealing_layers`` layers per frame (default 3, the setting that won on unseen people in
-    ``docs/unseen_people.md``; 1, plain SIR, for a prior that tracks a mixture, as it was measured:
-    :func:`default_annealing_layers`). Random-walk priors take their scale
+    (default all), ``annealing_layers`` layers per frame (default :data:`TRACK_ANNEALING_LAYERS`, 3, the setting
+    that won on unseen people in ``docs/unseen_people.md``; 1 is plain SIR). Random-walk priors take their scale
     from ``step_std`` or ``train_mocap`` (:func:`build_prior`). ``record`` chooses what is kept per frame
     (:mod:`tracker.engine.recording`; add ``"particles"`` and ``"weights"`` to keep those); ``on_frame(step,
     error_mm)`` sees every frame as it is tracked. ``result.save(dir)`` writes ``result.json`` and
@@ -273,8 +266,7 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     views = check_views(views, seq.n_views, seq.root)
     if isinstance(known_frames, bool) or not isinstance(known_frames, (int, np.integer)) or known_frames < 1:
         raise InputError(f"known_frames must be an integer of at least 1, got {known_frames!r}")
-    config = FilterConfig(n_particles=particles, resampling=resampling,  # checked before any work
-                          annealing_layers=1 if annealing_layers is None else annealing_layers).check()
+    config = FilterConfig(n_particles=particles, resampling=resampling, annealing_layers=annealing_layers).check()
     if frames is not None and not 1 <= int(frames) <= seq.n_frames:
         raise InputError(f"frames {frames} is outside 1..{seq.n_frames} (the sequence's length)", seq.root)
     rng = make_rng(seed)
@@ -289,8 +281,6 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
         lik_obj = build_likelihood(likelihood, seq, views, device=device, **dict(likelihood_options or {}))
     else:
         lik_obj = likelihood
-    if annealing_layers is None:
-        config = replace(config, annealing_layers=default_annealing_layers(prior_obj))
     settings = {
         "prior": prior if isinstance(prior, str) else prior_obj.name,
         "particles": config.n_particles, "views": views, "seed": seed_description(seed),

@@ -18,8 +18,8 @@ import numpy as np
 from data_tools.checks import MAX_FPS, MAX_IMAGE_SIDE, MAX_MM_PER_UNIT, MAX_VIEWS, MIN_FPS, MIN_MM_PER_UNIT
 from data_tools.files import atomic_path, check_output_file, check_output_folder
 from tracker.app.api import (
-    available_likelihoods, available_priors, build_likelihood, build_prior, likelihood_entry, load_sequence,
-    prior_entry, track, train,
+    TRACK_ANNEALING_LAYERS, available_likelihoods, available_priors, build_likelihood, build_prior,
+    likelihood_entry, load_sequence, prior_entry, track, train,
 )
 from tracker.app.plugins import import_plugin
 from tracker.app.threads import set_threads
@@ -172,9 +172,8 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--frames", type=_positive_int, default=None,
                    help="track frames 0..N-1 (default: the whole sequence)")
     t.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
-    t.add_argument("--annealing-layers", type=_layers, default=None,
-                   help="annealed layers per frame (default 3; 1, plain SIR, for a prior that tracks a mixture "
-                        "of style labels)")
+    t.add_argument("--annealing-layers", type=_layers, default=TRACK_ANNEALING_LAYERS,
+                   help=f"annealed layers per frame (default {TRACK_ANNEALING_LAYERS}; 1 is plain SIR)")
     t.add_argument("--resampling", default="systematic", choices=list(SCHEMES),
                    help="resampling scheme (default systematic)")
     t.add_argument("--init", help="POSES.npz whose 'poses' are the known first frames (default: ground truth, or "

@@ -120,16 +120,11 @@ def prepare_scales(exp: Experiment) -> dict[str, np.ndarray | None]:
 
 
 def check_grid(exp: Experiment, sequence_paths: dict[str, Path], models: dict[str, tuple[Path, ...]],
-               scales: dict[str, np.ndarray | None]) -> Experiment:
+               scales: dict[str, np.ndarray | None]) -> None:
     """Views in range, enough frames, and every prior (with its models) fits every sequence: one line naming
-    the experiment file and the entry otherwise. Returns the experiment with its annealing layers set: when the
-    file leaves them unset, track's default (:func:`~tracker.app.api.default_annealing_layers`), one value for
-    every prior so that they share one filter: 1 if any tracks a mixture."""
-    from tracker.app.api import build_prior, default_annealing_layers, load_sequence
+    the experiment file and the entry otherwise."""
+    from tracker.app.api import build_prior, load_sequence
 
-    unset = exp.tracking["annealing_layers"] == [None]
-    layers = [] if unset else exp.tracking["annealing_layers"]
-    defaults: dict[str, int] = {}
     for name, path in sequence_paths.items():
         seq = load_sequence(path)
         for vs in exp.tracking["views"]:
@@ -142,13 +137,9 @@ def check_grid(exp: Experiment, sequence_paths: dict[str, Path], models: dict[st
                              f"({seq.n_frames} frames)", exp.path)
         for p in exp.priors:
             try:
-                prior = build_prior(p.name, seq, models[p.label], step_std=scales[p.label], **p.options)
+                build_prior(p.name, seq, models[p.label], step_std=scales[p.label], **p.options)
             except InputError as exc:
                 raise InputError(f"prior {p.label!r} on sequence {name!r}: {exc}", exp.path) from None
-            defaults[p.label] = default_annealing_layers(prior)
-    if unset:
-        layers = [min(defaults.values())]
-    return replace(exp, tracking={**exp.tracking, "annealing_layers": layers})
 
 
 # -- one run (executed in a worker) ---------------------------------------------------------------------------
@@ -307,7 +298,7 @@ def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str
     sequence_paths, sequence_hashes = prepare_sequences(exp, out, version, say)
     models = prepare_models(exp, out, version, say)
     scales = prepare_scales(exp)
-    exp = check_grid(exp, sequence_paths, models, scales)
+    check_grid(exp, sequence_paths, models, scales)
     specs = expand_runs(exp, sequence_paths, sequence_hashes, models, scales, runs_dir, version)
     per_worker = threads or share_of_cores(jobs if backend == "joblib" or not address else 1)
     specs = [replace(s, threads=per_worker) for s in specs]

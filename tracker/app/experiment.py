@@ -13,7 +13,7 @@ File layout (paths are relative to the experiment file; every key is checked, un
     [tracking]                               # grid axes; each a value or a list of values
     particles = 1000
     views = [[0, 1, 2, 3], [0]]              # view sets
-    annealing_layers = 3                     # default: track's (3; 1 if a prior tracks a mixture), one for all
+    annealing_layers = 3                     # default: track's (3)
     frames = 150                             # track frames 0..frames-1 (default: whole sequences)
 
     [[sequence]]                             # a sequence folder ...
@@ -240,7 +240,7 @@ def _as_list(value: Any) -> list:
 
 def load_experiment(path: str | Path) -> Experiment:
     """Read and validate an experiment file; every problem is one :class:`InputError` naming the entry."""
-    from tracker.app.api import likelihood_entry, prior_entry
+    from tracker.app.api import TRACK_ANNEALING_LAYERS, likelihood_entry, prior_entry
     from tracker.engine.registry import resolve_options
 
     path = Path(path).resolve()
@@ -262,9 +262,8 @@ def load_experiment(path: str | Path) -> Experiment:
     tracking = w.keys(doc.get("tracking", {}), TRACKING_KEYS, "[tracking]")
     grid = {
         "particles": [w.int_(p, "[tracking] particles", 1) for p in _as_list(tracking.get("particles", 1000))],
-        "annealing_layers": ([None] if "annealing_layers" not in tracking  # track's default, set by the runner
-                             else [w.int_(a, "[tracking] annealing_layers", 1)
-                                   for a in _as_list(tracking["annealing_layers"])]),
+        "annealing_layers": [w.int_(a, "[tracking] annealing_layers", 1)
+                             for a in _as_list(tracking.get("annealing_layers", TRACK_ANNEALING_LAYERS))],
         "views": [],
         "frames": tracking.get("frames"),
         "known_frames": w.int_(tracking.get("known_frames", 2), "[tracking] known_frames", 1),
@@ -443,8 +442,6 @@ def expand_runs(exp: Experiment, sequence_paths: dict[str, Path], sequence_hashe
                 model_paths: dict[str, tuple[Path, ...]], scales: dict[str, np.ndarray | None], out: Path,
                 version: str) -> list[RunSpec]:
     """Every run of the grid, each with its content hash as key."""
-    if None in exp.tracking["annealing_layers"]:
-        raise ValueError("annealing layers unset: resolve them with tracker.app.compare.check_grid first")
     runs = []
     model_hashes = {label: [file_hash(m) for m in paths] for label, paths in model_paths.items()}
     for seq, prior, lik, views, particles, layers in itertools.product(

@@ -78,13 +78,6 @@ class MotionPrior(ABC):
         """Per-particle state after resampling picked particles ``idx``."""
         return reindex_state(state, idx)
 
-    @property
-    def tracks_mixture(self) -> bool:
-        """Whether :meth:`mixture` splits the particles into components (then ``track`` defaults to one layer:
-        :func:`tracker.app.api.default_annealing_layers`). By default: whether the prior's class overrides
-        :meth:`mixture`; a prior whose mixture depends on its settings says so."""
-        return type(self).mixture is not MotionPrior.mixture
-
     def mixture(self, state: PriorState) -> "Mixture | None":
         """The components the filter must keep apart (mixture tracking, :mod:`tracker.engine.mixture`) for the
         per-particle ``state``, or None (the default): plain SIR."""
