@@ -589,7 +589,7 @@ PACED_JUMP = 0.0
 #: Default ``height_spread`` (mm) of a paced model (one trained on the walks of several people): each particle's
 #: own root-height offset, Gaussian with this std at the start. Won round 18 of docs/unseen_people.md (with the
 #: default annealing) on the tuning folds (mean ratio to zero-velocity 0.77 against 0.86) and on the test folds
-#: (1.17 against 1.39); 50 mm was chosen before round 16's runs (the spread of the shared subjects' root heights).
+#: (1.16 against 1.39); 50 mm was chosen before round 16's runs (the spread of the shared subjects' root heights).
 PACED_HEIGHT_SPREAD = 50.0
 
 
@@ -612,7 +612,8 @@ class CRBMPrior(MotionPrior):
     height (mm), by which the model's heights are shifted (see :func:`priors.common.shift_height`; a model trained
     with ``standing_height`` is shifted by the person's standing root height instead, ``standing_root_height``,
     and needs no state); with ``height_spread`` or ``height_drift``, ``height_offset`` ``(P,)``, the particle's own
-    root-height offset (mm, the person's height minus the model's; :data:`priors.common.HEIGHT_SPREAD_OPTION`),
+    root-height offset (mm, the person's height minus the model's; :data:`priors.common.HEIGHT_SPREAD_OPTION`;
+    ``height_spread=None``, the default, is :data:`PACED_HEIGHT_SPREAD` for a paced model and 0 otherwise),
     by which the model's heights are shifted as well; and ``walked`` ``(P,)``, whether its latest sample came from
     the robust option's random walk (``robust_fraction``, adapted to the posterior when ``robust_adaptive``,
     see :func:`priors.common.robust_share`). Each sample's torch generator is seeded from the filter's

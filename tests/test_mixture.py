@@ -171,6 +171,28 @@ def test_annealed_components_are_weighed_on_the_priors_own_samples(monkeypatch):
     assert seen[0] is not None and np.allclose(seen[0], expected)
 
 
+def test_an_annealed_frame_that_only_a_lost_component_explains_is_a_recovery():
+    from dataclasses import replace
+
+    class Exact(ModePrior):  # no noise: mode 0 steps to +1, mode 1 to -1
+        def sample(self, history, available, state, rng):
+            return history[:, -1] + np.where(state["mode"] == 0, 1.0, -1.0)[:, None], state
+
+    class Left(Around):  # only poses below 0 explain the frame
+        def prepare(self, frame):
+            class Score(FrameLikelihood):
+                def __call__(self, poses):
+                    return np.where(poses[:, 0] < 0, -0.5 * ((poses[:, 0] + 1) / 0.5) ** 2, -np.inf)
+            return Score()
+
+    pf = ParticleFilter(Exact(switch=0.0), Left([0.0]), FilterConfig(n_particles=20, annealing_layers=3),
+                        np.random.default_rng(0))
+    state = pf.start(np.zeros((1, 1)))
+    lost = np.where(np.arange(20) % 2 == 1, -np.inf, np.log(0.1))  # mode 1 (stepping left) carries no weight
+    _, step = pf.step(replace(state, weights=LogWeights(lost)), Frame(0, ()))
+    assert step.recovered and np.all(np.isfinite(step.mean))
+
+
 def test_the_components_are_weighed_on_the_evidence_and_particles_within_on_the_likelihood():
     mix = Mixture(np.array([0, 0, 1, 1]), switching(2, 0.0))
     carried = LogWeights(np.log(np.full(4, 0.25)))

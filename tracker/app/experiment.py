@@ -432,7 +432,7 @@ def row_label(prior: PriorSpec, likelihood: LikelihoodSpec, views, particles: in
     if len(exp.tracking["views"]) > 1:
         parts.append(f"views {','.join(map(str, views))}" if views else "all views")
     if len(exp.tracking["particles"]) > 1:
-        parts.append(f"{particles} particles")
+        parts.append(f"{particles} particle{'s' if particles != 1 else ''}")
     if len(exp.tracking["annealing_layers"]) > 1:
         parts.append(f"{layers} layer{'s' if layers != 1 else ''}")
     return ", ".join(parts)

@@ -179,11 +179,10 @@ class ParticleFilter:
         x, prior_state = self.prior.sample(state.history, state.available, state.prior_state, self.rng)
         history = state.history
         ll = evidence = frame_lik(x)  # the components are judged on the prior's own samples, before annealing
-        if cfg.annealing_layers > 1:
-            x, history, prior_state, weights = self._anneal(x, history, prior_state, ll, frame_lik, mix)
-            ll = weights.log_w
-        else:
-            weights = state.weights.add(ll)
+        if cfg.annealing_layers > 1:  # ll becomes the last layer's tempered log-likelihood
+            x, history, prior_state, annealed = self._anneal(x, history, prior_state, ll, frame_lik, mix)
+            ll = annealed.log_w
+        weights = state.weights.add(ll)  # carried weights: uniform after an annealed frame, unless a mixture's
         recovered = not weights.any_finite
         carried_in = state.weights
         if recovered:
@@ -234,7 +233,10 @@ class ParticleFilter:
         """Deutscher & Reid's layers: sharpen, resample, diffuse less each layer; the last layer's weights.
 
         With a mixture every component is annealed on its own (its exponents chosen on its particles, its
-        positions redrawn from its own particles), so the components keep their particles."""
+        positions redrawn from its own particles), so the components keep their particles. The carried weights
+        are left out of the layers: they are equal within a component (:meth:`Mixture.start_weights`,
+        :func:`~tracker.engine.mixture.resample_components`), and uniform without a mixture, since every annealed
+        frame resamples."""
         cfg = self.config
         diffusion = self.prior.diffusion_std()
         groups = ([np.arange(len(ll))] if mix is None
@@ -251,7 +253,7 @@ class ParticleFilter:
                 break
             log_w, idx = tempered(ll), np.arange(len(ll))
             for g in groups:
-                if np.any(np.isfinite(log_w[g])):  # a component no particle of which fits stays as it is
+                if np.any(np.isfinite(log_w[g])):  # a component no particle of which fits is not resampled
                     idx[g] = g[self.resample(LogWeights(log_w[g]).normalised, self.rng, len(g))]
             x, history, ll = x[idx], history[idx], ll[idx]
             prior_state = self.prior.reindex(prior_state, idx)
