@@ -238,11 +238,11 @@ GROUND_VELOCITY_PULL_OPTION = Option(
 #: the heights the model learned): a learned prior predicts the root heights of the people it was trained on, and
 #: a shorter or crouching person (issue 13's folds 91 and 131) is followed only if the particles carry heights
 #: that the likelihood can select.
-HEIGHT_SPREAD_OPTION = Option(
-    "height_spread", float, 0.0,
-    "give each particle its own offset between the person's root height and the heights the model learned, "
-    "Gaussian with this std in mm at the start, so that the images select the height of a shorter, taller or "
-    "crouching person (default 0: the model's heights)", minimum=0.0, maximum=1000.0)
+HEIGHT_SPREAD_HELP = ("give each particle its own offset between the person's root height and the heights the model "
+                      "learned, Gaussian with this std in mm at the start, so that the images select the height of "
+                      "a shorter, taller or crouching person")
+HEIGHT_SPREAD_OPTION = Option("height_spread", float, 0.0, f"{HEIGHT_SPREAD_HELP} (default 0: the model's heights)",
+                              minimum=0.0, maximum=1000.0)
 #: How fast each particle's root-height offset drifts (:func:`gaussian_drift`).
 HEIGHT_DRIFT_OPTION = Option(
     "height_drift", float, 0.0,

@@ -43,7 +43,7 @@ import torch
 
 from priors.common import (
     GROUND_VELOCITY_OPTION, GROUND_VELOCITY_PULL_OPTION, HEADING_NOISE_OPTION, HEIGHT_DRIFT_OPTION,
-    HEIGHT_SPREAD_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION, TrainedModel, UNLEARNED_MOTION_OPTIONS,
+    HEIGHT_SPREAD_HELP, HEIGHT_SPREAD_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION, TrainedModel, UNLEARNED_MOTION_OPTIONS,
     add_ground_diffusion, add_heading_diffusion, check_weights, checked_data_settings, checked_ground_velocity,
     checked_height_offset, checked_time_warp, gaussian_drift, gaussian_start, gibbs_steps_option,
     mix_in_random_walk, normaliser_from_tensors, persist_ground_step, read_model_file, robust_share,
@@ -988,9 +988,8 @@ CRBM_TRAIN_OPTIONS = (
              GROUND_VELOCITY_OPTION,
              GROUND_VELOCITY_PULL_OPTION,
              replace(HEIGHT_SPREAD_OPTION, default=None,
-                     help=HEIGHT_SPREAD_OPTION.help.replace("(default 0: the model's heights)",
-                                                            f"(default {PACED_HEIGHT_SPREAD:g} for a CRBM trained "
-                                                            "with a pace input, 0 otherwise)")),
+                     help=f"{HEIGHT_SPREAD_HELP} (default {PACED_HEIGHT_SPREAD:g} for a CRBM trained with a pace "
+                          "input, 0 otherwise)"),
              HEIGHT_DRIFT_OPTION,
              Option("relative_height", bool, False, "keep the person's own root height, the model's heights moved "
                                                     "by the known frames' mean root height minus the training "

@@ -42,6 +42,13 @@ class ModePrior(MotionPrior):
         return np.array([0.3])
 
 
+class ExactModePrior(ModePrior):
+    """The mode prior without noise: mode 0 steps to +1, mode 1 to -1."""
+
+    def sample(self, history, available, state, rng):
+        return history[:, -1] + np.where(state["mode"] == 0, 1.0, -1.0)[:, None], state
+
+
 class Around(Likelihood):
     """Frame k: Gaussian log-likelihood (std 0.5) around ``truth[k]``."""
 
@@ -153,10 +160,6 @@ def test_annealing_redraws_each_component_from_its_own_particles():
 def test_annealed_components_are_weighed_on_the_priors_own_samples(monkeypatch):
     import tracker.engine.filter as engine
 
-    class Exact(ModePrior):  # no noise: mode 0 steps to +1, mode 1 to -1
-        def sample(self, history, available, state, rng):
-            return history[:, -1] + np.where(state["mode"] == 0, 1.0, -1.0)[:, None], state
-
     seen = []
 
     def spy(carried, ll, mix, evidence=None):
@@ -164,7 +167,7 @@ def test_annealed_components_are_weighed_on_the_priors_own_samples(monkeypatch):
         return mixture_weights(carried, ll, mix, evidence)
 
     monkeypatch.setattr(engine, "mixture_weights", spy)
-    pf = ParticleFilter(Exact(), Around([0.5]), FilterConfig(n_particles=10, annealing_layers=3),
+    pf = ParticleFilter(ExactModePrior(), Around([0.5]), FilterConfig(n_particles=10, annealing_layers=3),
                         np.random.default_rng(0))
     pf.step(pf.start(np.zeros((1, 1))), Frame(0, ()))
     expected = -0.5 * ((np.where(np.arange(10) % 2 == 0, 1.0, -1.0) - 0.5) / 0.5) ** 2
@@ -174,10 +177,6 @@ def test_annealed_components_are_weighed_on_the_priors_own_samples(monkeypatch):
 def test_an_annealed_frame_that_only_a_lost_component_explains_is_a_recovery():
     from dataclasses import replace
 
-    class Exact(ModePrior):  # no noise: mode 0 steps to +1, mode 1 to -1
-        def sample(self, history, available, state, rng):
-            return history[:, -1] + np.where(state["mode"] == 0, 1.0, -1.0)[:, None], state
-
     class Left(Around):  # only poses below 0 explain the frame
         def prepare(self, frame):
             class Score(FrameLikelihood):
@@ -185,7 +184,7 @@ def test_an_annealed_frame_that_only_a_lost_component_explains_is_a_recovery():
                     return np.where(poses[:, 0] < 0, -0.5 * ((poses[:, 0] + 1) / 0.5) ** 2, -np.inf)
             return Score()
 
-    pf = ParticleFilter(Exact(switch=0.0), Left([0.0]), FilterConfig(n_particles=20, annealing_layers=3),
+    pf = ParticleFilter(ExactModePrior(switch=0.0), Left([0.0]), FilterConfig(n_particles=20, annealing_layers=3),
                         np.random.default_rng(0))
     state = pf.start(np.zeros((1, 1)))
     lost = np.where(np.arange(20) % 2 == 1, -np.inf, np.log(0.1))  # mode 1 (stepping left) carries no weight

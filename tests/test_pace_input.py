@@ -237,13 +237,8 @@ def test_a_paced_crbm_gives_each_particle_a_height_offset_by_default(paced, plai
 
 def test_every_experiment_pins_the_height_offsets_of_its_crbms():
     """A CRBM row made before a paced CRBM's height offsets became the default keeps measuring without them."""
-    import tomllib
-    from pathlib import Path
-
-    for f in sorted((Path(__file__).parents[1] / "benchmarks" / "experiments").rglob("*.toml")):
-        for prior in tomllib.loads(f.read_text()).get("prior", []):
-            if prior.get("name") == "crbm":
-                assert "height_spread" in prior.get("options", {}), (f.name, prior.get("label"))
+    for f, prior in experiment_crbm_rows():
+        assert "height_spread" in prior.get("options", {}), (f.name, prior.get("label"))
 
 
 def test_height_offsets_selected_by_the_images_follow_a_shorter_person(paced, walk_07_01):
@@ -268,8 +263,8 @@ def test_by_default_a_pace_input_only_for_clips_of_several_paces(walk_07_01):
     assert not paces_vary(given_clips(data), 60.0)
 
 
-def test_every_experiment_pins_the_pace_input_and_height_reference_of_its_crbms():
-    """An experiment's CRBM rows keep measuring what their published table measured whatever train's defaults."""
+def experiment_crbm_rows():
+    """Every ``[[prior]]`` entry named crbm in the experiment files, with its file."""
     import tomllib
     from pathlib import Path
 
@@ -278,9 +273,15 @@ def test_every_experiment_pins_the_pace_input_and_height_reference_of_its_crbms(
     for f in files:
         for prior in tomllib.loads(f.read_text()).get("prior", []):
             if prior.get("name") == "crbm":
-                for entry in prior.get("train", []):
-                    for option in ("pace_input", "standing_height"):
-                        assert option in entry.get("options", {}), (f.name, prior.get("label"), option)
+                yield f, prior
+
+
+def test_every_experiment_pins_the_pace_input_and_height_reference_of_its_crbms():
+    """An experiment's CRBM rows keep measuring what their published table measured whatever train's defaults."""
+    for f, prior in experiment_crbm_rows():
+        for entry in prior.get("train", []):
+            for option in ("pace_input", "standing_height"):
+                assert option in entry.get("options", {}), (f.name, prior.get("label"), option)
 
 
 def test_a_deep_crbm_file_with_a_paced_first_layer_is_refused(paced, tmp_path):

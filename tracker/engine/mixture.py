@@ -96,13 +96,8 @@ def mixture_weights(carried: LogWeights, log_likelihood: np.ndarray, mix: Mixtur
     ``evidence`` ``(P,)`` if given: the log-likelihood of the prior's own samples when annealing layers have
     moved the particles since). All zero if no particle has a finite weight."""
     log_w = carried.log_w
-
-    def clean(values: np.ndarray) -> np.ndarray:  # a broken likelihood value is a particle with no weight
-        values = np.asarray(values, float)
-        return np.where(np.isnan(values), -np.inf, values)
-
-    ll = clean(log_likelihood)
-    ev = ll if evidence is None else clean(evidence)
+    ll = LogWeights(log_likelihood).log_w  # a broken (NaN) likelihood value is a particle with no weight
+    ev = ll if evidence is None else LogWeights(evidence).log_w
     out = np.zeros(len(log_w))
     log_pi = np.full(mix.n_components, -np.inf)
     for c in range(mix.n_components):
