@@ -24,14 +24,17 @@ and its cost maps once; the returned :class:`PreparedFrame` scores pose batches.
 """
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from threadpoolctl import ThreadpoolController
 
+from likelihoods.cost_lookup import mean_costs
 from likelihoods.observations import DEFAULT_OBSERVATION, BackgroundPlate, ObservationConfig, Observations, observe
 from tracker.core.arrays import device as device_of, namespace, torch_device
+from tracker.core.blas import serial_blas
 from tracker.core.body import BodyModel
 from tracker.core.cameras import CameraRig
 from tracker.core.cones import contour_corners
@@ -70,15 +73,20 @@ class EdgeSilhouetteLikelihood(Likelihood):
     ``device`` None (the default) scores with numpy on the CPU, the faster path there; a torch device
     (``"cuda"``, ``"cuda:N"``, or ``"cpu"`` to run the torch path on the CPU, as the tests do) scores with torch
     tensors on it. The registered builder maps the run's device ``cpu`` to None (``--device``,
-    ``track(device=...)``), so ``cpu`` means the numpy path there.
+    ``track(device=...)``), so ``cpu`` means the numpy path there. ``threads`` (the CPU path): how many threads
+    score a batch of poses, one block of particles at a time each; the registered builder gives it the run's
+    threads (``--threads``).
     """
 
     name = "edge-silhouette"
 
     def __init__(self, model: BodyModel, rig: CameraRig, config: EdgeSilhouetteConfig = EdgeSilhouetteConfig(),
-                 observation: ObservationConfig = DEFAULT_OBSERVATION, device: str | None = None):
+                 observation: ObservationConfig = DEFAULT_OBSERVATION, device: str | None = None, threads: int = 1):
         if config.n_along < 2 or config.n_across < 1 or not config.sharpness > 0:
             raise InputError(f"need n_along >= 2, n_across >= 1 and a positive sharpness, got {config}")
+        if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
+            raise InputError(f"threads must be an integer of at least 1, got {threads!r}")
+        self.threads = int(threads)
         self.device = None if device is None else torch_device(device)
         self.model = model
         self.rig = rig
@@ -130,17 +138,25 @@ class EdgeSilhouetteLikelihood(Likelihood):
         edge = np.ones((P, V))
         sil = np.ones((P, V))
         cover = np.ones((P, V)) if self.config.bidirectional else None
+
+        def score(block: slice) -> None:
+            ok = valid[block]
+            if ok.any():
+                e, s, c = self._block_costs(poses[block][ok], maps)
+                edge[block][ok], sil[block][ok] = e, s
+                if cover is not None:
+                    cover[block][ok] = c
+
         # Blocks of particles keep the intermediates in cache: 256 at a time measured 1.5x faster than all
-        # 4000 at once (each block is still one batched pass over particles, views and points).
-        with _serial_blas():
-            for start in range(0, P, BLOCK):
-                block = slice(start, start + BLOCK)
-                ok = valid[block]
-                if ok.any():
-                    e, s, c = self._block_costs(poses[block][ok], maps)
-                    edge[block][ok], sil[block][ok] = e, s
-                    if cover is not None:
-                        cover[block][ok] = c
+        # 4000 at once (each block is still one batched pass over particles, views and points). With several
+        # threads the blocks are shared among them (the compiled kinematics and lookups run without the GIL).
+        blocks = [slice(start, start + BLOCK) for start in range(0, P, BLOCK)]
+        with serial_blas():
+            if self.threads > 1 and len(blocks) > 1:
+                list(_pool(self.threads).map(score, blocks))
+            else:
+                for block in blocks:
+                    score(block)
         return self._combine(valid, edge, sil, cover)
 
     def _combine(self, valid, edge, sil, cover) -> LikelihoodTerms:
@@ -185,9 +201,11 @@ class EdgeSilhouetteLikelihood(Likelihood):
     def _block_costs(self, poses, maps: "_CostMaps"):
         """Edge, silhouette and (optional) coverage costs ``p x V`` of poses ``p x D`` within the limits.
 
-        One implementation for numpy arrays (the CPU path) and torch tensors on a device (``maps`` there too).
-        float32 from the camera frames on (sub-pixel error about 1e-4 px), components on the leading axis and
-        the views next, so every step runs over long contiguous arrays ``V x p x S (x 4 or N)``.
+        One implementation for numpy arrays (the CPU path) and torch tensors on a device (``maps`` there too)
+        up to the sample points' pixels; then the CPU path's compiled lookups and means
+        (:func:`likelihoods.cost_lookup.mean_costs`) or the same steps as tensor operations. float32 from the
+        camera frames on (sub-pixel error about 1e-4 px), components on the leading axis and the views next, so
+        every step runs over long contiguous arrays ``V x p x S (x 4 or N)``.
         """
         rotations, origins = self._segment_frames(poses)  # p S 3 3, p S 3
         xp = namespace(rotations)
@@ -197,24 +215,24 @@ class EdgeSilhouetteLikelihood(Likelihood):
         behind = xp.any(Z <= 0, axis=-1)
         u[behind] = -1e6  # reads the border of the cost maps: cost 1
         v[behind] = -1e6
+        cover = _uncovered(u, v, maps.foreground) if self.config.bidirectional else None
         # Every sample is a fixed affine combination of the 4 corners: contour points spaced evenly along
         # each projected line (a ruling projects to a straight segment; with lens distortion a sub-pixel
         # approximation on a limb), then the grid between the lines. One matrix product per coordinate.
         V, p, S = Z.shape[:3]
         weights = xp.asarray(self.weights, device=device_of(u))
-        flat = maps.flat_index(xp.reshape(u, (-1, 4)) @ weights, xp.reshape(v, (-1, 4)) @ weights)
-        flat = xp.reshape(flat, (V, p, S, -1))
+        x = xp.reshape(xp.reshape(u, (-1, 4)) @ weights, (V, p, S, -1))
+        y = xp.reshape(xp.reshape(v, (-1, 4)) @ weights, (V, p, S, -1))
         nc = self.n_contour
-        edge = xp.mean(xp.reshape(_take(maps.edge, flat[..., :nc]), (V, p, -1)), axis=-1)
-        sil = xp.mean(xp.reshape(_take(maps.silhouette, flat[..., nc:]), (V, p, -1)), axis=-1)
-        cover = _uncovered(u, v, maps.foreground) if self.config.bidirectional else None
+        if isinstance(x, np.ndarray):  # the CPU path: lookups and means in one compiled loop
+            edge, sil = np.empty((p, V)), np.empty((p, V))
+            mean_costs(x, y, maps.edge, maps.silhouette, maps.view_offset, maps.Hp, maps.Wp, float(PAD), nc,
+                       edge, sil)
+            return edge, sil, cover
+        flat = maps.flat_index(x, y)
+        edge = xp.mean(xp.reshape(maps.edge[flat[..., :nc]], (V, p, -1)), axis=-1)
+        sil = xp.mean(xp.reshape(maps.silhouette[flat[..., nc:]], (V, p, -1)), axis=-1)
         return xp.permute_dims(edge, (1, 0)), xp.permute_dims(sil, (1, 0)), cover
-
-
-def _take(values, index):
-    """``values[index]`` for a flat array and an integer index array of any shape (numpy's ``take``, faster than
-    its fancy indexing; a torch tensor's indexing)."""
-    return values.take(index) if isinstance(values, np.ndarray) else values[index]
 
 
 class PreparedFrame(FrameLikelihood):
@@ -252,17 +270,17 @@ DEVICE_BLOCK = 32768
 DEVICE_BLOCK_BIDIRECTIONAL = 4096
 
 
-@lru_cache(maxsize=1)
-def _blas() -> ThreadpoolController:
-    return ThreadpoolController().select(user_api="blas")
+def _pool(threads: int) -> ThreadPoolExecutor:
+    """This process's pool of ``threads`` threads that score blocks of particles (one per thread count)."""
+    return _process_pool(threads, os.getpid())
 
 
-def _serial_blas():
-    """Context in which BLAS runs on one thread. The likelihood's matrix products are thin (``n x 4`` times
-    ``4 x N``): a second BLAS thread gains about 25 us per product on an idle machine, and on a busy one,
-    where BLAS threads wait for each other's cores, it measured 300 times slower (16 ms instead of 54 us).
-    Parallel work goes to frames instead (the filter prepares them ahead in background threads)."""
-    return _blas().limit(limits=1)
+@lru_cache(maxsize=None)
+def _process_pool(threads: int, pid: int) -> ThreadPoolExecutor:
+    """One pool per thread count and process: a child forked from a process that had a pool inherits the pool
+    but not its threads, and its work would wait for them forever."""
+    return ThreadPoolExecutor(threads, thread_name_prefix="likelihood")
+
 
 #: Border (pixels) of cost 1 around the cost maps, so that lookups need no bounds test.
 PAD = 32
@@ -300,21 +318,18 @@ class _CostMaps:
                          move(self.view_offset.astype(np.int64)), self.Hp, self.Wp)
 
     def flat_index(self, x, y):
-        """Flat indices of the nearest pixels to ``(x, y)``, each ``(V * n) x N`` float32 with views leading
-        (clamped to the border; ``x`` and ``y`` are used as scratch)."""
+        """Flat indices ``V x ...`` of the nearest pixels to ``(x, y)``, tensors ``V x ...`` (float32, views
+        leading; clamped to the border; ``x`` and ``y`` are used as scratch). The device path's lookup; the CPU
+        path's is :func:`likelihoods.cost_lookup.mean_costs`."""
         xp = namespace(x)
-        V = self.view_offset.shape[0]
         x += PAD + 0.5
         y += PAD + 0.5
-        # int32 for numpy's take; torch indexes with int64 (an int32 index is converted, one more pass)
-        index = xp.int32 if xp is np else xp.int64
-        ix = xp.astype(xp.clip(x, 0, self.Wp - 1), index)
-        iy = xp.astype(xp.clip(y, 0, self.Hp - 1), index)
+        ix = xp.astype(xp.clip(x, 0, self.Wp - 1), xp.int64)  # torch indexes with int64
+        iy = xp.astype(xp.clip(y, 0, self.Hp - 1), xp.int64)
         iy *= self.Wp
         iy += ix
-        per_view = xp.reshape(iy, (V, -1))
-        per_view += self.view_offset[:, None]
-        return per_view
+        iy += xp.reshape(self.view_offset, (-1,) + (1,) * (iy.ndim - 1))
+        return iy
 
 
 def foreground_sample(silhouette: np.ndarray, n: int) -> np.ndarray:
@@ -356,4 +371,4 @@ def build_edge_silhouette(context: LikelihoodContext, options: dict) -> EdgeSilh
     config = EdgeSilhouetteConfig(sharpness=options["sharpness"], bidirectional=options["bidirectional"])
     # On the CPU the numpy path (faster there); "cpu:0" too.
     device = None if torch_device(context.device).type == "cpu" else context.device
-    return EdgeSilhouetteLikelihood(context.body_model, context.rig, config, device=device)
+    return EdgeSilhouetteLikelihood(context.body_model, context.rig, config, device=device, threads=context.threads)

@@ -272,3 +272,34 @@ def test_each_frame_records_the_wall_time_it_added():
         else:
             assert np.median(r["wall_seconds"]) < 0.8 * np.median(stages)
     assert walls[1] < 0.8 * walls[0], walls
+
+
+def test_numpy_blas_runs_on_one_thread_while_the_filter_runs_and_is_restored_after():
+    """Preparing frames (here or ahead, in threads) and scoring them see one BLAS thread: a parallel BLAS call
+    leaves its threads spinning on the cores the likelihood needs. The caller's setting comes back after."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    def blas_threads() -> set[int]:
+        return {lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"}
+
+    seen = []
+
+    class Probe(FunctionLikelihood):
+        def prepare(self, frame):
+            seen.append(blas_threads())
+            return super().prepare(frame)
+
+    def score(x):
+        seen.append(blas_threads())
+        return -0.5 * np.sum(x ** 2, axis=1)
+
+    if not blas_threads():
+        pytest.skip("numpy reports no BLAS library to threadpoolctl")
+    prior = LinearGaussianPrior(np.eye(2), np.full(2, 0.1))
+    with threadpool_limits(2, user_api="blas"):
+        for workers in (0, 1, 3):
+            seen.clear()
+            pf = ParticleFilter(prior, Probe([score] * 4), FilterConfig(n_particles=50), np.random.default_rng(0))
+            pf.run(np.zeros((1, 2)), [Frame(k, ()) for k in range(4)], workers=workers)
+            assert len(seen) == 8 and all(s == {1} for s in seen), (workers, seen)
+            assert blas_threads() == {2}

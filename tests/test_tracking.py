@@ -199,3 +199,61 @@ def test_a_nested_prior_state_survives_a_checkpoint(tmp_path):
     for k in ("member_0", "member_1"):
         assert set(got[k]) == set(prior_state[k])
         assert all(np.array_equal(got[k][n], prior_state[k][n]) for n in prior_state[k])
+
+
+def test_the_likelihood_scores_the_same_on_several_threads(walk_32_frames, monkeypatch):
+    """Blocks of particles shared among threads give the one-thread scores exactly; the registered likelihood
+    gets the run's threads (tracker.set_threads), and a thread count that is not a positive integer is refused."""
+    import threading
+
+    import tracker.app.threads as threads
+    from tracker.app.api import build_likelihood
+    from tracker.core.errors import InputError
+
+    seq = walk_32_frames
+    truth = seq.groundtruth.poses[7]
+    poses = truth + np.random.default_rng(0).normal(0, 0.05, (1100, truth.size))  # 5 blocks, the last short
+    poses[3, seq.model.dof_index("left_knee_flexion")] = -1.0  # outside the limits
+    config = EdgeSilhouetteConfig(bidirectional=True)
+    one = EdgeSilhouetteLikelihood(seq.model, seq.rig, config).prepare(seq.frame(7, range(4))).terms(poses)
+    shared = EdgeSilhouetteLikelihood(seq.model, seq.rig, config, threads=3)
+    workers = set()
+    block_costs = shared._block_costs
+
+    def recorded(*args):
+        workers.add(threading.current_thread().name)
+        return block_costs(*args)
+
+    monkeypatch.setattr(shared, "_block_costs", recorded)
+    three = shared.prepare(seq.frame(7, range(4))).terms(poses)
+    assert len(workers) > 1 and all(name.startswith("likelihood") for name in workers)
+    for name in ("edge", "silhouette", "coverage", "log_likelihood"):
+        assert np.array_equal(getattr(one, name), getattr(three, name)), name
+    assert one.log_likelihood[3] == -np.inf
+    for n in (1, 3):
+        monkeypatch.setattr(threads, "_configured", n)
+        assert build_likelihood("edge-silhouette", seq).threads == n
+    for bad in (0, -1, 1.5, True, "2"):
+        with pytest.raises(InputError, match="threads must be an integer of at least 1"):
+            EdgeSilhouetteLikelihood(seq.model, seq.rig, threads=bad)
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="forks a child process (Linux's default start method)")
+def test_a_forked_child_scores_on_its_own_threads(walk_32_frames):
+    """A process forked after the likelihood's threads started inherits their pool but not the threads: it must
+    make its own, not wait for the parent's forever."""
+    import multiprocessing
+
+    seq = walk_32_frames
+    scorer = EdgeSilhouetteLikelihood(seq.model, seq.rig, threads=2).prepare(seq.frame(7, range(4)))
+    poses = seq.groundtruth.poses[7] + np.random.default_rng(0).normal(0, 0.05, (600, 40))
+    expected = scorer(poses)
+    context = multiprocessing.get_context("fork")
+    queue = context.Queue()
+    child = context.Process(target=lambda: queue.put(scorer(poses)))
+    child.start()
+    child.join(60)
+    if child.is_alive():
+        child.kill()
+        pytest.fail("the forked child did not finish scoring within 60 s")
+    np.testing.assert_array_equal(queue.get(timeout=10), expected)

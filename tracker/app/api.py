@@ -28,6 +28,7 @@ from data_tools.samples import sample_walks
 from data_tools.sequence import Sequence, read_sequence
 from data_tools.synth import SynthConfig, synthesize as render_sequence
 from tracker.app.plugins import load_plugins
+from tracker.app.threads import configured_threads
 from tracker.app.tracking import (
     TrackingInterrupted, TrackingResult, check_views, run_tracking, seed_description,
 )
@@ -170,12 +171,14 @@ def build_prior(name: str, sequence: Sequence, models: Seq[str | Path] = (), *,
 def build_likelihood(name: str, sequence: Sequence, views: Iterable[int] | None = None, *, device: str = "cpu",
                      **options) -> Likelihood:
     """The registered likelihood ``name`` for the cameras ``views`` (default all) of ``sequence``, scoring on
-    the torch ``device`` (``"cpu"``, the default, is the CPU path; ``"cuda"`` the GPU path)."""
+    the torch ``device`` (``"cpu"``, the default, is the CPU path; ``"cuda"`` the GPU path), with the threads
+    this process was given (:func:`tracker.set_threads`; default the available cores)."""
     entry = likelihood_entry(name)
     views = check_views(views, sequence.n_views, sequence.root)
     resolved = resolve_options(f"likelihood {name}", entry.options, options)
     device = str(torch_device(device))
-    return entry.build(LikelihoodContext(sequence.model, sequence.rig.subset(views), device), resolved)
+    context = LikelihoodContext(sequence.model, sequence.rig.subset(views), device, configured_threads())
+    return entry.build(context, resolved)
 
 
 # -- training -------------------------------------------------------------------------------------------------

@@ -49,6 +49,7 @@ from typing import Any, Callable, Iterable, Iterator, Mapping
 
 import numpy as np
 
+from tracker.core.blas import serial_blas
 from tracker.core.errors import InputError
 from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood
 from tracker.engine.mixture import Mixture, mixture_weights, resample_components
@@ -288,8 +289,17 @@ class ParticleFilter:
         calling thread reads and prepares the next frame, and ``workers - 1`` more threads prepare frames
         further ahead (then a frame's ``load`` time is its reading and preparation, done while the frame before
         was filtered, and its ``observe`` time 0); 0 does everything in the calling thread, one frame at a time.
-        The results are the same either way.
+        The results are the same either way. numpy's BLAS runs on one thread throughout
+        (:func:`tracker.core.blas.serial_blas`: the products of a filter step and of preparing a frame are
+        small, and a parallel BLAS call leaves its threads spinning on the cores the likelihood's threads need).
         """
+        with serial_blas():
+            return self._run(known, frames, record, on_frame, state, on_state, workers)
+
+    def _run(self, known: np.ndarray, frames: Iterable[Frame],
+             record: Iterable[str] | Mapping[str, Callable[[FrameStep], Any]] | Recording,
+             on_frame: Callable[[FrameStep], None] | None, state: FilterState | None,
+             on_state: Callable[[FilterState, Recording], None] | None, workers: int) -> dict[str, np.ndarray]:
         recording = record if isinstance(record, Recording) else Recording(record)
         state = self.start(known) if state is None else state
 

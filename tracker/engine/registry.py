@@ -204,12 +204,14 @@ TRAINING_DATA_OPTIONS = (
 
 @dataclass(frozen=True)
 class LikelihoodContext:
-    """What a likelihood builder needs: the body model, the calibrated cameras of the tracked views, and the torch
-    device to score on (``"cpu"``: the CPU path; ``"cuda"``, ``"cuda:N"``: a likelihood's device path)."""
+    """What a likelihood builder needs: the body model, the calibrated cameras of the tracked views, the torch
+    device to score on (``"cpu"``: the CPU path; ``"cuda"``, ``"cuda:N"``: a likelihood's device path), and how
+    many threads it may score with on the CPU."""
 
     body_model: BodyModel
     rig: CameraRig
     device: str = "cpu"
+    threads: int = 1
 
 
 @dataclass(frozen=True)
