@@ -5,7 +5,8 @@
    frames per second of the whole loop (observations + prior + likelihood + resampling) and likelihood
    evaluations per second (particle-views per second), with a per-stage breakdown.
 2. The same sequence tracked with a CRBM-3 prior, 1000 particles x 4 views: frames per second at 30 Gibbs steps
-   and at the default (issue 14's target: 20), and the CRBM's sampling time alone at orders 1, 3, 6.
+   and at the default, with one layer and with track's default annealing (issue 14's target: 20), and the
+   CRBM's sampling time alone at orders 1, 3, 6.
 3. The real PARSEC bodytrack frame with its 10-cone model: 4000 particles x 5 annealing layers,
    milliseconds per frame, against PARSEC's ~100 ms (2 threads, C++).
 """
@@ -55,8 +56,12 @@ def synthetic(tmp: Path) -> None:
     lik = EdgeSilhouetteLikelihood(seq.model, seq.rig)
     scorer = lik.prepare(seq.frame(20, range(V)))
     poses = seq.groundtruth.poses[20] + np.random.default_rng(0).normal(0, 1, (P, 40)) * std
-    ms = best_ms(lambda: scorer(poses))
-    print(f"  likelihood alone: {ms:.1f} ms per {P} particles -> {P * V / ms * 1000:,.0f} particle-views/s")
+    for threads in (1, 2):
+        lik.threads = threads
+        ms = best_ms(lambda: scorer(poses))
+        print(f"  likelihood alone, {threads} thread(s): {ms:.1f} ms per {P} particles -> "
+              f"{P * V / ms * 1000:,.0f} particle-views/s")
+    lik.threads = 1
     prior = ZeroVelocityPrior(std)
     hist = np.repeat(poses[:, None], 1, axis=1)
     rng = np.random.default_rng(0)
@@ -67,21 +72,24 @@ def synthetic(tmp: Path) -> None:
 def crbm_tracking(tmp: Path) -> None:
     """Issue 14's CRBM target: 15-cone model, 1000 particles x 4 views, synthetic 07_11, CRBM prior (order 3
     grown from 1, trained with train's defaults on 07_01, 07_02, 07_09, 07_10), frames per second of the whole
-    loop (observations included), at 30 Gibbs steps (the default before issue 14) and at the default."""
+    loop (observations included), at 30 Gibbs steps (the default before issue 14) and at the default, with one
+    layer (plain SIR, as published) and with track's default annealing layers."""
     from priors.crbm import GIBBS_STEPS
     from tracker import train
+    from tracker.app.api import TRACK_ANNEALING_LAYERS
 
     mocap = SHARED / "mocap" / "cmu" / "07"
     model = train("crbm", [mocap / f"07_{i}.amc" for i in ("01", "02", "09", "10")], order=3)
     model.save(tmp / "crbm3.pt")
     seq = read_sequence(tmp / "walk")
-    for steps in (30, GIBBS_STEPS):
-        runs = [track(seq, "crbm", models=[tmp / "crbm3.pt"], particles=1000, seed=seed, annealing_layers=1,
-                      prior_options={"gibbs_steps": steps}) for seed in range(3)]  # plain SIR, as published
+    for steps, layers in ((30, 1), (GIBBS_STEPS, 1), (GIBBS_STEPS, TRACK_ANNEALING_LAYERS)):
+        runs = [track(seq, "crbm", models=[tmp / "crbm3.pt"], particles=1000, seed=seed, annealing_layers=layers,
+                      prior_options={"gibbs_steps": steps}) for seed in range(3)]
         per_frame = np.median([r.seconds_per_frame for r in runs])
         wait = np.median([np.median(r.records["load_seconds"] + r.records["observe_seconds"]) for r in runs])
         filt = np.median([np.median(r.records["filter_seconds"]) for r in runs])
-        print(f"CRBM-3 tracking, 1000 particles x 4 views, {steps} Gibbs steps: {per_frame * 1000:.0f} ms per frame "
+        print(f"CRBM-3 tracking, 1000 particles x 4 views x {layers} layer(s), {steps} Gibbs steps: "
+              f"{per_frame * 1000:.0f} ms per frame "
               f"= {1 / per_frame:.1f} frames/s (median of 3 seeds; per frame, medians: reading and observations of "
               f"the next frame, overlapped with the filter, "
               f"{wait * 1000:.0f} ms, filter {filt * 1000:.0f} ms); mean errors "
