@@ -25,9 +25,11 @@ and its cost maps once; the returned :class:`PreparedFrame` scores pose batches.
 from __future__ import annotations
 
 import os
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from functools import lru_cache
+from queue import Empty, SimpleQueue
+from typing import Callable
 
 import numpy as np
 
@@ -149,14 +151,11 @@ class EdgeSilhouetteLikelihood(Likelihood):
 
         # Blocks of particles keep the intermediates in cache: 256 at a time measured 1.5x faster than all
         # 4000 at once (each block is still one batched pass over particles, views and points). With several
-        # threads the blocks are shared among them (the compiled kinematics and lookups run without the GIL).
+        # threads this one and threads - 1 helpers take the blocks in turn (the compiled kinematics and lookups
+        # run without the GIL).
         blocks = [slice(start, start + BLOCK) for start in range(0, P, BLOCK)]
         with serial_blas():
-            if self.threads > 1 and len(blocks) > 1:
-                list(_pool(self.threads).map(score, blocks))
-            else:
-                for block in blocks:
-                    score(block)
+            _share_blocks(score, blocks, self.threads)
         return self._combine(valid, edge, sil, cover)
 
     def _combine(self, valid, edge, sil, cover) -> LikelihoodTerms:
@@ -270,16 +269,42 @@ DEVICE_BLOCK = 32768
 DEVICE_BLOCK_BIDIRECTIONAL = 4096
 
 
-def _pool(threads: int) -> ThreadPoolExecutor:
-    """This process's pool of ``threads`` threads that score blocks of particles (one per thread count)."""
-    return _process_pool(threads, os.getpid())
+def _share_blocks(score: Callable[[slice], None], blocks: list[slice], threads: int) -> None:
+    """``score(block)`` for every block, on ``threads`` threads: the calling one and ``threads - 1`` helpers
+    take the next block in turn until none is left (so at most ``threads`` threads work, and a short last block
+    does not hold up the others). An exception raised by any of them is raised here."""
+    todo = SimpleQueue()
+    for block in blocks:
+        todo.put(block)
+
+    def drain() -> None:
+        while True:
+            try:
+                block = todo.get_nowait()
+            except Empty:
+                return
+            score(block)
+
+    n_helpers = min(threads, len(blocks)) - 1
+    helpers = [_helpers(n_helpers).submit(drain) for _ in range(n_helpers)] if n_helpers > 0 else []
+    try:
+        drain()
+    finally:
+        wait(helpers)  # the blocks' arrays are not left to helpers still writing them
+    for helper in helpers:
+        helper.result()
+
+
+def _helpers(n: int) -> ThreadPoolExecutor:
+    """This process's pool of ``n`` helper threads that score blocks of particles (one per count)."""
+    return _process_helpers(n, os.getpid())
 
 
 @lru_cache(maxsize=None)
-def _process_pool(threads: int, pid: int) -> ThreadPoolExecutor:
-    """One pool per thread count and process: a child forked from a process that had a pool inherits the pool
-    but not its threads, and its work would wait for them forever."""
-    return ThreadPoolExecutor(threads, thread_name_prefix="likelihood")
+def _process_helpers(n: int, pid: int) -> ThreadPoolExecutor:
+    """One pool per count and process: a child forked from a process that had a pool inherits the pool but not
+    its threads, and its work would wait for them forever."""
+    return ThreadPoolExecutor(n, thread_name_prefix="likelihood")
 
 
 #: Border (pixels) of cost 1 around the cost maps, so that lookups need no bounds test.
@@ -306,7 +331,7 @@ class _CostMaps:
         fg = [foreground_sample(sil, n_foreground) for sil in obs.silhouettes] if n_foreground else []
         edge, sil = padded(obs.edges), padded(obs.silhouettes)
         V, Hp, Wp = edge.shape
-        return cls(edge.reshape(-1), sil.reshape(-1), fg, np.arange(V, dtype=np.int32) * (Hp * Wp), Hp, Wp)
+        return cls(edge.reshape(-1), sil.reshape(-1), fg, np.arange(V, dtype=np.int64) * (Hp * Wp), Hp, Wp)
 
     def to(self, device) -> "_CostMaps":
         """The same maps as torch tensors on ``device``."""
@@ -315,12 +340,13 @@ class _CostMaps:
         def move(a: np.ndarray):
             return torch.as_tensor(a).to(device)
         return _CostMaps(move(self.edge), move(self.silhouette), [move(f) for f in self.foreground],
-                         move(self.view_offset.astype(np.int64)), self.Hp, self.Wp)
+                         move(self.view_offset), self.Hp, self.Wp)
 
     def flat_index(self, x, y):
-        """Flat indices ``V x ...`` of the nearest pixels to ``(x, y)``, tensors ``V x ...`` (float32, views
-        leading; clamped to the border; ``x`` and ``y`` are used as scratch). The device path's lookup; the CPU
-        path's is :func:`likelihoods.cost_lookup.mean_costs`."""
+        """Flat int64 indices ``V x ...`` into the maps of the nearest pixels to the points ``(x, y)`` (float32
+        pixels of the unpadded images, views leading; clamped to the padded maps; ``x`` and ``y`` are used as
+        scratch): the device path's lookup. The CPU path's, :func:`likelihoods.cost_lookup.mean_costs`, computes
+        the same pixels in its loop."""
         xp = namespace(x)
         x += PAD + 0.5
         y += PAD + 0.5

@@ -219,14 +219,18 @@ def test_the_likelihood_scores_the_same_on_several_threads(walk_32_frames, monke
     shared = EdgeSilhouetteLikelihood(seq.model, seq.rig, config, threads=3)
     workers = set()
     block_costs = shared._block_costs
+    together = threading.Barrier(3, timeout=20)  # the first three blocks are scored by three threads at once
 
     def recorded(*args):
-        workers.add(threading.current_thread().name)
+        if len(workers) < 3:
+            workers.add(threading.current_thread().name)
+            together.wait()
         return block_costs(*args)
 
     monkeypatch.setattr(shared, "_block_costs", recorded)
     three = shared.prepare(seq.frame(7, range(4))).terms(poses)
-    assert len(workers) > 1 and all(name.startswith("likelihood") for name in workers)
+    caller = threading.current_thread().name
+    assert caller in workers and len(workers) == 3 and all(w.startswith("likelihood") for w in workers - {caller})
     for name in ("edge", "silhouette", "coverage", "log_likelihood"):
         assert np.array_equal(getattr(one, name), getattr(three, name)), name
     assert one.log_likelihood[3] == -np.inf
@@ -238,7 +242,7 @@ def test_the_likelihood_scores_the_same_on_several_threads(walk_32_frames, monke
             EdgeSilhouetteLikelihood(seq.model, seq.rig, threads=bad)
 
 
-@pytest.mark.skipif(sys.platform != "linux", reason="forks a child process (Linux's default start method)")
+@pytest.mark.skipif(sys.platform != "linux", reason="forks a child process, as multiprocessing does on Linux")
 def test_a_forked_child_scores_on_its_own_threads(walk_32_frames):
     """A process forked after the likelihood's threads started inherits their pool but not the threads: it must
     make its own, not wait for the parent's forever."""
@@ -252,8 +256,10 @@ def test_a_forked_child_scores_on_its_own_threads(walk_32_frames):
     queue = context.Queue()
     child = context.Process(target=lambda: queue.put(scorer(poses)))
     child.start()
-    child.join(60)
-    if child.is_alive():
+    try:
+        scores = queue.get(timeout=60)
+    except Exception:
         child.kill()
         pytest.fail("the forked child did not finish scoring within 60 s")
-    np.testing.assert_array_equal(queue.get(timeout=10), expected)
+    child.join(10)
+    np.testing.assert_array_equal(scores, expected)

@@ -1,4 +1,4 @@
-"""How many threads numpy's BLAS, OpenCV and torch use: the number a run is given, never more.
+"""How many threads numpy's BLAS, OpenCV, torch and the likelihood use: the number a run is given.
 
 On a shared machine their defaults (one thread per core each, spinning while they wait) slow a run many
 times over; parallel runs split the cores between them (:func:`share_of_cores`).
@@ -35,7 +35,10 @@ def configured_threads() -> int:
 def set_threads(n: int | None) -> int:
     """Limit BLAS (through threadpoolctl), OpenCV and torch to ``n`` threads (default: the available cores);
     with ``n`` of 2 or more, tracking steps the filter in a background thread while the calling thread reads the
-    next frame, and prepares frames further ahead in ``n - 2`` more (:func:`configured_threads`)."""
+    next frame, and prepares frames further ahead in ``n - 2`` more (:func:`configured_threads`); the
+    likelihood scores its blocks of particles on ``n`` threads (the filter's and ``n - 1`` helpers), while a run
+    keeps numpy's BLAS on one (:func:`tracker.core.blas.serial_blas`). So up to ``n`` threads score, and the
+    reading thread may be a further one, for the part of a frame that they overlap."""
     global _configured
     n = available_cores() if n is None else int(n)
     if n < 1:

@@ -16,9 +16,17 @@ from threadpoolctl import ThreadpoolController
 
 @lru_cache(maxsize=1)
 def _blas() -> ThreadpoolController:
+    """The BLAS libraries loaded when this is first called (finding them takes about 12 ms)."""
     return ThreadpoolController().select(user_api="blas")
 
 
 def serial_blas():
-    """Context in which the BLAS libraries numpy and scipy load run on one thread (restored on exit)."""
+    """Context in which the BLAS libraries this process had loaded when it was first used (numpy's, and any
+    other imported by then) run on one thread; the setting from before comes back on exit.
+
+    OpenBLAS has one thread pool per process, and threadpoolctl lets one thread set its size: the first to set
+    it (usually the main thread; :func:`tracker.set_threads` does), whose regions nest like a stack. In other
+    threads this context changes nothing, so regions of different threads cannot undo each other's setting;
+    :meth:`tracker.engine.filter.ParticleFilter.run` opens it in the thread that calls it, for every thread of
+    the run."""
     return _blas().limit(limits=1)
