@@ -25,12 +25,16 @@ def mean_costs(x: np.ndarray, y: np.ndarray, edge_map: np.ndarray, silhouette_ma
     flat) are the views' padded cost maps of ``height x width`` pixels each (the padded size: the image with a
     border of ``pad`` pixels of cost 1 around it), one after the other (view ``k`` starts at
     ``view_offset[k]``). A point reads the nearest pixel, clamped to the padded map (one that is not a number
-    reads the border), in float32 as the device path computes it. The shapes are checked here: the compiled
-    loop reads and writes without bounds checks.
+    reads the border), in float32 as the device path computes it for finite points. The shapes and dtypes are
+    checked here: the compiled loop reads and writes without bounds checks.
     """
     V, P, S, N = x.shape
     size = V * height * width
-    if (y.shape != x.shape or S == 0 or not 0 < n_contour < N or view_offset.shape != (V,)
+    floats = (x, y, edge_map, silhouette_map, edge_out, silhouette_out)
+    if not (all(a.dtype.kind == "f" for a in floats) and view_offset.dtype.kind in "iu"):
+        raise ValueError("cost lookup: points, maps and outputs must be floating-point arrays, offsets integers")
+    if (y.shape != x.shape or S == 0 or not 0 < n_contour < N or view_offset.shape != (V,) or height < 1
+            or width < 1
             or edge_out.shape != (P, V) or silhouette_out.shape != (P, V)
             or edge_map.shape != (size,) or silhouette_map.shape != (size,)
             or (V and not 0 <= view_offset.min() <= view_offset.max() <= size - height * width)):

@@ -76,8 +76,9 @@ class EdgeSilhouetteLikelihood(Likelihood):
     (``"cuda"``, ``"cuda:N"``, or ``"cpu"`` to run the torch path on the CPU, as the tests do) scores with torch
     tensors on it. The registered builder maps the run's device ``cpu`` to None (``--device``,
     ``track(device=...)``), so ``cpu`` means the numpy path there. ``threads`` (the CPU path): how many threads
-    score a batch of poses, one block of particles at a time each; the registered builder gives it the run's
-    threads (``--threads``).
+    score a batch of poses, one block of particles at a time each; 1 when built directly, the run's threads
+    (``--threads``, :func:`tracker.set_threads`, default the available cores) when built by
+    ``tracker.build_likelihood`` or ``track``, fixed when built (assign ``threads`` to change it).
     """
 
     name = "edge-silhouette"
@@ -86,9 +87,7 @@ class EdgeSilhouetteLikelihood(Likelihood):
                  observation: ObservationConfig = DEFAULT_OBSERVATION, device: str | None = None, threads: int = 1):
         if config.n_along < 2 or config.n_across < 1 or not config.sharpness > 0:
             raise InputError(f"need n_along >= 2, n_across >= 1 and a positive sharpness, got {config}")
-        if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
-            raise InputError(f"threads must be an integer of at least 1, got {threads!r}")
-        self.threads = int(threads)
+        self.threads = threads
         self.device = None if device is None else torch_device(device)
         self.model = model
         self.rig = rig
@@ -98,6 +97,17 @@ class EdgeSilhouetteLikelihood(Likelihood):
         self.n_contour = 2 * config.n_along
         self.weights = _sample_weights(config.n_along, config.n_across)  # 4 x N
         self._plates: dict[int, BackgroundPlate] = {}  # per view: the last plate seen, prepared once
+
+    @property
+    def threads(self) -> int:
+        """Threads that score a batch of poses on the CPU path (the calling one and ``threads - 1`` helpers)."""
+        return self._threads
+
+    @threads.setter
+    def threads(self, threads: int) -> None:
+        if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
+            raise InputError(f"threads must be an integer of at least 1, got {threads!r}")
+        self._threads = int(threads)
 
     def settings(self) -> dict:
         out = {"sharpness": self.config.sharpness, "bidirectional": self.config.bidirectional}
@@ -286,9 +296,16 @@ def _share_blocks(score: Callable[[slice], None], blocks: list[slice], threads: 
             score(block)
 
     n_helpers = min(threads, len(blocks)) - 1
-    helpers = [_helpers(n_helpers).submit(drain) for _ in range(n_helpers)] if n_helpers > 0 else []
+    helpers = [_helpers(threads - 1).submit(drain) for _ in range(n_helpers)]
     try:
         drain()
+    except BaseException:
+        while not todo.empty():  # the helpers stop after their current block
+            try:
+                todo.get_nowait()
+            except Empty:
+                break
+        raise
     finally:
         wait(helpers)  # the blocks' arrays are not left to helpers still writing them
     for helper in helpers:

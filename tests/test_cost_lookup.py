@@ -44,8 +44,10 @@ def test_compiled_lookups_equal_the_device_paths_indexing_and_read_the_border_of
            "too few offsets": dict(offset=maps.view_offset[:2]),
            "an offset past the maps": dict(offset=maps.view_offset + Hp * Wp),
            "no contour points": dict(n_contour=0),
-           "maps of another size": dict(Hp=Hp + 1)}
+           "maps of another size": dict(Hp=Hp + 1),
+           "maps of no height": dict(Hp=0),
+           "integer outputs": dict(edge=np.empty((P, V), np.int64))}
     for change in bad.values():
-        with pytest.raises(ValueError, match="inconsistent shapes"):
+        with pytest.raises(ValueError, match="inconsistent shapes|floating-point"):
             mean_costs(x, y, maps.edge, maps.silhouette, change.get("offset", maps.view_offset), change.get("Hp", Hp),
                        Wp, float(PAD), change.get("n_contour", n_contour), change.get("edge", edge), sil)

@@ -303,4 +303,3 @@ def test_numpy_blas_runs_on_one_thread_while_the_filter_runs_and_is_restored_aft
             pf.run(np.zeros((1, 2)), [Frame(k, ()) for k in range(4)], workers=workers)
             assert len(seen) == 8 and all(s == {1} for s in seen), (workers, seen)
             assert blas_threads() == {2}
-

@@ -38,7 +38,8 @@ def set_threads(n: int | None) -> int:
     next frame, and prepares frames further ahead in ``n - 2`` more (:func:`configured_threads`); the
     likelihood scores its blocks of particles on ``n`` threads (the filter's and ``n - 1`` helpers), while a run
     keeps numpy's BLAS on one (:func:`tracker.core.blas.serial_blas`). So up to ``n`` threads score, and the
-    reading thread may be a further one, for the part of a frame that they overlap."""
+    reading thread and the ``n - 2`` preparing ones may work at the same time, for the part of a frame that
+    they overlap."""
     global _configured
     n = available_cores() if n is None else int(n)
     if n < 1:

@@ -9,9 +9,17 @@ layers). Parallel work goes to blocks of particles and to frames instead.
 """
 from __future__ import annotations
 
+import threading
+from contextlib import contextmanager
 from functools import lru_cache
+from typing import Any, Iterator
 
 from threadpoolctl import ThreadpoolController
+
+_lock = threading.Lock()
+#: :func:`serial_blas` regions open now, in every thread, and the limiter the first of them set.
+_open = 0
+_limiter: Any = None
 
 
 @lru_cache(maxsize=1)
@@ -20,13 +28,28 @@ def _blas() -> ThreadpoolController:
     return ThreadpoolController().select(user_api="blas")
 
 
-def serial_blas():
+@contextmanager
+def serial_blas() -> Iterator[None]:
     """Context in which the BLAS libraries this process had loaded when it was first used (numpy's, and any
-    other imported by then) run on one thread; the setting from before comes back on exit.
+    other imported by then) run on one thread.
 
-    OpenBLAS has one thread pool per process, and threadpoolctl lets one thread set its size: the first to set
-    it (usually the main thread; :func:`tracker.set_threads` does), whose regions nest like a stack. In other
-    threads this context changes nothing, so regions of different threads cannot undo each other's setting;
-    :meth:`tracker.engine.filter.ParticleFilter.run` opens it in the thread that calls it, for every thread of
-    the run."""
-    return _blas().limit(limits=1)
+    Regions may nest and overlap across threads: the first to open sets one thread, the last to close restores
+    the setting from before, so no region runs with more while another is open. OpenBLAS has one pool per
+    process, and threadpoolctl lets only one thread change it, the first that did (``tracker.set_threads`` and
+    :meth:`tracker.engine.filter.ParticleFilter.run` usually run in the main thread): where the first or the last
+    region of a period is in another thread, the setting may stay where it was, which costs speed, never
+    results (the products split their outputs among threads, not their sums).
+    """
+    global _open, _limiter
+    with _lock:
+        if _open == 0:
+            _limiter = _blas().limit(limits=1)
+        _open += 1
+    try:
+        yield
+    finally:
+        with _lock:
+            _open -= 1
+            if _open == 0:
+                _limiter.restore_original_limits()
+                _limiter = None
