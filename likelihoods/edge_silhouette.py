@@ -29,6 +29,7 @@ from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from functools import lru_cache
 from queue import Empty, SimpleQueue
+from threading import Event
 from typing import Callable
 
 import numpy as np
@@ -282,30 +283,29 @@ DEVICE_BLOCK_BIDIRECTIONAL = 4096
 def _share_blocks(score: Callable[[slice], None], blocks: list[slice], threads: int) -> None:
     """``score(block)`` for every block, on ``threads`` threads: the calling one and ``threads - 1`` helpers
     take the next block in turn until none is left (so at most ``threads`` threads work, and a short last block
-    does not hold up the others). An exception raised by any of them is raised here."""
+    does not hold up the others). An exception raised by any of them stops the others after their current
+    block and is raised here."""
     todo = SimpleQueue()
     for block in blocks:
         todo.put(block)
+    failed = Event()
 
     def drain() -> None:
-        while True:
-            try:
-                block = todo.get_nowait()
-            except Empty:
-                return
-            score(block)
+        try:
+            while not failed.is_set():
+                try:
+                    block = todo.get_nowait()
+                except Empty:
+                    return
+                score(block)
+        except BaseException:
+            failed.set()
+            raise
 
     n_helpers = min(threads, len(blocks)) - 1
     helpers = [_helpers(threads - 1).submit(drain) for _ in range(n_helpers)]
     try:
         drain()
-    except BaseException:
-        while not todo.empty():  # the helpers stop after their current block
-            try:
-                todo.get_nowait()
-            except Empty:
-                break
-        raise
     finally:
         wait(helpers)  # the blocks' arrays are not left to helpers still writing them
     for helper in helpers:

@@ -263,3 +263,23 @@ def test_a_forked_child_scores_on_its_own_threads(walk_32_frames):
         pytest.fail("the forked child did not finish scoring within 60 s")
     child.join(10)
     np.testing.assert_array_equal(scores, expected)
+
+
+def test_a_block_that_fails_on_any_thread_stops_the_others_and_is_raised():
+    import time
+
+    from likelihoods.edge_silhouette import _share_blocks
+
+    blocks = [slice(k, k + 1) for k in range(200)]
+    for failing in (0, 57):  # the first block (this thread's) and one a helper takes
+        scored = []
+
+        def score(block):
+            if block.start == failing:
+                raise RuntimeError(f"block {failing}")
+            time.sleep(0.001)  # a block's work (it releases the GIL, as scoring does)
+            scored.append(block.start)
+
+        with pytest.raises(RuntimeError, match=f"block {failing}"):
+            _share_blocks(score, blocks, threads=3)
+        assert len(scored) < len(blocks) - 1  # the others stopped early

@@ -274,6 +274,7 @@ class ParticleFilter:
 
     # -- a whole sequence ----------------------------------------------------------------------------------
 
+    @serial_blas()
     def run(self, known: np.ndarray, frames: Iterable[Frame],
             record: Iterable[str] | Mapping[str, Callable[[FrameStep], Any]] | Recording = DEFAULT_RECORD,
             on_frame: Callable[[FrameStep], None] | None = None, state: FilterState | None = None,
@@ -293,13 +294,6 @@ class ParticleFilter:
         (:func:`tracker.core.blas.serial_blas`: the products of a filter step and of preparing a frame are
         small, and a parallel BLAS call leaves its threads spinning on the cores the likelihood's threads need).
         """
-        with serial_blas():
-            return self._run(known, frames, record, on_frame, state, on_state, workers)
-
-    def _run(self, known: np.ndarray, frames: Iterable[Frame],
-             record: Iterable[str] | Mapping[str, Callable[[FrameStep], Any]] | Recording,
-             on_frame: Callable[[FrameStep], None] | None, state: FilterState | None,
-             on_state: Callable[[FilterState, Recording], None] | None, workers: int) -> dict[str, np.ndarray]:
         recording = record if isinstance(record, Recording) else Recording(record)
         state = self.start(known) if state is None else state
 
