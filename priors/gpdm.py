@@ -49,9 +49,10 @@ import numpy as np
 import torch
 
 from priors.common import (
-    ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS, check_model_fits, check_weights, checked_data_settings,
-    mix_in_random_walk, normaliser_from_tensors, normaliser_to_tensors, read_model_file, robust_share,
-    scale_ground_steps, gaussian_start, steps_taken, torch_save_atomic, checked_time_warp, time_warp_note,
+    HEIGHT_DRIFT_OPTION, HEIGHT_SPREAD_OPTION, ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS, check_model_fits,
+    check_weights, checked_data_settings, checked_height_offset, mix_in_random_walk, normaliser_from_tensors,
+    normaliser_to_tensors, read_model_file, robust_share, scale_ground_steps, gaussian_start, shift_height,
+    steps_taken, torch_save_atomic, checked_time_warp, time_warp_note,
 )
 from tracker.core.errors import InputError
 from tracker.core.representation import (
@@ -904,7 +905,10 @@ class GPDMPrior(MotionPrior):
     each particle's ``log_pace`` multiplies the predicted ground steps (``pace_spread``, ``pace_drift``; see
     :func:`priors.common.scale_ground_steps`), and the robust option draws a share of the samples from the
     zero-velocity random walk (``robust_fraction``, ``robust_adaptive``; :func:`priors.common.robust_share`);
-    such a particle's latent point becomes that of the training frame nearest its new pose.
+    such a particle's latent point becomes that of the training frame nearest its new pose. With
+    ``height_spread`` or ``height_drift`` each particle also carries its own root-height offset (mm, the person's
+    root height minus the model's; :data:`priors.common.HEIGHT_SPREAD_OPTION`), added to the heights the
+    observation GP predicts, as the CRBM prior's offsets are.
     """
 
     name = "gpdm"
@@ -912,7 +916,8 @@ class GPDMPrior(MotionPrior):
 
     def __init__(self, model: GPDMPriorModel, noise_scale: float = 1.0, root_noise_mm: float = ROOT_NOISE_MM,
                  dtype: torch.dtype = torch.float32, robust_fraction: float = 0.0, robust_adaptive: bool = False,
-                 pace_spread: float = 0.0, pace_drift: float = 0.0):
+                 pace_spread: float = 0.0, pace_drift: float = 0.0, height_spread: float = 0.0,
+                 height_drift: float = 0.0):
         if not noise_scale >= 0 or not root_noise_mm >= 0:
             raise InputError("GPDM noise scale and root noise must be non-negative")
         if not 0.0 <= robust_fraction <= 1.0:
@@ -921,6 +926,9 @@ class GPDMPrior(MotionPrior):
             raise InputError(f"pace spread and drift must be non-negative (log units), got {pace_spread}, {pace_drift}")
         self.robust_fraction, self.robust_adaptive = float(robust_fraction), bool(robust_adaptive)
         self.pace_spread, self.pace_drift = float(pace_spread), float(pace_drift)
+        self.height_spread, self.height_drift = checked_height_offset(height_spread, height_drift)
+        if self.height_offsets:
+            self.summary_names, self.summary_kind = ("height offset (mm)",), "quantity"
         self.model = model
         self.predictor = model.gpdm.prepare()
         self.sampler = self.predictor.sampler(dtype)
@@ -931,7 +939,13 @@ class GPDMPrior(MotionPrior):
     def settings(self) -> dict:
         return {"latent_noise": self.noise_scale, "root_noise_mm": self.root_noise_mm,
                 "robust_fraction": self.robust_fraction, "robust_adaptive": self.robust_adaptive,
-                "pace_spread": self.pace_spread, "pace_drift": self.pace_drift}
+                "pace_spread": self.pace_spread, "pace_drift": self.pace_drift,
+                "height_spread_mm": self.height_spread, "height_drift_mm": self.height_drift}
+
+    @property
+    def height_offsets(self) -> bool:
+        """Whether each particle carries its own root-height offset (``height_spread`` or ``height_drift``)."""
+        return self.height_spread > 0 or self.height_drift > 0
 
     def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
         known = np.atleast_2d(np.asarray(known, float))
@@ -940,18 +954,24 @@ class GPDMPrior(MotionPrior):
         recent_feats = poses_to_invariant(np.concatenate([recent[:1], recent]))[1:]
         latent = self.predictor.project(torch.tensor(self.model.normaliser.transform(recent_feats)))
         history = torch.cat([latent[-1 - k] for k in range(o)]).numpy()  # newest first
-        return {"latent": np.repeat(history[None], n_particles, axis=0),
-                "step": np.repeat(pending_step(known)[None], n_particles, axis=0),
-                "log_pace": gaussian_start(n_particles, self.pace_spread, rng),
-                "walked": np.zeros(n_particles, bool)}
+        state = {"latent": np.repeat(history[None], n_particles, axis=0),
+                 "step": np.repeat(pending_step(known)[None], n_particles, axis=0),
+                 "log_pace": gaussian_start(n_particles, self.pace_spread, rng),
+                 "walked": np.zeros(n_particles, bool)}
+        if self.height_offsets:
+            state["height_offset"] = gaussian_start(n_particles, self.height_spread, rng)
+        return state
 
     def draw(self, n_particles: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
         """Every random number of one step, drawn in one batch: standard normal ``latent`` (``P x d``),
-        ``ground`` (``P x 2``) and, with a pace drift, ``pace`` (``P``) noise; particle ``i`` uses row ``i``."""
+        ``ground`` (``P x 2``) and, with a pace drift, ``pace`` (``P``), with a height drift ``height`` (``P``)
+        noise; particle ``i`` uses row ``i``."""
         noise = {"latent": rng.standard_normal((n_particles, self.model.gpdm.config.latent_dim)),
                  "ground": rng.standard_normal((n_particles, 2))}
         if self.pace_drift > 0:
             noise["pace"] = rng.standard_normal(n_particles)
+        if self.height_drift > 0:
+            noise["height"] = rng.standard_normal(n_particles)
         return noise
 
     def advance(self, history: np.ndarray, state: PriorState, noise: dict[str, np.ndarray]
@@ -965,6 +985,11 @@ class GPDMPrior(MotionPrior):
         f_next = self.model.normaliser.inverse(pose_features.numpy())
         log_pace = state["log_pace"] + self.pace_drift * noise["pace"] if "pace" in noise else state["log_pace"]
         scale_ground_steps(f_next, np.exp(log_pace))
+        new = {"log_pace": log_pace, "walked": state["walked"]}
+        if self.height_offsets:
+            offset = state["height_offset"]
+            new["height_offset"] = offset + self.height_drift * noise["height"] if "height" in noise else offset
+            shift_height(f_next, new["height_offset"])
         previous = np.zeros_like(f_next)
         previous[:, step] = state["step"]
         poses = next_poses(history[:, -1], previous, f_next)
@@ -972,7 +997,7 @@ class GPDMPrior(MotionPrior):
             poses[:, :2] += self.root_noise_mm * noise["ground"]
         d = self.model.gpdm.config.latent_dim
         latent = np.concatenate([x, state["latent"][:, :-d]], axis=1) if self.latent_order > 1 else x
-        return poses, {"latent": latent, "step": f_next[:, step], "log_pace": log_pace, "walked": state["walked"]}
+        return poses, {**new, "latent": latent, "step": f_next[:, step]}
 
     def sample(self, history: np.ndarray, available: int, state: PriorState,
                rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
@@ -982,10 +1007,18 @@ class GPDMPrior(MotionPrior):
         if walked.any():
             new["step"][walked] = steps_taken(history[walked, -1], poses[walked])
             feats = poses_to_invariant(np.stack([history[walked, -1], poses[walked]], axis=1))[:, 1]
+            if self.height_offsets:  # the pose at the heights the model learned
+                shift_height(feats, -new["height_offset"][walked])
             new["latent"][walked, :self.model.gpdm.config.latent_dim] = self.predictor.nearest_latent(
                 torch.from_numpy(self.model.normaliser.transform(feats))).numpy()
         new["walked"] = walked
         return poses, new
+
+    def summarize(self, state: PriorState, weights: np.ndarray) -> np.ndarray | None:
+        """With height offsets, the posterior mean offset (mm); None without."""
+        if not self.height_offsets:
+            return None
+        return np.array([float(np.sum(weights * state["height_offset"]))])
 
     def diffusion_std(self) -> np.ndarray:
         return self.model.pose_step_rms
@@ -1059,14 +1092,17 @@ GPDM_TRAIN_OPTIONS = (
                     minimum=0.0, maximum=MAX_LATENT_NOISE),
              Option("root_noise", float, ROOT_NOISE_MM, "ground-plane diffusion of each sample in mm (default 5)",
                     minimum=0.0, maximum=MAX_ROOT_NOISE_MM),
-             *UNLEARNED_MOTION_OPTIONS))
+             *UNLEARNED_MOTION_OPTIONS,
+             HEIGHT_SPREAD_OPTION,
+             HEIGHT_DRIFT_OPTION))
 def build_gpdm(context: PriorContext, model_files: Sequence[Path], options: dict) -> GPDMPrior:
     model = load_gpdm_prior(model_files[0])
     model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, model_files[0])
     try:
         return GPDMPrior(model, noise_scale=options["latent_noise"], root_noise_mm=options["root_noise"],
                          robust_fraction=options["robust_fraction"], robust_adaptive=options["robust_adaptive"],
-                         pace_spread=options["pace_spread"] or 0.0, pace_drift=options["pace_drift"] or 0.0)
+                         pace_spread=options["pace_spread"] or 0.0, pace_drift=options["pace_drift"] or 0.0,
+                         height_spread=options["height_spread"], height_drift=options["height_drift"])
     except InputError as exc:  # a kernel matrix of the file's hyperparameters that is not positive definite
         if exc.path is not None:
             raise

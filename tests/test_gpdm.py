@@ -422,3 +422,68 @@ def test_foreign_and_corrupt_model_files_are_refused(small_gpdm_file, tmp_path):
 def test_latent_dimension_above_the_features_is_refused():
     with pytest.raises(InputError, match="latent dimension must be at most the 3 observed features, got 4"):
         GPDM(np.random.default_rng(0).standard_normal((10, 3)), [10], GPDMConfig(latent_dim=4))
+
+
+def test_a_particles_height_offset_moves_the_gpdms_heights_by_exactly_that_offset(gpdm_prior_model, walk_07_01):
+    """The same latent history and noise with an offset of 70 mm give the same pose 70 mm higher."""
+    from priors.gpdm import GPDMPrior
+
+    prior = GPDMPrior(gpdm_prior_model, height_spread=30.0)
+    assert prior.summary_names == ("height offset (mm)",) and prior.summary_kind == "quantity"
+    state = prior.start(walk_07_01.poses[:2], 20, np.random.default_rng(0))
+    hist = np.repeat(walk_07_01.poses[None, 1:2], 20, axis=0)
+    noise = prior.draw(20, np.random.default_rng(1))
+    out = []
+    for offset in (0.0, 70.0):
+        poses, new = prior.advance(hist, {**state, "height_offset": np.full(20, offset)}, noise)
+        assert np.all(new["height_offset"] == offset)  # no drift: the offset keeps its value
+        out.append(poses)
+    assert np.allclose(out[1][:, 2] - out[0][:, 2], 70.0, atol=1e-6)
+    assert np.allclose(np.delete(out[1], 2, axis=1), np.delete(out[0], 2, axis=1), atol=1e-6)
+
+
+def test_gpdm_height_offsets_start_spread_drift_are_summarised_and_batched_equals_looped(gpdm_prior_model,
+                                                                                         walk_07_01):
+    from priors.gpdm import GPDMPrior
+
+    prior = GPDMPrior(gpdm_prior_model, height_spread=40.0, height_drift=2.0)
+    known = walk_07_01.poses[:2]
+    state = prior.start(known, 4000, np.random.default_rng(5))
+    assert np.std(state["height_offset"]) == pytest.approx(40.0, rel=0.05)
+    hist = np.repeat(known[None, -1:], 4000, axis=0)
+    _, new = prior.sample(hist, 1, state, np.random.default_rng(6))
+    assert np.std(new["height_offset"] - state["height_offset"]) == pytest.approx(2.0, rel=0.05)
+    weights = np.zeros(4000)
+    weights[:2] = 0.5
+    assert prior.summarize(new, weights)[0] == pytest.approx(np.mean(new["height_offset"][:2]))
+    P = 5  # row by row the same as in one batch
+    small = {k: v[:P] for k, v in state.items()}
+    noise = prior.draw(P, np.random.default_rng(7))
+    batched, bstate = prior.advance(hist[:P], small, noise)
+    rows = [prior.advance(hist[i:i + 1], {k: v[i:i + 1] for k, v in small.items()},
+                          {k: v[i:i + 1] for k, v in noise.items()}) for i in range(P)]
+    assert np.allclose(batched, np.concatenate([r[0] for r in rows]), atol=2e-4)
+    assert np.array_equal(bstate["height_offset"], np.concatenate([r[1]["height_offset"] for r in rows]))
+    plain = GPDMPrior(gpdm_prior_model)
+    assert "height_offset" not in plain.start(known, 10, np.random.default_rng(0)) and plain.summary_names == ()
+    assert plain.summarize(plain.start(known, 10, np.random.default_rng(0)), np.full(10, 0.1)) is None
+    for bad in ({"height_spread": -1.0}, {"height_drift": float("nan")}):
+        with pytest.raises(InputError, match="height"):
+            GPDMPrior(gpdm_prior_model, **bad)
+
+
+def test_a_robust_sample_gets_the_latent_point_of_its_pose_at_the_models_height(gpdm_prior_model, walk_07_01):
+    """A random-walk sample of a particle 80 mm above the model's heights is projected as if it were not."""
+    from priors.gpdm import GPDMPrior
+
+    prior = GPDMPrior(gpdm_prior_model, robust_fraction=1.0, root_noise_mm=0.0, height_spread=10.0)
+    known = walk_07_01.poses[:2]
+    state = prior.start(known, 8, np.random.default_rng(0))
+    latents = []
+    for offset, lift in ((0.0, 0.0), (80.0, 80.0)):
+        hist = np.repeat(known[None, -1:], 8, axis=0)
+        hist[..., 2] += lift
+        _, new = prior.sample(hist, 1, {**state, "height_offset": np.full(8, offset)}, np.random.default_rng(3))
+        assert new["walked"].all()
+        latents.append(new["latent"])
+    assert np.allclose(latents[0], latents[1], atol=1e-5)
