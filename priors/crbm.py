@@ -54,8 +54,8 @@ from priors.contrastive import ContrastiveConfig, finish_epoch, minibatches, mom
 from priors.ensemble import EnsemblePrior
 from tracker.core.errors import InputError
 from tracker.core.representation import (
-    PACE_FLOOR_MM, STANDING_LOG_PACE, STEP_FEATURES, FeatureNormaliser, clip_features, clip_log_pace, log_pace,
-    next_poses, pending_step, poses_to_invariant, step_rms,
+    N_ROOT, PACE_FLOOR_MM, STANDING_LOG_PACE, STEP_FEATURES, FeatureNormaliser, clip_features, clip_log_pace,
+    log_pace, next_poses, pending_step, poses_to_invariant, step_rms,
 )
 from tracker.engine.prior import MotionPrior, PriorState
 from tracker.engine.registry import Option, PriorContext, TrainingData, register_prior
@@ -82,6 +82,12 @@ class CRBMConfig(ContrastiveConfig):
     #: the weights of the best check are kept (Taylor 2009 held out 10%). 0: no validation, the last epoch's weights.
     validation: float = 0.0
     validation_every: int = 10
+    #: Std (rad) of a random constant added to every posture angle (the root's pitch and roll, every joint angle)
+    #: of each training window, its history and the frame to predict alike, drawn afresh for every window of every
+    #: epoch (:func:`posture_offset_scale`): people hold their joints differently, and a model shown only its
+    #: training subjects' postures pulls an unseen person's toward them within one frame; shown shifted postures, it
+    #: learns that a posture held in the history persists. 0: off.
+    posture_offset: float = 0.0
 
     def check(self) -> "CRBMConfig":
         super().check()
@@ -91,6 +97,9 @@ class CRBMConfig(ContrastiveConfig):
             raise InputError(f"validation fraction must lie in [0, 0.5], got {self.validation}")
         if int(self.validation_every) < 1:
             raise InputError(f"validation_every must be at least 1, got {self.validation_every}")
+        if isinstance(self.posture_offset, bool) or not isinstance(self.posture_offset, (int, float)) \
+                or not 0 <= self.posture_offset <= math.pi:
+            raise InputError(f"posture offset must lie in [0, pi] rad, got {self.posture_offset!r}")
         return self
 
 
@@ -242,6 +251,17 @@ def heights_above_standing(clips: Sequence[np.ndarray], standing_heights: Sequen
     return [shift_height(np.array(clip, float)[None], np.array([-h]))[0] for clip, h in zip(clips, heights)]
 
 
+def posture_offset_scale(normaliser: FeatureNormaliser, std: float) -> torch.Tensor:
+    """Per kept feature ``(K,)``, the std in normalised units of a posture offset of ``std`` rad
+    (:attr:`CRBMConfig.posture_offset`): ``std`` over the feature's std for the posture angles (the root's pitch
+    and roll, every joint angle), 0 for the ground steps, the height and the heading rate."""
+    posture = np.zeros(len(normaliser.names), bool)
+    posture[[3, 4]] = True  # pitch, roll (tracker.core.representation.ROOT_FEATURE_NAMES)
+    posture[N_ROOT:] = True
+    scale = np.where(posture, std / normaliser.std, 0.0)[normaliser.keep]
+    return torch.tensor(scale, dtype=torch.float32)
+
+
 def history_noise_scale(data: WindowData) -> torch.Tensor:
     """Per-dimension noise for the history: the 99th percentile of |frame-to-frame change| in the data."""
     idx = data.starts
@@ -304,8 +324,9 @@ class CRBMModel(TrainedModel):
     def to_document(self) -> dict:
         """The model file's dictionary (tensors and plain values; ``torch.load(weights_only=True)`` reads it)."""
         config = asdict(self.config)
-        for key in ("standing_height", "validation", "validation_every"):  # at their defaults, as files written
-            if config[key] == getattr(CRBMConfig, key):                      # before they existed (readable by them)
+        for key in ("standing_height", "validation", "validation_every", "posture_offset"):  # at their defaults,
+            # as files written
+            if config[key] == getattr(CRBMConfig, key):  # before they existed (readable by them)
                 del config[key]
         return {
             "format": FORMAT, "params": self.crbm.state_dict(), "config": config, **self.data_document(),
@@ -417,6 +438,7 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
     noise = history_noise_scale(data).to(device) if cfg.history_noise == "auto" else \
         torch.full((K,), float(cfg.history_noise), device=device)
     noise = torch.cat([torch.zeros(C, device=device), noise.repeat(N)])  # the pace input is given, not noisy
+    posture = posture_offset_scale(data.normaliser, cfg.posture_offset).to(device) if cfg.posture_offset else None
     pace_label, pace = None, None
     if cfg.pace_input:
         pace_label = (float(np.mean(data.pace)), max(float(np.std(data.pace)), 1e-3))
@@ -466,6 +488,10 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
         err_sum, count = 0.0, 0
         for batch in minibatches(starts, cfg.batch_size, g):
             v0, hist = windows(batch)
+            if posture is not None:  # one offset per window, on the frame to predict and every history frame
+                offset = torch.randn(v0.shape, generator=g, device=device) * posture
+                v0 = v0 + offset
+                hist = hist + torch.cat([torch.zeros(len(v0), C, device=device), offset.repeat(1, N)], dim=1)
             if cfg.history_noise:
                 hist = hist + torch.randn(hist.shape, generator=g, device=device) * noise
             a_hat, b_hat = crbm.biases(hist)
@@ -883,7 +909,8 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
     config = CRBMConfig(order=options["order"], hidden=options["hidden"], epochs=options["epochs"],
                         cd_k=options["cd_k"], batch_size=options["batch_size"], history_noise=noise,
                         sparsity_target=options["sparsity"], pace_input=pace_input,
-                        standing_height=options["standing_height"], validation=options["validation"]).check()
+                        standing_height=options["standing_height"], validation=options["validation"],
+                        posture_offset=options["posture_offset"]).check()
     grow = _growth_orders(options["grow_from"], config.order)
     every = options["checkpoint_every"] or 0
     orders = grow + [config.order]
@@ -971,6 +998,11 @@ CRBM_TRAIN_OPTIONS = (
                                            "(its body model's) instead of above the floor, and track it above the "
                                            "person's own, so that one model fits people of other sizes (default "
                                            "off: it won issue 13's tuning folds but lost its one-view test folds)"),
+    Option("posture_offset", float, CRBMConfig.posture_offset,
+           "std in rad of a random constant added to every posture angle (root pitch and roll, joint angles) of "
+           "each training window, history and predicted frame alike, so that the model keeps an unseen person's "
+           "posture instead of pulling it toward its training subjects' (default 0: off)", minimum=0.0,
+           maximum=float(math.pi)),
 )
 
 

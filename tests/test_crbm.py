@@ -275,3 +275,51 @@ def test_the_history_noise_option_is_auto_or_a_number_in_range():
     for bad, expected in [("abc", "'auto' or a number"), ("200", r"\[0, 100\]"), (-1, r"\[0, 100\]")]:
         with pytest.raises(InputError, match=expected):
             parse_history_noise(bad)
+
+
+def test_posture_offsets_scale_only_the_posture_angles(walks):
+    from priors.crbm import posture_offset_scale
+    from tracker.core.representation import feature_names
+
+    norm = make_windows(walks[:1], 1, DOF_NAMES).normaliser
+    scale = posture_offset_scale(norm, 0.1).numpy()
+    kept = norm.kept_names
+    assert len(scale) == norm.n_kept
+    for name, s, std in zip(kept, scale, norm.std[norm.keep]):
+        if name in ("forward_velocity", "lateral_velocity", "height", "yaw_rate"):
+            assert s == 0
+        else:  # pitch, roll and every joint angle: 0.1 rad in normalised units
+            assert s == pytest.approx(0.1 / std, rel=1e-6)
+    assert set(feature_names(DOF_NAMES)[6:]) & set(kept)
+
+
+def test_a_model_trained_with_posture_offsets_keeps_a_shifted_posture(walks):
+    """Every posture angle of an unseen walk shifted by 0.1 rad: the one-step prediction (free-energy best guess)
+    of a model trained with posture offsets keeps more of the shift than the same model trained without, which
+    pulls the posture back toward its training walks' (full-size models of issue 13: 0.87 against 0.37)."""
+    f = poses_to_invariant(walks[2])[:-1]
+    shifted = f.copy()
+    shifted[:, [3, 4]] += 0.1
+    shifted[:, 6:] += 0.1
+    kept = []
+    for offset in (0.0, 0.1):
+        m = train_crbm(walks[:2], CRBMConfig(order=1, hidden=50, epochs=200, posture_offset=offset), 60.0,
+                       DOF_NAMES, rng=np.random.default_rng(3))
+        pred = [m.normaliser.inverse(m.crbm.best_guess(torch.tensor(m.normaliser.transform(g[:-1]),
+                                                                    dtype=torch.float32)).numpy())
+                for g in (f, shifted)]
+        kept.append(float((pred[1] - pred[0])[:, [3, 4] + list(range(6, 40))].mean()) / 0.1)
+    assert kept[1] > kept[0] + 0.05, kept
+
+
+def test_the_posture_offset_is_checked_and_kept_in_the_model_file(walks, tmp_path):
+    for bad in (-0.1, 4.0, True):
+        with pytest.raises(InputError, match="posture offset"):
+            CRBMConfig(posture_offset=bad).check()
+    m = train_crbm(walks[:1], CRBMConfig(order=1, hidden=10, epochs=2, posture_offset=0.05), 60.0, DOF_NAMES,
+                   rng=np.random.default_rng(0))
+    m.save(tmp_path / "m.pt")
+    assert load_crbm(tmp_path / "m.pt").config.posture_offset == 0.05
+    plain = train_crbm(walks[:1], CRBMConfig(order=1, hidden=10, epochs=2), 60.0, DOF_NAMES,
+                       rng=np.random.default_rng(0))
+    assert "posture_offset" not in plain.to_document()["config"]  # files at the default read as before
