@@ -445,6 +445,7 @@ def test_a_particles_height_offset_moves_the_gpdms_heights_by_exactly_that_offse
 def test_gpdm_height_offsets_start_spread_drift_are_summarised_and_batched_equals_looped(gpdm_prior_model,
                                                                                          walk_07_01):
     from priors.gpdm import GPDMPrior
+    from tracker.app.api import prior_entry
 
     prior = GPDMPrior(gpdm_prior_model, height_spread=40.0, height_drift=2.0)
     known = walk_07_01.poses[:2]
@@ -464,7 +465,10 @@ def test_gpdm_height_offsets_start_spread_drift_are_summarised_and_batched_equal
                           {k: v[i:i + 1] for k, v in noise.items()}) for i in range(P)]
     assert np.allclose(batched, np.concatenate([r[0] for r in rows]), atol=2e-4)
     assert np.array_equal(bstate["height_offset"], np.concatenate([r[1]["height_offset"] for r in rows]))
-    plain = GPDMPrior(gpdm_prior_model)
+    assert GPDMPrior(gpdm_prior_model).height_spread == 50.0  # the default since round 19
+    option = {o.name: o for o in prior_entry("gpdm").options}["height_spread"]
+    assert option.default == 50.0 and "default 50" in option.help
+    plain = GPDMPrior(gpdm_prior_model, height_spread=0.0)
     assert "height_offset" not in plain.start(known, 10, np.random.default_rng(0)) and plain.summary_names == ()
     assert plain.summarize(plain.start(known, 10, np.random.default_rng(0)), np.full(10, 0.1)) is None
     for bad in ({"height_spread": -1.0}, {"height_drift": float("nan")}):
