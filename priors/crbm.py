@@ -108,12 +108,28 @@ class CRBMConfig(ContrastiveConfig):
 INPUT_SETTINGS = {"pace_input": "pace input", "standing_height": "height reference"}
 
 
+def uniform16(shape: tuple[int, ...], generator: torch.Generator | None, device: torch.device | str) -> torch.Tensor:
+    """Uniform random integers of ``shape`` as int16 (each of -2^15 .. 2^15 - 1 equally likely): four from every
+    64-bit draw of ``generator``, about three times faster on CPU than as many float uniforms from ``torch.rand``
+    (whose generator makes one 32-bit draw per number)."""
+    n = math.prod(shape)
+    words = torch.empty((n + 3) // 4, dtype=torch.int64, device=device)
+    words.random_(-2 ** 63, 2 ** 63 - 1, generator=generator)
+    return words.view(torch.int16)[:n].view(shape)
+
+
+def below_(u: torch.Tensor, p: torch.Tensor) -> torch.Tensor:
+    """Binary samples (0 or 1 in ``p``'s dtype) written over the probabilities ``p``, in place, from the uniform
+    integers ``u`` (:func:`uniform16`, same shape): 1 where ``u + 2^15`` (uniform on 0 .. 2^16 - 1) is below
+    ``p * 2^16``, so a unit is on with probability ``p`` rounded up to a multiple of 2^-16."""
+    return torch.lt(u, p.mul_(65536.0).sub_(32768.0), out=p)
+
+
 def bernoulli(p: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
-    """Binary samples (0 or 1 in ``p``'s dtype) with probabilities ``p``: uniforms compared with ``p``, the result
-    written over the uniforms (several times faster than ``torch.bernoulli`` with an explicit generator on CPU,
+    """Binary samples (0 or 1 in ``p``'s dtype) with probabilities ``p`` (left unchanged), by :func:`below_` on
+    :func:`uniform16` integers (several times faster than ``torch.bernoulli`` with an explicit generator on CPU,
     and than converting a boolean comparison)."""
-    u = torch.rand(p.shape, generator=generator, device=p.device, dtype=p.dtype)
-    return torch.lt(u, p, out=u)
+    return below_(uniform16(p.shape, generator, p.device), p.clone())
 
 
 class CRBM:

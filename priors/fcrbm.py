@@ -59,7 +59,8 @@ from priors.contrastive import (
     ContrastiveConfig, balanced_starts, finish_epoch, minibatches, momentum_step, window_index,
 )
 from priors.crbm import (
-    CRBM_TRAIN_OPTIONS, CRBMPrior, _growth_orders, bernoulli, history_noise_scale, make_windows, parse_history_noise,
+    CRBM_TRAIN_OPTIONS, CRBMPrior, _growth_orders, below_, bernoulli, history_noise_scale, make_windows,
+    parse_history_noise, uniform16,
 )
 from tracker.core.errors import InputError
 from tracker.core.representation import FeatureNormaliser, step_rms
@@ -225,8 +226,9 @@ class FCRBM:
 
         Rows with the same label vector share the effective weights ``Wv diag(s) Wh^T`` ``K x H``; with at most
         :data:`GROUPED_STYLES_MAX` distinct rows (``grouped=None``) sampling runs on those matrices, rows sorted
-        by style, else on the factored form. Both draw the same random numbers (one ``B x H`` uniform array per
-        step, its rows taken in the order of the rows sorted by style) and agree to rounding. Sampling writes into
+        by style, else on the factored form. Both draw the same random numbers (one ``B x H`` array of uniform
+        integers per step, :func:`priors.crbm.uniform16`, its rows taken in the order of the rows sorted by style)
+        and agree to rounding. Sampling writes into
         its arrays in place (``out=``), so parameters must not require gradients (training uses the explicit CD
         statistics of :meth:`free_energy_gradients`).
         """
@@ -242,8 +244,7 @@ class FCRBM:
             rank[order] = torch.arange(B, device=order.device)
             for step in range(steps):
                 p = self.hidden_probabilities(v, s, b_hat)
-                h = p if step == steps - 1 else torch.lt(
-                    torch.rand((B, H), generator=generator, device=v.device, dtype=v.dtype)[rank], p, out=p)
+                h = p if step == steps - 1 else below_(uniform16((B, H), generator, v.device)[rank], p)
                 v = self.visible_means(h, s, a_hat)
             return v
         weights = torch.einsum("kf,sf,hf->skh", self.Wv, self.style_factors(styles), self.Wh)  # S x K x H
@@ -252,11 +253,11 @@ class FCRBM:
         a_hat, b_hat, v = a_hat[order], b_hat[order], v[order]
         h = torch.empty((B, H), device=v.device, dtype=v.dtype)
         for step in range(steps):
-            u = None if step == steps - 1 else torch.rand((B, H), generator=generator, device=v.device, dtype=v.dtype)
+            u = None if step == steps - 1 else uniform16((B, H), generator, v.device)
             for rows, W in groups:  # h[rows], v[rows]: views of contiguous row blocks, written in place
                 torch.addmm(b_hat[rows], v[rows], W, out=h[rows]).sigmoid_()
                 if u is not None:
-                    torch.lt(u[rows], h[rows], out=h[rows])
+                    below_(u[rows], h[rows])
             v = torch.empty_like(v)
             for rows, W in groups:
                 torch.addmm(a_hat[rows], h[rows], W.T, out=v[rows])

@@ -31,14 +31,29 @@ def crbm3(walks):
                       rng=np.random.default_rng(1))
 
 
-def test_binary_samples_are_uniforms_below_the_probabilities():
-    """The sampler's contract, which every seeded CRBM/FCRBM result depends on: one uniform per unit from the
-    generator, 1 where it is below ``p``; float 0/1 in ``p``'s dtype."""
+def test_binary_samples_are_16_bit_uniforms_below_the_probabilities():
+    """The sampler's contract, which every seeded CRBM/FCRBM result depends on (since 0.10.0): one uniform 16-bit
+    integer per unit, four from each 64-bit draw of the generator, 1 where it is below ``p * 2^16``; float 0/1 in
+    ``p``'s dtype, ``p`` left unchanged."""
+    from priors.crbm import uniform16
+
     for dtype in (torch.float32, torch.float64):
         p = torch.rand(40, 7, generator=torch.Generator().manual_seed(1), dtype=dtype)
+        kept = p.clone()
         h = bernoulli(p, torch.Generator().manual_seed(2))
-        expected = (torch.rand(p.shape, generator=torch.Generator().manual_seed(2), dtype=dtype) < p).to(dtype)
-        assert h.dtype == dtype and torch.equal(h, expected) and 0 < h.sum() < h.numel()
+        words = torch.empty(70, dtype=torch.int64).random_(-2 ** 63, 2 ** 63 - 1,
+                                                            generator=torch.Generator().manual_seed(2))
+        u = words.view(torch.int16).view(40, 7).to(torch.int64) + 2 ** 15  # 0 .. 2^16 - 1
+        expected = (u < p * 2 ** 16).to(dtype)
+        assert h.dtype == dtype and torch.equal(h, expected) and 0 < h.sum() < h.numel() and torch.equal(p, kept)
+    # Every one of the four integers of a 64-bit draw covers the whole range, and the rates are right.
+    u16 = uniform16((250_000, 4), torch.Generator().manual_seed(3), "cpu")
+    u = u16.to(torch.int64)
+    assert u16.dtype == torch.int16 and u.min() == -2 ** 15 and u.max() == 2 ** 15 - 1
+    assert torch.all((u < 0).double().mean(0).sub(0.5).abs() < 0.005)
+    for rate in (0.0, 0.01, 0.3, 0.999, 1.0):
+        share = float(bernoulli(torch.full((1_000_000,), rate), torch.Generator().manual_seed(4)).mean())
+        assert abs(share - rate) < 0.002
 
 
 def test_windows_are_indexed_not_copied(walks):
