@@ -13,7 +13,9 @@ Also prints, for each model, the share of a 0.1 rad shift of every posture angle
 one-step prediction (the free-energy best guess) keeps: 1 keeps the person's posture, 0 pulls it back to the
 training subjects'.
 
-Folds 02 and 07 are the tuning folds; the others are test folds (a measurement there is a diagnostic, not a
+`benchmarks/rollout_error.py` measures the error of one sample path many steps ahead; this script the spread of
+one step's samples (their median and their best), which is what the likelihood can choose from. Folds 02 and 07
+are the tuning folds; the others are test folds (a measurement there is a diagnostic, not a
 choice). Run by hand (a few minutes per offset on 2 cores); prints a Markdown table.
 """
 from __future__ import annotations
@@ -33,14 +35,12 @@ from priors.random_walk import ZeroVelocityPrior  # noqa: E402
 from tracker.app.api import load_clip, train  # noqa: E402
 from tracker.core.kinematics import markers  # noqa: E402
 from tracker.core.metrics import marker_error  # noqa: E402
-from tracker.core.representation import N_ROOT, poses_to_invariant, step_rms  # noqa: E402
+from tracker.core.representation import poses_to_invariant, posture_features, step_rms  # noqa: E402
 
 CMU = REPO.parent / "shared" / "mocap" / "cmu"
 WALKS = {"02": ["02/02_01.amc", "02/02_02.amc"], "07": ["07/07_01.amc", "07/07_02.amc", "07/07_09.amc", "07/07_10.amc"],
          "16": ["16/16_15.amc"], "91": ["91/91_straight_walk.amc"]}
 LEFT_OUT = {"02": "02/02_01.amc", "07": "07/07_11.amc", "16": "16/16_15.amc", "91": "91/91_straight_walk.amc"}
-#: The posture angles among the invariant features: the root's pitch and roll, every joint angle.
-POSTURE = [3, 4] + list(range(N_ROOT, 40))
 
 
 def one_step_errors(prior, poses: np.ndarray, truth_markers: np.ndarray, model, history: int, samples: int,
@@ -62,8 +62,9 @@ def one_step_errors(prior, poses: np.ndarray, truth_markers: np.ndarray, model, 
 def posture_kept(crbm_model, poses: np.ndarray, shift: float = 0.1) -> float:
     """The share of a ``shift`` rad offset of every posture angle that the model's one-step best guess keeps."""
     feats = poses_to_invariant(poses)[:-1]
+    posture = posture_features(feats.shape[1])
     shifted = feats.copy()
-    shifted[:, POSTURE] += shift
+    shifted[:, posture] += shift
     n = crbm_model.order
     out = []
     for f in (feats, shifted):
@@ -73,7 +74,7 @@ def posture_kept(crbm_model, poses: np.ndarray, shift: float = 0.1) -> float:
             hist = np.concatenate([crbm_model.pace_input(np.full(len(hist), crbm_model.pace_label[0])), hist], 1)
         guess = crbm_model.crbm.best_guess(torch.tensor(hist, dtype=torch.float32)).numpy()
         out.append(crbm_model.normaliser.inverse(guess))
-    return float((out[1] - out[0])[:, POSTURE].mean() / shift)
+    return float((out[1] - out[0])[:, posture].mean() / shift)
 
 
 def main() -> None:

@@ -54,8 +54,8 @@ from priors.contrastive import ContrastiveConfig, finish_epoch, minibatches, mom
 from priors.ensemble import EnsemblePrior
 from tracker.core.errors import InputError
 from tracker.core.representation import (
-    N_ROOT, PACE_FLOOR_MM, STANDING_LOG_PACE, STEP_FEATURES, FeatureNormaliser, clip_features, clip_log_pace,
-    log_pace, next_poses, pending_step, poses_to_invariant, step_rms,
+    PACE_FLOOR_MM, STANDING_LOG_PACE, STEP_FEATURES, FeatureNormaliser, clip_features, clip_log_pace, log_pace,
+    next_poses, pending_step, poses_to_invariant, posture_features, step_rms,
 )
 from tracker.engine.prior import MotionPrior, PriorState
 from tracker.engine.registry import Option, PriorContext, TrainingData, register_prior
@@ -121,7 +121,8 @@ def uniform16(shape: tuple[int, ...], generator: torch.Generator | None, device:
 def below_(u: torch.Tensor, p: torch.Tensor) -> torch.Tensor:
     """Binary samples (0 or 1 in ``p``'s dtype) written over the probabilities ``p``, in place, from the uniform
     integers ``u`` (:func:`uniform16`, same shape): 1 where ``u + 2^15`` (uniform on 0 .. 2^16 - 1) is below
-    ``p * 2^16``, so a unit is on with probability ``p`` rounded up to a multiple of 2^-16."""
+    ``p * 2^16``, so a unit is on with probability ``p`` to within 2^-16 (float32 or float64 ``p``; the threshold
+    ``p * 2^16 - 2^15`` is rounded in ``p``'s dtype, which moves it by at most 2^-8 in float32)."""
     return torch.lt(u, p.mul_(65536.0).sub_(32768.0), out=p)
 
 
@@ -196,7 +197,7 @@ class CRBM:
         v = history[:, -self.n_visible:] if init is None else init
         for step in range(steps):
             p = self.hidden_probabilities(v, b_hat)
-            h = p if step == steps - 1 else bernoulli(p, generator)
+            h = p if step == steps - 1 else below_(uniform16(p.shape, generator, p.device), p)  # p not needed again
             v = a_hat + h @ self.W.T
         return v
 
@@ -272,8 +273,7 @@ def posture_offset_scale(normaliser: FeatureNormaliser, std: float) -> torch.Ten
     (:attr:`CRBMConfig.posture_offset`): ``std`` over the feature's std for the posture angles (the root's pitch
     and roll, every joint angle), 0 for the ground steps, the height and the heading rate."""
     posture = np.zeros(len(normaliser.names), bool)
-    posture[[3, 4]] = True  # pitch, roll (tracker.core.representation.ROOT_FEATURE_NAMES)
-    posture[N_ROOT:] = True
+    posture[posture_features(len(normaliser.names))] = True
     scale = np.where(posture, std / normaliser.std, 0.0)[normaliser.keep]
     return torch.tensor(scale, dtype=torch.float32)
 
@@ -340,9 +340,9 @@ class CRBMModel(TrainedModel):
     def to_document(self) -> dict:
         """The model file's dictionary (tensors and plain values; ``torch.load(weights_only=True)`` reads it)."""
         config = asdict(self.config)
-        for key in ("standing_height", "validation", "validation_every", "posture_offset"):  # at their defaults,
-            # as files written
-            if config[key] == getattr(CRBMConfig, key):  # before they existed (readable by them)
+        # Settings at their defaults are left out, as in files written before they existed (readable by those).
+        for key in ("standing_height", "validation", "validation_every", "posture_offset"):
+            if config[key] == getattr(CRBMConfig, key):
                 del config[key]
         return {
             "format": FORMAT, "params": self.crbm.state_dict(), "config": config, **self.data_document(),

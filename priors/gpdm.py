@@ -50,9 +50,9 @@ import torch
 
 from priors.common import (
     HEIGHT_DRIFT_OPTION, HEIGHT_SPREAD_HELP, HEIGHT_SPREAD_OPTION, ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS,
-    check_model_fits, check_weights, checked_data_settings, checked_height_offset, mix_in_random_walk, normaliser_from_tensors,
-    normaliser_to_tensors, read_model_file, robust_share, scale_ground_steps, gaussian_start, shift_height,
-    steps_taken, torch_save_atomic, checked_time_warp, time_warp_note,
+    check_model_fits, check_weights, checked_data_settings, checked_height_offset, mix_in_random_walk,
+    normaliser_from_tensors, normaliser_to_tensors, read_model_file, robust_share, scale_ground_steps, gaussian_start,
+    shift_height, steps_taken, torch_save_atomic, checked_time_warp, time_warp_note,
 )
 from tracker.core.errors import InputError
 from tracker.core.representation import (

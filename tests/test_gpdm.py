@@ -484,10 +484,11 @@ def test_a_robust_sample_gets_the_latent_point_of_its_pose_at_the_models_height(
     known = walk_07_01.poses[:2]
     state = prior.start(known, 8, np.random.default_rng(0))
     latents = []
-    for offset, lift in ((0.0, 0.0), (80.0, 80.0)):
+    for offset, lift in ((0.0, 0.0), (80.0, 80.0), (0.0, 80.0)):
         hist = np.repeat(known[None, -1:], 8, axis=0)
         hist[..., 2] += lift
         _, new = prior.sample(hist, 1, {**state, "height_offset": np.full(8, offset)}, np.random.default_rng(3))
         assert new["walked"].all()
         latents.append(new["latent"])
     assert np.allclose(latents[0], latents[1], atol=1e-5)
+    assert not np.allclose(latents[0], latents[2], atol=1e-5)  # 80 mm not taken off: other latent points

@@ -51,6 +51,12 @@ N_ROOT = 6
 STEP_FEATURES = (0, 1, 5)
 
 
+def posture_features(n_features: int) -> list[int]:
+    """Indices of the posture angles (rad) among ``n_features`` invariant features: the root's pitch and roll and
+    every joint angle (the features after the root's six); not the ground steps, the height or the heading rate."""
+    return [3, 4] + list(range(N_ROOT, n_features))
+
+
 def feature_names(dof_names: Sequence[str]) -> list[str]:
     """Names of the invariant features for a pose layout whose first 6 numbers are the root."""
     return list(ROOT_FEATURE_NAMES) + list(dof_names[N_ROOT:])
