@@ -261,6 +261,35 @@ def checked_height_offset(spread: float, drift: float) -> tuple[float, float]:
     return float(spread), float(drift)
 
 
+class HeightOffsets:
+    """What a learned prior whose particles may carry their own root-height offset (mm; the person's root height
+    minus the model's, :data:`HEIGHT_SPREAD_OPTION`) shares: the settings, whether they are on, the offsets at the
+    start and their posterior mean. The prior adds the offsets to the heights its model predicts."""
+
+    #: The std (mm) of each particle's root-height offset at the start (with ``height_drift`` both 0: no offset).
+    height_spread: float = 0.0
+    #: The std (mm/frame) of each frame's random-walk step of the root-height offset.
+    height_drift: float = 0.0
+
+    def set_height_offsets(self, spread: float, drift: float) -> None:
+        """The settings, checked by :func:`checked_height_offset`."""
+        self.height_spread, self.height_drift = checked_height_offset(spread, drift)
+
+    @property
+    def height_offsets(self) -> bool:
+        """Whether each particle carries its own root-height offset (``height_spread`` or ``height_drift``)."""
+        return self.height_spread > 0 or self.height_drift > 0
+
+    def start_height_offsets(self, n_particles: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
+        """The state entry ``height_offset`` ``(P,)`` at the start (Gaussian, ``height_spread``), or none."""
+        return {"height_offset": gaussian_start(n_particles, self.height_spread, rng)} if self.height_offsets else {}
+
+    @staticmethod
+    def mean_height_offset(state: dict, weights: np.ndarray) -> float:
+        """The posterior mean offset (mm) under the normalised ``weights`` ``(P,)``."""
+        return float(np.sum(weights * state["height_offset"]))
+
+
 def checked_ground_velocity(noise: float | None, pull: float,
                             pace_jump: float = 0.0) -> tuple[float | None, float]:
     """The settings of :func:`persist_ground_step` as ``(noise, pull)``: ``noise`` (mm/frame per frame, None for

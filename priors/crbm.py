@@ -43,9 +43,9 @@ import torch
 
 from priors.common import (
     GROUND_VELOCITY_OPTION, GROUND_VELOCITY_PULL_OPTION, HEADING_NOISE_OPTION, HEIGHT_DRIFT_OPTION,
-    HEIGHT_SPREAD_HELP, HEIGHT_SPREAD_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION, TrainedModel, UNLEARNED_MOTION_OPTIONS,
-    add_ground_diffusion, add_heading_diffusion, check_weights, checked_data_settings, checked_ground_velocity,
-    checked_height_offset, checked_time_warp, gaussian_drift, gaussian_start, gibbs_steps_option,
+    HEIGHT_SPREAD_HELP, HEIGHT_SPREAD_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION, HeightOffsets, TrainedModel,
+    UNLEARNED_MOTION_OPTIONS, add_ground_diffusion, add_heading_diffusion, check_weights, checked_data_settings,
+    checked_ground_velocity, checked_time_warp, gaussian_drift, gaussian_start, gibbs_steps_option,
     mix_in_random_walk, normaliser_from_tensors, persist_ground_step, read_model_file, robust_share,
     scale_ground_steps, shift_height, steps_taken, time_warp_note, torch_generator,
     torch_save_atomic,
@@ -126,11 +126,16 @@ def below_(u: torch.Tensor, p: torch.Tensor) -> torch.Tensor:
     return torch.lt(u, p.mul_(65536.0).sub_(32768.0), out=p)
 
 
-def bernoulli(p: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
-    """Binary samples (0 or 1 in ``p``'s dtype) with probabilities ``p`` (left unchanged), by :func:`below_` on
+def bernoulli_(p: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
+    """Binary samples (0 or 1 in ``p``'s dtype) with probabilities ``p``, written over ``p``: :func:`below_` on
     :func:`uniform16` integers (several times faster than ``torch.bernoulli`` with an explicit generator on CPU,
     and than converting a boolean comparison)."""
-    return below_(uniform16(p.shape, generator, p.device), p.clone())
+    return below_(uniform16(p.shape, generator, p.device), p)
+
+
+def bernoulli(p: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
+    """As :func:`bernoulli_`, with ``p`` left unchanged."""
+    return bernoulli_(p.clone(), generator)
 
 
 class CRBM:
@@ -197,7 +202,7 @@ class CRBM:
         v = history[:, -self.n_visible:] if init is None else init
         for step in range(steps):
             p = self.hidden_probabilities(v, b_hat)
-            h = p if step == steps - 1 else below_(uniform16(p.shape, generator, p.device), p)  # p not needed again
+            h = p if step == steps - 1 else bernoulli_(p, generator)  # p is not needed again
             v = a_hat + h @ self.W.T
         return v
 
@@ -272,10 +277,10 @@ def posture_offset_scale(normaliser: FeatureNormaliser, std: float) -> torch.Ten
     """Per kept feature ``(K,)``, the std in normalised units of a posture offset of ``std`` rad
     (:attr:`CRBMConfig.posture_offset`): ``std`` over the feature's std for the posture angles (the root's pitch
     and roll, every joint angle), 0 for the ground steps, the height and the heading rate."""
-    posture = np.zeros(len(normaliser.names), bool)
-    posture[posture_features(len(normaliser.names))] = True
-    scale = np.where(posture, std / normaliser.std, 0.0)[normaliser.keep]
-    return torch.tensor(scale, dtype=torch.float32)
+    scale = np.zeros(len(normaliser.names))
+    posture = posture_features(len(normaliser.names))
+    scale[posture] = std / normaliser.std[posture]
+    return torch.tensor(scale[normaliser.keep], dtype=torch.float32)
 
 
 def history_noise_scale(data: WindowData) -> torch.Tensor:
@@ -635,7 +640,7 @@ PACED_JUMP = 0.0
 PACED_HEIGHT_SPREAD = 50.0
 
 
-class CRBMPrior(MotionPrior):
+class CRBMPrior(HeightOffsets, MotionPrior):
     """Samples every particle's next pose from its own history with a CRBM (one batch, torch).
 
     Given several models (e.g. orders 1, 3, 6) the highest order whose history is available is used, so
@@ -675,10 +680,6 @@ class CRBMPrior(MotionPrior):
     ground_velocity_noise: float | None = None
     #: The fraction of a particle's own ground velocity lost per frame (with ``ground_velocity_noise``).
     ground_velocity_pull: float = 0.0
-    #: The std (mm) of each particle's root-height offset at the start (with ``height_drift`` both 0: no offset).
-    height_spread: float = 0.0
-    #: The std (mm/frame) of each frame's random-walk step of the root-height offset.
-    height_drift: float = 0.0
 
     def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = GIBBS_STEPS,
                  device: str = "cpu", mode: str = "gibbs", root_noise_mm: float = ROOT_NOISE_MM,
@@ -747,7 +748,7 @@ class CRBMPrior(MotionPrior):
             ground_velocity_noise, ground_velocity_pull, pace_jump)
         if height_spread is None:
             height_spread = PACED_HEIGHT_SPREAD if self.paced else 0.0
-        self.height_spread, self.height_drift = checked_height_offset(height_spread, height_drift)
+        self.set_height_offsets(height_spread, height_drift)
         if self.paced:
             self.summary_names, self.summary_kind = ("pace (mm/frame)",), "quantity"
         if self.height_offsets:
@@ -769,11 +770,6 @@ class CRBMPrior(MotionPrior):
                 "ground_velocity_noise_mm": self.ground_velocity_noise,
                 "ground_velocity_pull": self.ground_velocity_pull,
                 "height_spread_mm": self.height_spread, "height_drift_mm": self.height_drift}
-
-    @property
-    def height_offsets(self) -> bool:
-        """Whether each particle carries its own root-height offset (``height_spread`` or ``height_drift``)."""
-        return self.height_spread > 0 or self.height_drift > 0
 
     def model_for(self, available: int) -> CRBMModel:
         """The highest-order model whose history is all real poses (never a padded history)."""
@@ -801,9 +797,7 @@ class CRBMPrior(MotionPrior):
                                        STANDING_LOG_PACE)
         if self.relative_height:
             state["height"] = np.full(n_particles, float(np.mean(np.atleast_2d(known)[:, 2])))
-        if self.height_offsets:
-            state["height_offset"] = gaussian_start(n_particles, self.height_spread, rng)
-        return state
+        return {**state, **self.start_height_offsets(n_particles, rng)}
 
     def sample(self, history: np.ndarray, available: int, state: PriorState,
                rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
@@ -889,7 +883,7 @@ class CRBMPrior(MotionPrior):
         if self.paced:
             values.append(float(np.sum(weights * (np.exp(state["pace"]) - PACE_FLOOR_MM))))
         if self.height_offsets:
-            values.append(float(np.sum(weights * state["height_offset"])))
+            values.append(self.mean_height_offset(state, weights))
         return np.array(values) if values else None
 
     def diffusion_std(self) -> np.ndarray:

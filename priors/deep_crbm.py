@@ -38,8 +38,8 @@ from priors.common import (
 )
 from priors.contrastive import ContrastiveConfig, finish_epoch, minibatches, momentum_step, window_index
 from priors.crbm import (
-    CRBM, CRBM_TRAIN_OPTIONS, CRBMModel, CRBMPrior, _growth_orders, _model_from_document, below_, bernoulli,
-    make_windows, train_crbm_prior, uniform16,
+    CRBM, CRBM_TRAIN_OPTIONS, CRBMModel, CRBMPrior, _growth_orders, _model_from_document, bernoulli, bernoulli_,
+    make_windows, train_crbm_prior,
 )
 from priors.fcrbm import Drawer
 from tracker.core.errors import InputError
@@ -88,7 +88,7 @@ def deep_gibbs(bottom: CRBM, top: CRBM, history: torch.Tensor, steps: int, gener
     h0 = acts[:, -H1:]
     for step in range(steps):
         q = top.hidden_probabilities(h0, b2)
-        h1 = q if step == steps - 1 else below_(uniform16(q.shape, generator, q.device), q)  # q not needed again
+        h1 = q if step == steps - 1 else bernoulli_(q, generator)  # q is not needed again
         h0 = torch.sigmoid(a2 + h1 @ top.W.T)
     a1, _ = bottom.biases(frames[:, M:].reshape(B, N * K))
     return a1 + h0 @ bottom.W.T

@@ -228,9 +228,8 @@ class FCRBM:
         :data:`GROUPED_STYLES_MAX` distinct rows (``grouped=None``) sampling runs on those matrices, rows sorted
         by style, else on the factored form. Both draw the same random numbers (one ``B x H`` array of uniform
         integers per step, :func:`priors.crbm.uniform16`, its rows taken in the order of the rows sorted by style)
-        and agree to rounding. Sampling writes into
-        its arrays in place (``out=``), so parameters must not require gradients (training uses the explicit CD
-        statistics of :meth:`free_energy_gradients`).
+        and agree to rounding. Sampling writes into its arrays in place (``out=``), so parameters must not require
+        gradients (training uses the explicit CD statistics of :meth:`free_energy_gradients`).
         """
         s = self.style_factors(y)
         a_hat, b_hat = self.biases(history, s)

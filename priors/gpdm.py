@@ -50,7 +50,7 @@ import torch
 
 from priors.common import (
     HEIGHT_DRIFT_OPTION, HEIGHT_SPREAD_HELP, HEIGHT_SPREAD_OPTION, ROOT_NOISE_MM, UNLEARNED_MOTION_OPTIONS,
-    check_model_fits, check_weights, checked_data_settings, checked_height_offset, mix_in_random_walk,
+    HeightOffsets, check_model_fits, check_weights, checked_data_settings, mix_in_random_walk,
     normaliser_from_tensors, normaliser_to_tensors, read_model_file, robust_share, scale_ground_steps, gaussian_start,
     shift_height, steps_taken, torch_save_atomic, checked_time_warp, time_warp_note,
 )
@@ -899,7 +899,7 @@ def load_gpdm_prior(path: str | Path) -> GPDMPriorModel:
 HEIGHT_SPREAD = 50.0
 
 
-class GPDMPrior(MotionPrior):
+class GPDMPrior(HeightOffsets, MotionPrior):
     """Samples every particle's next pose through the GPDM, in one batch.
 
     Each particle carries its latent history (``order`` points) and the pending root step of its newest
@@ -933,7 +933,7 @@ class GPDMPrior(MotionPrior):
             raise InputError(f"pace spread and drift must be non-negative (log units), got {pace_spread}, {pace_drift}")
         self.robust_fraction, self.robust_adaptive = float(robust_fraction), bool(robust_adaptive)
         self.pace_spread, self.pace_drift = float(pace_spread), float(pace_drift)
-        self.height_spread, self.height_drift = checked_height_offset(height_spread, height_drift)
+        self.set_height_offsets(height_spread, height_drift)
         if self.height_offsets:
             self.summary_names, self.summary_kind = ("height offset (mm)",), "quantity"
         self.model = model
@@ -949,11 +949,6 @@ class GPDMPrior(MotionPrior):
                 "pace_spread": self.pace_spread, "pace_drift": self.pace_drift,
                 "height_spread_mm": self.height_spread, "height_drift_mm": self.height_drift}
 
-    @property
-    def height_offsets(self) -> bool:
-        """Whether each particle carries its own root-height offset (``height_spread`` or ``height_drift``)."""
-        return self.height_spread > 0 or self.height_drift > 0
-
     def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
         known = np.atleast_2d(np.asarray(known, float))
         o = self.latent_order
@@ -961,13 +956,10 @@ class GPDMPrior(MotionPrior):
         recent_feats = poses_to_invariant(np.concatenate([recent[:1], recent]))[1:]
         latent = self.predictor.project(torch.tensor(self.model.normaliser.transform(recent_feats)))
         history = torch.cat([latent[-1 - k] for k in range(o)]).numpy()  # newest first
-        state = {"latent": np.repeat(history[None], n_particles, axis=0),
-                 "step": np.repeat(pending_step(known)[None], n_particles, axis=0),
-                 "log_pace": gaussian_start(n_particles, self.pace_spread, rng),
-                 "walked": np.zeros(n_particles, bool)}
-        if self.height_offsets:
-            state["height_offset"] = gaussian_start(n_particles, self.height_spread, rng)
-        return state
+        return {"latent": np.repeat(history[None], n_particles, axis=0),
+                "step": np.repeat(pending_step(known)[None], n_particles, axis=0),
+                "log_pace": gaussian_start(n_particles, self.pace_spread, rng),
+                "walked": np.zeros(n_particles, bool), **self.start_height_offsets(n_particles, rng)}
 
     def draw(self, n_particles: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
         """Every random number of one step, drawn in one batch: standard normal ``latent`` (``P x d``),
@@ -1025,7 +1017,7 @@ class GPDMPrior(MotionPrior):
         """With height offsets, the posterior mean offset (mm); None without."""
         if not self.height_offsets:
             return None
-        return np.array([float(np.sum(weights * state["height_offset"]))])
+        return np.array([self.mean_height_offset(state, weights)])
 
     def diffusion_std(self) -> np.ndarray:
         return self.model.pose_step_rms
