@@ -640,6 +640,19 @@ PACED_JUMP = 0.0
 PACED_HEIGHT_SPREAD = 50.0
 
 
+def updated_posture_offset(offset: np.ndarray, posterior: np.ndarray, predicted: np.ndarray,
+                           gain: float) -> np.ndarray:
+    """The posture offset ``(Kp,)`` (rad, the person's posture angles minus the ones the model would give) one
+    frame on: moved by ``gain`` times the innovation, the mean posture angles of the resampled particles
+    ``posterior`` ``P x Kp`` minus the mean the prior predicted for them the frame before ``predicted``
+    ``(Kp,)`` (NaN before the first prediction: no move). An integrator of the likelihood's corrections: a model
+    that pulls an unseen person's posture toward its training subjects' is corrected by as much as the images
+    keep pulling it back, and a correction that averages out over the gait (a wrong phase) leaves it alone."""
+    if not np.all(np.isfinite(predicted)):
+        return offset
+    return offset + gain * (posterior.mean(axis=0) - predicted)
+
+
 class CRBMPrior(HeightOffsets, MotionPrior):
     """Samples every particle's next pose from its own history with a CRBM (one batch, torch).
 
@@ -680,6 +693,9 @@ class CRBMPrior(HeightOffsets, MotionPrior):
     ground_velocity_noise: float | None = None
     #: The fraction of a particle's own ground velocity lost per frame (with ``ground_velocity_noise``).
     ground_velocity_pull: float = 0.0
+    #: The fraction per frame of the likelihood's mean posture correction added to the posture offset the model's
+    #: history and prediction are shifted by (:func:`updated_posture_offset`); 0: no offset.
+    posture_gain: float = 0.0
 
     def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = GIBBS_STEPS,
                  device: str = "cpu", mode: str = "gibbs", root_noise_mm: float = ROOT_NOISE_MM,
@@ -687,7 +703,7 @@ class CRBMPrior(HeightOffsets, MotionPrior):
                  pace_spread: float | None = None, pace_drift: float | None = None, relative_height: bool = False,
                  pace_jump: float | None = None, standing_root_height: float | None = None,
                  ground_velocity_noise: float | None = None, ground_velocity_pull: float = 0.0,
-                 height_spread: float | None = None, height_drift: float = 0.0):
+                 height_spread: float | None = None, height_drift: float = 0.0, posture_gain: float = 0.0):
         if not models:
             raise InputError("the CRBM prior needs at least one model")
         orders = [m.order for m in models]
@@ -749,10 +765,15 @@ class CRBMPrior(HeightOffsets, MotionPrior):
         if height_spread is None:
             height_spread = PACED_HEIGHT_SPREAD if self.paced else 0.0
         self.set_height_offsets(height_spread, height_drift)
+        if not 0.0 <= posture_gain <= 1.0:
+            raise InputError(f"posture gain must be a fraction per frame in [0, 1], got {posture_gain}")
+        self.posture_gain = float(posture_gain)
         if self.paced:
             self.summary_names, self.summary_kind = ("pace (mm/frame)",), "quantity"
         if self.height_offsets:
             self.summary_names, self.summary_kind = self.summary_names + ("height offset (mm)",), "quantity"
+        if self.posture_gain > 0:
+            self.summary_names, self.summary_kind = self.summary_names + ("posture offset rms (deg)",), "quantity"
         self.order = self.models[-1].order
         self.gibbs_steps = gibbs_steps
         self.device = torch.device(device)
@@ -769,7 +790,8 @@ class CRBMPrior(HeightOffsets, MotionPrior):
                 "standing_root_height_mm": self.standing_root_height,
                 "ground_velocity_noise_mm": self.ground_velocity_noise,
                 "ground_velocity_pull": self.ground_velocity_pull,
-                "height_spread_mm": self.height_spread, "height_drift_mm": self.height_drift}
+                "height_spread_mm": self.height_spread, "height_drift_mm": self.height_drift,
+                "posture_gain": self.posture_gain}
 
     def model_for(self, available: int) -> CRBMModel:
         """The highest-order model whose history is all real poses (never a padded history)."""
@@ -797,7 +819,19 @@ class CRBMPrior(HeightOffsets, MotionPrior):
                                        STANDING_LOG_PACE)
         if self.relative_height:
             state["height"] = np.full(n_particles, float(np.mean(np.atleast_2d(known)[:, 2])))
+        if self.posture_gain > 0:  # no offset yet, and no prediction to measure the first correction against
+            n_posture = len(posture_features(np.atleast_2d(known).shape[-1]))
+            state["posture_offset"] = np.zeros((n_particles, n_posture))
+            state["posture_predicted"] = np.full((n_particles, n_posture), np.nan)
         return {**state, **self.start_height_offsets(n_particles, rng)}
+
+    def restart(self, state: PriorState, recent: np.ndarray, n_particles: int,
+                rng: np.random.Generator) -> PriorState:
+        """:meth:`start` from ``recent``, keeping the posture offset (it is the person's, not the lost frame's)."""
+        new = self.start(recent, n_particles, rng)
+        if self.posture_gain > 0:
+            new["posture_offset"] = np.repeat(np.asarray(state["posture_offset"])[:1], n_particles, axis=0)
+        return new
 
     def sample(self, history: np.ndarray, available: int, state: PriorState,
                rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
@@ -808,6 +842,12 @@ class CRBMPrior(HeightOffsets, MotionPrior):
                                    np.concatenate([history[:, :1], history], axis=1))[:, -n:]
         feats[:, -1, step] = state["step"]
         previous = feats[:, -1].copy()  # the newest frame's features with the step the particle takes
+        posture = posture_features(feats.shape[-1])
+        offset = None
+        if self.posture_gain > 0:  # the same for every particle: the rows are copies
+            offset = updated_posture_offset(state["posture_offset"][0], previous[:, posture],
+                                            state["posture_predicted"][0], self.posture_gain)
+            feats[:, :, posture] -= offset  # the history in the postures the model knows
         if self.height_offsets:
             state = {**state, "height_offset": gaussian_drift(state["height_offset"], self.height_drift, rng)}
         to_model = self.height_to_model(model, state, len(feats))
@@ -829,6 +869,8 @@ class CRBMPrior(HeightOffsets, MotionPrior):
             if self.mode == "gibbs":
                 v = model.crbm.gibbs(hist, self.gibbs_steps, generator)
         f_next = model.normaliser.inverse(v.cpu().double().numpy())
+        if offset is not None:  # and the prediction in the person's
+            f_next[:, posture] += offset
         step_factor = state["log_pace"] if self.paced else gaussian_drift(state["log_pace"], self.pace_drift, rng)
         scale_ground_steps(f_next, np.exp(step_factor))  # the predicted step at the particle's pace
         if to_model is not None:  # and the prediction at the person's
@@ -849,6 +891,9 @@ class CRBMPrior(HeightOffsets, MotionPrior):
             new["height"] = state["height"]
         if self.height_offsets:
             new["height_offset"] = state["height_offset"]
+        if offset is not None:
+            new["posture_offset"] = np.repeat(offset[None], len(poses), axis=0)
+            new["posture_predicted"] = np.repeat(f_next[:, posture].mean(axis=0)[None], len(poses), axis=0)
         return poses, new
 
     def height_to_model(self, model: CRBMModel, state: PriorState, n: int) -> np.ndarray | None:
@@ -884,6 +929,8 @@ class CRBMPrior(HeightOffsets, MotionPrior):
             values.append(float(np.sum(weights * (np.exp(state["pace"]) - PACE_FLOOR_MM))))
         if self.height_offsets:
             values.append(self.mean_height_offset(state, weights))
+        if self.posture_gain > 0:
+            values.append(float(np.degrees(np.sqrt(np.mean(np.asarray(state["posture_offset"])[0] ** 2)))))
         return np.array(values) if values else None
 
     def diffusion_std(self) -> np.ndarray:
@@ -1033,6 +1080,11 @@ CRBM_TRAIN_OPTIONS = (
                      help=f"{HEIGHT_SPREAD_HELP} (default {PACED_HEIGHT_SPREAD:g} for a CRBM trained with a pace "
                           "input, 0 otherwise)"),
              HEIGHT_DRIFT_OPTION,
+             Option("posture_gain", float, 0.0, "fraction per frame of the images' mean posture correction "
+                                                "(posterior minus predicted mean posture angles) added to an offset "
+                                                "by which the model's history and prediction are shifted, so that "
+                                                "it stops pulling an unseen person's posture toward its training "
+                                                "subjects' (default 0: off)", minimum=0.0, maximum=1.0),
              Option("relative_height", bool, False, "keep the person's own root height, the model's heights moved "
                                                     "by the known frames' mean root height minus the training "
                                                     "frames' (default off; for models of absolute heights, not "
@@ -1054,7 +1106,8 @@ def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict
                          standing_root_height=context.body_model.rest_root_height,
                          ground_velocity_noise=options["ground_velocity_noise"],
                          ground_velocity_pull=options["ground_velocity_pull"],
-                         height_spread=options["height_spread"], height_drift=options["height_drift"])
+                         height_spread=options["height_spread"], height_drift=options["height_drift"],
+                         posture_gain=options["posture_gain"])
 
     if len(models) > 1 and len({m.order for m in models}) == 1:
         return EnsemblePrior([prior([m]) for m in models])

@@ -338,3 +338,50 @@ def test_the_posture_offset_is_checked_and_kept_in_the_model_file(walks, tmp_pat
     plain = train_crbm(walks[:1], CRBMConfig(order=1, hidden=10, epochs=2), 60.0, DOF_NAMES,
                        rng=np.random.default_rng(0))
     assert "posture_offset" not in plain.to_document()["config"]  # files at the default read as before
+
+
+def test_a_posture_offset_shifts_the_models_history_and_prediction_alike(crbm3, walks):
+    """The model sees the history less the posture offset and its prediction is moved back by it: a walk whose joint
+    angles are all 0.1 rad off, tracked with an offset of 0.1 rad, is predicted exactly as the walk itself plus 0.1."""
+    known = walks[2][:4]
+    shifted = known.copy()
+    shifted[:, 6:] += 0.1
+    prior = CRBMPrior([crbm3], mode="free-energy", root_noise_mm=0.0, posture_gain=0.5)
+    rng = np.random.default_rng(0)
+    predictions = []
+    for history, offset in ((known, 0.0), (shifted, 0.1)):
+        state = prior.start(history, 3, rng)
+        posture = posture_features(known.shape[1])
+        state["posture_offset"][:, posture.index(6):] = offset  # the joint angles' (not the root's pitch, roll)
+        poses, new = prior.sample(np.repeat(history[None, 1:], 3, axis=0), 3, state, rng)
+        predictions.append(poses)
+        assert np.allclose(new["posture_offset"], state["posture_offset"])  # no prediction yet: nothing moved
+    assert np.allclose(predictions[1][:, 6:], predictions[0][:, 6:] + 0.1, atol=1e-5)
+    assert np.allclose(predictions[1][:, :6], predictions[0][:, :6], atol=1e-3)
+
+
+def test_the_posture_offset_integrates_the_images_mean_correction(crbm3, walks):
+    """When the resampled particles sit a constant 0.05 rad from the prior's mean prediction on every joint angle,
+    the offset moves by the gain times 0.05 on those angles and by nothing on the root's pitch and roll; the
+    default (no gain) carries no offset state at all."""
+    from priors.crbm import updated_posture_offset
+
+    assert np.array_equal(updated_posture_offset(np.ones(2), np.zeros((3, 2)), np.full(2, np.nan), 0.5), np.ones(2))
+    assert np.allclose(updated_posture_offset(np.ones(2), np.full((3, 2), 0.3), np.full(2, 0.1), 0.5), [1.1, 1.1])
+    known = walks[2][:4]
+    prior = CRBMPrior([crbm3], mode="free-energy", root_noise_mm=0.0, posture_gain=0.25)
+    rng = np.random.default_rng(0)
+    state = prior.start(known, 4, rng)
+    history = np.repeat(known[None, 1:], 4, axis=0)
+    poses, state = prior.sample(history, 3, state, rng)
+    moved = poses.copy()
+    moved[:, 6:] += 0.05
+    _, state = prior.sample(np.concatenate([history[:, 1:], moved[:, None]], axis=1), 3, state, rng)
+    posture = posture_features(known.shape[1])
+    root = posture.index(6)
+    assert np.allclose(state["posture_offset"][:, root:], 0.25 * 0.05, atol=1e-6)
+    assert np.allclose(state["posture_offset"][:, :root], 0.0, atol=1e-6)
+    assert prior.summarize(state, np.full(4, 0.25))[-1] > 0
+    assert "posture_offset" not in CRBMPrior([crbm3]).start(known, 4, rng)
+    with pytest.raises(InputError, match="posture gain"):
+        CRBMPrior([crbm3], posture_gain=1.5)
