@@ -1063,6 +1063,14 @@ CRBM_TRAIN_OPTIONS = (
 )
 
 
+#: ``track --posture-gain`` (CRBM and deep CRBM): :attr:`CRBMPrior.posture_gain`.
+POSTURE_GAIN_OPTION = Option("posture_gain", float, 0.0,
+                             "fraction per frame of the images' mean posture correction (posterior minus predicted "
+                             "mean posture angles) added to an offset by which the model's history and prediction "
+                             "are shifted, so that it stops pulling an unseen person's posture toward its training "
+                             "subjects' (default 0: off)", minimum=0.0, maximum=1.0)
+
+
 @register_prior(
     "crbm", summary="Conditional RBM (Taylor 2009); several model files of increasing order grow the history, "
                     "several of one order form an ensemble",
@@ -1080,11 +1088,7 @@ CRBM_TRAIN_OPTIONS = (
                      help=f"{HEIGHT_SPREAD_HELP} (default {PACED_HEIGHT_SPREAD:g} for a CRBM trained with a pace "
                           "input, 0 otherwise)"),
              HEIGHT_DRIFT_OPTION,
-             Option("posture_gain", float, 0.0, "fraction per frame of the images' mean posture correction "
-                                                "(posterior minus predicted mean posture angles) added to an offset "
-                                                "by which the model's history and prediction are shifted, so that "
-                                                "it stops pulling an unseen person's posture toward its training "
-                                                "subjects' (default 0: off)", minimum=0.0, maximum=1.0),
+             POSTURE_GAIN_OPTION,
              Option("relative_height", bool, False, "keep the person's own root height, the model's heights moved "
                                                     "by the known frames' mean root height minus the training "
                                                     "frames' (default off; for models of absolute heights, not "

@@ -38,8 +38,8 @@ from priors.common import (
 )
 from priors.contrastive import ContrastiveConfig, finish_epoch, minibatches, momentum_step, window_index
 from priors.crbm import (
-    CRBM, CRBM_TRAIN_OPTIONS, CRBMModel, CRBMPrior, _growth_orders, _model_from_document, bernoulli, bernoulli_,
-    make_windows, train_crbm_prior,
+    CRBM, CRBM_TRAIN_OPTIONS, POSTURE_GAIN_OPTION, CRBMModel, CRBMPrior, _growth_orders, _model_from_document,
+    bernoulli, bernoulli_, make_windows, train_crbm_prior,
 )
 from priors.fcrbm import Drawer
 from tracker.core.errors import InputError
@@ -234,11 +234,11 @@ class DeepCRBMPrior(CRBMPrior):
     def __init__(self, model: DeepCRBMModel, gibbs_steps: int = 30, device: str = "cpu",
                  root_noise_mm: float = ROOT_NOISE_MM, heading_noise: float = 0.0,
                  ground_velocity_noise: float | None = None, ground_velocity_pull: float = 0.0,
-                 height_spread: float = 0.0, height_drift: float = 0.0):
+                 height_spread: float = 0.0, height_drift: float = 0.0, posture_gain: float = 0.0):
         super().__init__([model.bottom], gibbs_steps=gibbs_steps, device=device, root_noise_mm=root_noise_mm,
                          heading_noise=heading_noise, ground_velocity_noise=ground_velocity_noise,
                          ground_velocity_pull=ground_velocity_pull, height_spread=height_spread,
-                         height_drift=height_drift)
+                         height_drift=height_drift, posture_gain=posture_gain)
         self.deep = model
         for k in CRBM.PARAMS:
             setattr(model.top, k, getattr(model.top, k).to(self.device))
@@ -304,7 +304,8 @@ DEEP_TRAIN_OPTIONS = tuple(o for o in CRBM_TRAIN_OPTIONS if o.name not in ("chec
              GROUND_VELOCITY_OPTION,
              GROUND_VELOCITY_PULL_OPTION,
              HEIGHT_SPREAD_OPTION,
-             HEIGHT_DRIFT_OPTION))
+             HEIGHT_DRIFT_OPTION,
+             POSTURE_GAIN_OPTION))
 def build_deep_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> DeepCRBMPrior:
     model = load_deep_crbm(model_files[0], device=context.device)
     model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, model_files[0])
@@ -312,4 +313,5 @@ def build_deep_crbm(context: PriorContext, model_files: Sequence[Path], options:
                          root_noise_mm=options["root_noise"], heading_noise=options["heading_noise"],
                          ground_velocity_noise=options["ground_velocity_noise"],
                          ground_velocity_pull=options["ground_velocity_pull"],
-                         height_spread=options["height_spread"], height_drift=options["height_drift"])
+                         height_spread=options["height_spread"], height_drift=options["height_drift"],
+                         posture_gain=options["posture_gain"])

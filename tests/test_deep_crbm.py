@@ -85,6 +85,23 @@ def test_the_deep_prior_carries_height_offsets_through_both_layers(deep, walks):
     assert np.allclose(np.delete(out[1], 2, axis=1), np.delete(out[0], 2, axis=1), atol=1e-6)
 
 
+
+def test_the_deep_prior_carries_a_posture_offset_through_both_layers(deep, walks):
+    """A history whose joint angles and posture offset are both 0.1 rad larger samples, through both layers and with
+    the same draws, the same pose with joint angles 0.1 rad larger."""
+    prior = DeepCRBMPrior(deep, gibbs_steps=5, posture_gain=0.2)
+    assert prior.summary_names == ("posture offset rms (deg)",)
+    out = []
+    for shift in (0.0, 0.1):
+        rng = np.random.default_rng(2)
+        state = prior.start(walks[0][:4], 20, rng)
+        state["posture_offset"][:, 2:] = shift  # the joint angles' entries (after the root's pitch and roll)
+        hist = np.repeat(walks[0][None, :4], 20, axis=0)
+        hist[..., 6:] += shift
+        out.append(prior.sample(hist, 4, state, rng)[0])
+    assert np.allclose(out[1][:, 6:] - out[0][:, 6:], 0.1, atol=1e-5)
+    assert np.allclose(out[1][:, :6], out[0][:, :6], atol=1e-4)
+
 def test_model_file_round_trip_and_broken_files(deep, walks, tmp_path):
     deep.save(tmp_path / "d.pt")
     loaded = load_deep_crbm(tmp_path / "d.pt")
