@@ -68,39 +68,29 @@ def test_the_prior_grows_its_history_through_the_first_layer(deep, walks):
         prior.start(walks[0][:1], 30, rng)
 
 
-def test_the_deep_prior_carries_height_offsets_through_both_layers(deep, walks):
-    """A particle whose history and offset are both 60 mm higher samples, through both layers, the same pose 60 mm
-    higher (the first layer sees the same heights)."""
-    prior = DeepCRBMPrior(deep, gibbs_steps=5, height_spread=40.0)
-    assert prior.summary_names == ("height offset (mm)",)
+@pytest.mark.parametrize("offset", ["height", "posture"])
+def test_the_deep_prior_carries_its_offsets_through_both_layers(deep, walks, offset):
+    """A particle whose history and height offset are both 60 mm higher (or whose joint angles and posture offset
+    are both 0.1 rad larger) samples, through both layers and with the same draws, the same pose 60 mm higher (0.1
+    rad larger): the first layer sees the same history."""
+    joints = list(range(6, walks[0].shape[1]))
+    option, key, entries, dims, shift, summary = {
+        "height": ({"height_spread": 40.0}, "height_offset", slice(None), [2], 60.0, "height offset (mm)"),
+        "posture": ({"posture_gain": 0.2}, "posture_offset", (slice(None), slice(2, None)),  # the joint angles'
+                    joints, 0.1, "posture offset rms (deg)")}[offset]
+    prior = DeepCRBMPrior(deep, gibbs_steps=5, **option)
+    assert prior.summary_names == (summary,)
     out = []
-    for lift in (0.0, 60.0):
+    for lift in (0.0, shift):
         rng = np.random.default_rng(2)
         state = prior.start(walks[0][:4], 20, rng)
-        state["height_offset"] = np.full(20, lift)
+        state[key][entries] = lift
         hist = np.repeat(walks[0][None, :4], 20, axis=0)
-        hist[..., 2] += lift
+        hist[..., dims] += lift
         out.append(prior.sample(hist, 4, state, rng)[0])
-    assert np.allclose(out[1][:, 2] - out[0][:, 2], 60.0, atol=1e-6)
-    assert np.allclose(np.delete(out[1], 2, axis=1), np.delete(out[0], 2, axis=1), atol=1e-6)
+    assert np.allclose(out[1][:, dims] - out[0][:, dims], shift, atol=1e-5)
+    assert np.allclose(np.delete(out[1], dims, axis=1), np.delete(out[0], dims, axis=1), atol=1e-4)
 
-
-
-def test_the_deep_prior_carries_a_posture_offset_through_both_layers(deep, walks):
-    """A history whose joint angles and posture offset are both 0.1 rad larger samples, through both layers and with
-    the same draws, the same pose with joint angles 0.1 rad larger."""
-    prior = DeepCRBMPrior(deep, gibbs_steps=5, posture_gain=0.2)
-    assert prior.summary_names == ("posture offset rms (deg)",)
-    out = []
-    for shift in (0.0, 0.1):
-        rng = np.random.default_rng(2)
-        state = prior.start(walks[0][:4], 20, rng)
-        state["posture_offset"][:, 2:] = shift  # the joint angles' entries (after the root's pitch and roll)
-        hist = np.repeat(walks[0][None, :4], 20, axis=0)
-        hist[..., 6:] += shift
-        out.append(prior.sample(hist, 4, state, rng)[0])
-    assert np.allclose(out[1][:, 6:] - out[0][:, 6:], 0.1, atol=1e-5)
-    assert np.allclose(out[1][:, :6], out[0][:, :6], atol=1e-4)
 
 def test_model_file_round_trip_and_broken_files(deep, walks, tmp_path):
     deep.save(tmp_path / "d.pt")
