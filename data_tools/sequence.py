@@ -36,7 +36,6 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import pyspng
 
 from data_tools.calibration import read_bodytrack_calibration, read_cameras_json, write_cameras_json
 from data_tools.checks import MAX_FPS, body_shape, checked_motion, load_npz, real_number
@@ -177,11 +176,11 @@ _STDERR_LOCK = threading.Lock()
 def _stderr_silenced():
     """Point file descriptor 2 at the null device for the duration (a no-op if it cannot be duplicated).
 
-    OpenCV's BMP decoder logs straight to the C stderr without heeding its log
-    level, so a corrupt image would print library messages before our one-line
-    error (PNGs are decoded by libspng, which prints nothing). The lock keeps
+    libpng writes its warnings and errors straight to the C stderr, and OpenCV
+    logs there too; neither heeds OpenCV's log level, so a corrupt image would
+    print library messages before our one-line error. The lock keeps
     concurrent decodes from restoring each other's descriptors; output of
-    other threads during a decode (about a millisecond) is lost.
+    other threads during a decode (a few milliseconds) is lost.
     """
     with _STDERR_LOCK:
         try:
@@ -199,20 +198,16 @@ def _stderr_silenced():
             os.close(null)
 
 
-def _decode_png(data: bytes, colour_type: int) -> np.ndarray | None:
-    """An 8-bit PNG's pixels, ``H x W`` grey (colour type 0 or 4, alpha dropped) or ``H x W x 3`` RGB (alpha
-    dropped, palettes expanded), decoded by libspng (``pyspng``: a third faster than OpenCV's libpng on the
-    synthetic sequences' noisy 640x480 frames, and silent on broken files); None if it fails."""
-    try:
-        img = pyspng.load(data, "L" if colour_type == 0 else "RGB")
-    except (RuntimeError, ValueError):
-        return None
-    return img[..., 0].copy() if colour_type == 4 else img  # grey + alpha comes as three equal channels
+def _decode(data: bytes) -> np.ndarray | None:
+    """A PNG's or BMP's pixels, ``H x W`` grey or ``H x W x 3`` RGB (alpha dropped, palettes expanded); None if
+    decoding fails.
 
-
-def _decode_bmp(data: bytes) -> np.ndarray | None:
-    """A BMP's pixels, ``H x W`` grey or ``H x W x 3`` RGB (``cv2.imdecode``, with library messages on stderr
-    suppressed); None if it fails."""
+    ``cv2.imdecode`` with library messages on stderr suppressed. OpenCV releases
+    the GIL while it decodes, so the background thread that reads the next
+    frame runs beside the filter; libspng's Python binding (``pyspng``,
+    tried in session 16) decodes a third faster alone but holds the GIL, which
+    made annealed CRBM tracking a fifth slower end to end.
+    """
     with _stderr_silenced():
         try:
             img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
@@ -220,7 +215,7 @@ def _decode_bmp(data: bytes) -> np.ndarray | None:
             return None
     if img is None or img.ndim == 2:
         return img
-    if img.shape[2] < 3:
+    if img.shape[2] < 3:  # grey + alpha
         return img[..., 0]
     return cv2.cvtColor(img[..., :3], cv2.COLOR_BGR2RGB)
 
@@ -246,7 +241,7 @@ def read_image(path: Path, width: int, height: int, rgb: bool = False) -> np.nda
         raise InputError(f"cannot read image: {exc.strerror or exc}", path) from None
     if data.startswith(_PNG_SIGNATURE):
         header = _png_header(data, path)
-        size, depth, colour_type = header[:2], header[2], header[3]
+        size, depth = header[:2], header[2]
     elif data.startswith(b"BM"):
         size, depth = _bmp_size(data, path), 8
     else:  # other formats are not checked before decoding, so not decoded at all
@@ -255,7 +250,7 @@ def read_image(path: Path, width: int, height: int, rgb: bool = False) -> np.nda
         raise InputError(f"image is {size[0]}x{size[1]} pixels but its camera is {width}x{height}", path)
     if depth > 8:
         raise InputError(f"expected an 8-bit image, got {depth} bits per sample", path)
-    img = _decode_png(data, colour_type) if data.startswith(_PNG_SIGNATURE) else _decode_bmp(data)
+    img = _decode(data)
     if img is None:
         raise InputError("cannot read image (unsupported, truncated or corrupt file)", path)
     if img.dtype != np.uint8:
