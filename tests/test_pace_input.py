@@ -88,7 +88,7 @@ def test_each_particle_starts_at_the_known_pace_and_drifts(paced, walk_07_01):
     assert PACED_JUMP == 0 and np.std(moved) == pytest.approx(PACED_DRIFT, rel=0.05)  # no jumps by default
     weights = np.full(4000, 1 / 4000)
     assert prior.summarize(after, weights)[0] == pytest.approx(np.mean(np.exp(after["pace"]) - PACE_FLOOR_MM))
-    assert prior.summary_names == ("pace (mm/frame)", "height offset (mm)")  # both, by default since 0.8.0
+    assert prior.summary_names == ("pace (mm/frame)", "height offset (mm)", "posture offset rms (deg)")  # by default
 
 
 def test_a_paced_model_file_round_trips_and_samples_alike(paced, walk_07_01, tmp_path):
@@ -147,7 +147,7 @@ def test_train_and_track_a_paced_model_from_the_command_line(mocap_dir, walk_32_
     assert r.returncode == 0, r.stderr[-500:]
     result = json.loads((out / "result.json").read_text())
     summary = result["prior_summary"]
-    assert summary["names"] == ["pace (mm/frame)", "height offset (mm)"]
+    assert summary["names"] == ["pace (mm/frame)", "height offset (mm)", "posture offset rms (deg)"]
     assert len(summary["per_frame"]) == result["frames"]
     assert all(0 < row[0] < 100 for row in summary["per_frame"])  # a walker's ground speed, mm per frame
     assert (out / "prior_summary.png").stat().st_size > 0
@@ -205,7 +205,7 @@ def test_a_particles_height_offset_moves_the_models_heights_by_exactly_that_offs
 
 def test_height_offsets_start_spread_drift_and_are_summarised(paced, walk_07_01):
     rng = np.random.default_rng(5)
-    prior = CRBMPrior([paced], height_spread=40.0, height_drift=2.0)
+    prior = CRBMPrior([paced], height_spread=40.0, height_drift=2.0, posture_gain=0.0)
     assert prior.summary_names == ("pace (mm/frame)", "height offset (mm)")
     state = prior.start(walk_07_01[:60], 4000, rng)
     assert np.std(state["height_offset"]) == pytest.approx(40.0, rel=0.05)
@@ -216,7 +216,7 @@ def test_height_offsets_start_spread_drift_and_are_summarised(paced, walk_07_01)
     weights[:2] = 0.5
     summary = prior.summarize(new, weights)
     assert summary[1] == pytest.approx(np.mean(new["height_offset"][:2]))
-    plain = CRBMPrior([paced], height_spread=0.0)
+    plain = CRBMPrior([paced], height_spread=0.0, posture_gain=0.0)
     assert "height_offset" not in plain.start(walk_07_01[:60], 10, rng) and len(plain.summary_names) == 1
     for bad in ({"height_spread": -1.0}, {"height_drift": float("nan")}):
         with pytest.raises(InputError, match="height"):
@@ -235,10 +235,24 @@ def test_a_paced_crbm_gives_each_particle_a_height_offset_by_default(paced, plai
     assert np.std(state["height_offset"]) == pytest.approx(PACED_HEIGHT_SPREAD, rel=0.05)
 
 
-def test_every_experiment_pins_the_height_offsets_of_its_crbms():
-    """A CRBM row made before a paced CRBM's height offsets became the default keeps measuring without them."""
+def test_a_paced_crbm_corrects_its_posture_by_default(paced, plain):
+    from priors.crbm import PACED_POSTURE_GAIN
+    from tracker.app.api import prior_entry
+
+    assert PACED_POSTURE_GAIN == 0.2 and CRBMPrior([paced]).posture_gain == PACED_POSTURE_GAIN
+    assert CRBMPrior([plain]).posture_gain == 0.0 and CRBMPrior([paced], posture_gain=0.0).posture_gain == 0.0
+    option = {o.name: o for o in prior_entry("crbm").options}["posture_gain"]
+    assert option.default is None and "0.2 for a CRBM trained with a pace input" in option.help
+    deep = {o.name: o for o in prior_entry("deep-crbm").options}["posture_gain"]
+    assert deep.default == 0.0
+
+
+@pytest.mark.parametrize("option", ["height_spread", "posture_gain"])
+def test_every_experiment_pins_the_defaults_its_crbms_ran_with(option):
+    """A CRBM row made before a paced CRBM's height offsets (0.10.0) or posture correction (0.12.0) became the
+    default keeps measuring as it did."""
     for f, prior in experiment_crbm_rows():
-        assert "height_spread" in prior.get("options", {}), (f.name, prior.get("label"))
+        assert option in prior.get("options", {}), (f.name, prior.get("label"), option)
 
 
 def test_height_offsets_selected_by_the_images_follow_a_shorter_person(paced, walk_07_01):
