@@ -139,7 +139,7 @@ _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 def _png_header(data: bytes, path: Path) -> tuple[int, int, int, int]:
     """(width, height, bit depth, colour type) of a PNG after checking its chunk structure and every CRC, so
-    that the decoder only ever sees intact files."""
+    that the decoder only ever sees intact files (colour type 0 is grey, 4 grey with alpha)."""
     pos, header, chunks = len(_PNG_SIGNATURE), None, set()
     while pos + 12 <= len(data):
         length, kind = struct.unpack(">I4s", data[pos:pos + 8])
@@ -198,15 +198,16 @@ def _stderr_silenced():
             os.close(null)
 
 
-def _decode(data: bytes) -> np.ndarray | None:
-    """A PNG's or BMP's pixels, ``H x W`` grey or ``H x W x 3`` RGB (alpha dropped, palettes expanded); None if
-    decoding fails.
+def _decode(data: bytes, grey: bool) -> np.ndarray | None:
+    """A PNG's or BMP's pixels, ``H x W`` grey if ``grey`` (any alpha dropped) or ``H x W x 3`` RGB (alpha
+    dropped, palettes expanded); None if decoding fails.
 
     ``cv2.imdecode`` with library messages on stderr suppressed. OpenCV releases
-    the GIL while it decodes, so the background thread that reads the next
-    frame runs beside the filter; libspng's Python binding (``pyspng``,
-    tried in session 16) decodes a third faster alone but holds the GIL, which
-    made annealed CRBM tracking a fifth slower end to end.
+    the GIL while it decodes, so the filter's background thread keeps running
+    while the calling thread decodes the next frame; libspng's Python binding
+    (``pyspng``, tried in session 16) decodes a PNG in 20-30% less time alone
+    but holds the GIL, which made annealed CRBM tracking about a tenth slower
+    end to end (docs/tracking.md, "PNG decoding, session 16").
     """
     with _stderr_silenced():
         try:
@@ -215,8 +216,8 @@ def _decode(data: bytes) -> np.ndarray | None:
             return None
     if img is None or img.ndim == 2:
         return img
-    if img.shape[2] < 3:  # grey + alpha
-        return img[..., 0]
+    if grey or img.shape[2] < 3:  # OpenCV gives grey + alpha as 2 or 4 channels, by version
+        return img[..., 0].copy()
     return cv2.cvtColor(img[..., :3], cv2.COLOR_BGR2RGB)
 
 
@@ -240,17 +241,18 @@ def read_image(path: Path, width: int, height: int, rgb: bool = False) -> np.nda
     except OSError as exc:
         raise InputError(f"cannot read image: {exc.strerror or exc}", path) from None
     if data.startswith(_PNG_SIGNATURE):
-        header = _png_header(data, path)
-        size, depth = header[:2], header[2]
+        width_height_depth_colour = _png_header(data, path)
+        size, depth = width_height_depth_colour[:2], width_height_depth_colour[2]
+        grey = width_height_depth_colour[3] in (0, 4)
     elif data.startswith(b"BM"):
-        size, depth = _bmp_size(data, path), 8
+        size, depth, grey = _bmp_size(data, path), 8, False
     else:  # other formats are not checked before decoding, so not decoded at all
         raise InputError("cannot read image: not a PNG or BMP file (the formats of both sequence layouts)", path)
     if tuple(size) != (width, height):
         raise InputError(f"image is {size[0]}x{size[1]} pixels but its camera is {width}x{height}", path)
     if depth > 8:
         raise InputError(f"expected an 8-bit image, got {depth} bits per sample", path)
-    img = _decode(data)
+    img = _decode(data, grey)
     if img is None:
         raise InputError("cannot read image (unsupported, truncated or corrupt file)", path)
     if img.dtype != np.uint8:

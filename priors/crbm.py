@@ -680,7 +680,10 @@ class CRBMPrior(HeightOffsets, MotionPrior):
     and needs no state); with ``height_spread`` or ``height_drift``, ``height_offset`` ``(P,)``, the particle's own
     root-height offset (mm, the person's height minus the model's; :data:`priors.common.HEIGHT_SPREAD_OPTION`;
     ``height_spread=None``, the default, is :data:`PACED_HEIGHT_SPREAD` for a paced model and 0 otherwise),
-    by which the model's heights are shifted as well; and ``walked`` ``(P,)``, whether its latest sample came from
+    by which the model's heights are shifted as well; with ``posture_gain`` > 0 (``None``, the default, is
+    :data:`PACED_POSTURE_GAIN` for a paced model and 0 otherwise), ``posture_offset`` ``(Kp,)`` (rad, shared
+    by the particles; :func:`updated_posture_offset`) and ``posture_predicted`` ``(P, Kp)``, the posture
+    angles the prior predicted for each particle; and ``walked`` ``(P,)``, whether its latest sample came from
     the robust option's random walk (``robust_fraction``, adapted to the posterior when ``robust_adaptive``,
     see :func:`priors.common.robust_share`). Each sample's torch generator is seeded from the filter's
     generator.

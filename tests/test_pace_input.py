@@ -255,6 +255,15 @@ def test_every_experiment_pins_the_defaults_its_crbms_ran_with(option):
         assert option in prior.get("options", {}), (f.name, prior.get("label"), option)
 
 
+def test_the_experiment_rows_that_name_a_posture_gain_are_the_only_ones_with_one():
+    """Rows labelled "posture gain G" (rounds 23 and 24) track with G; every other CRBM row is pinned to 0."""
+    import re
+
+    for f, prior in experiment_crbm_rows():
+        named = re.search(r"posture gain ([0-9.]+)", prior.get("label", ""))
+        assert prior["options"]["posture_gain"] == (float(named.group(1)) if named else 0), (f.name, prior.get("label"))
+
+
 def test_height_offsets_selected_by_the_images_follow_a_shorter_person(paced, walk_07_01):
     """The same walk 100 mm lower, each frame's particles weighted by how close their root height is to the
     person's (a stand-in for the likelihood) and resampled: with height offsets the sampled heights follow the

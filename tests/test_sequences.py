@@ -40,6 +40,38 @@ def test_image_round_trip(tmp_path, rng):
     assert np.array_equal(read_image(tmp_path / "g.png", 7, 5), grey)
 
 
+def test_every_8_bit_png_colour_type_reads_as_grey_or_rgb(tmp_path, rng):
+    """Grey with alpha stays grey, RGB with alpha loses its alpha, a palette image is expanded to RGB."""
+    grey = rng.integers(0, 256, (5, 7), dtype=np.uint8)
+    colour = rng.integers(0, 256, (5, 7, 3), dtype=np.uint8)
+    alpha = rng.integers(0, 256, (5, 7), dtype=np.uint8)
+    palette = np.array([[0, 0, 0], [255, 0, 0], [0, 128, 255]], np.uint8)
+    index = rng.integers(0, 3, (5, 7), dtype=np.uint8)
+    files = {"ga.png": (np.dstack([grey, alpha]), 4, b""), "rgba.png": (np.dstack([colour, alpha]), 6, b""),
+             "p.png": (index, 3, palette.tobytes())}
+    for name, (pixels, colour_type, plte) in files.items():
+        (tmp_path / name).write_bytes(_png(pixels, colour_type, plte))
+    assert np.array_equal(read_image(tmp_path / "ga.png", 7, 5), grey)
+    assert np.array_equal(read_image(tmp_path / "ga.png", 7, 5, rgb=True), np.repeat(grey[..., None], 3, axis=2))
+    assert np.array_equal(read_image(tmp_path / "rgba.png", 7, 5), colour)
+    assert np.array_equal(read_image(tmp_path / "p.png", 7, 5), palette[index])
+
+
+def _png(pixels: np.ndarray, colour_type: int, plte: bytes = b"") -> bytes:
+    """An 8-bit PNG of ``pixels`` (``H x W`` or ``H x W x C``, in the channel order of ``colour_type``), written
+    here because OpenCV writes neither grey with alpha nor palettes."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, body: bytes) -> bytes:
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+    h, w = pixels.shape[:2]
+    rows = b"".join(b"\x00" + row.tobytes() for row in pixels)  # filter type 0 on every row
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, colour_type, 0, 0, 0))
+            + (chunk(b"PLTE", plte) if plte else b"") + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+
+
 def test_bodytrack_files(bodytrack_dir):
     limbs, lengths = read_body_shape(bodytrack_dir / "BodyShapeParameters.txt")
     assert limbs.shape == (10, 4) and lengths.shape == (18,)
