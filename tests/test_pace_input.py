@@ -239,10 +239,10 @@ def test_a_paced_crbm_corrects_its_posture_by_default(paced, plain):
     from priors.crbm import PACED_POSTURE_GAIN
     from tracker.app.api import prior_entry
 
-    assert PACED_POSTURE_GAIN == 0.2 and CRBMPrior([paced]).posture_gain == PACED_POSTURE_GAIN
+    assert PACED_POSTURE_GAIN == 0.1 and CRBMPrior([paced]).posture_gain == PACED_POSTURE_GAIN
     assert CRBMPrior([plain]).posture_gain == 0.0 and CRBMPrior([paced], posture_gain=0.0).posture_gain == 0.0
     option = {o.name: o for o in prior_entry("crbm").options}["posture_gain"]
-    assert option.default is None and "0.2 for a CRBM trained with a pace input" in option.help
+    assert option.default is None and "0.1 for a CRBM trained with a pace input" in option.help
     deep = {o.name: o for o in prior_entry("deep-crbm").options}["posture_gain"]
     assert deep.default == 0.0
 
