@@ -703,7 +703,9 @@ class CRBMPrior(HeightOffsets, MotionPrior):
     #: The fraction of a particle's own ground velocity lost per frame (with ``ground_velocity_noise``).
     ground_velocity_pull: float = 0.0
     #: The fraction per frame of the likelihood's mean posture correction added to the posture offset the model's
-    #: history and prediction are shifted by (:func:`updated_posture_offset`); 0: no offset.
+    #: history and prediction are shifted by (:func:`updated_posture_offset`); 0: no offset. This class value is
+    #: what a subclass that bypasses ``__init__`` (the FCRBM prior) keeps; ``__init__`` sets
+    #: :data:`PACED_POSTURE_GAIN` for a paced model by default.
     posture_gain: float = 0.0
 
     def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = GIBBS_STEPS,

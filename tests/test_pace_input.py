@@ -242,14 +242,14 @@ def test_a_paced_crbm_corrects_its_posture_by_default(paced, plain):
     assert PACED_POSTURE_GAIN == 0.1 and CRBMPrior([paced]).posture_gain == PACED_POSTURE_GAIN
     assert CRBMPrior([plain]).posture_gain == 0.0 and CRBMPrior([paced], posture_gain=0.0).posture_gain == 0.0
     option = {o.name: o for o in prior_entry("crbm").options}["posture_gain"]
-    assert option.default is None and "0.1 for a CRBM trained with a pace input" in option.help
+    assert option.default is None and f"{PACED_POSTURE_GAIN:g} for a CRBM trained with a pace input" in option.help
     deep = {o.name: o for o in prior_entry("deep-crbm").options}["posture_gain"]
     assert deep.default == 0.0
 
 
 @pytest.mark.parametrize("option", ["height_spread", "posture_gain"])
 def test_every_experiment_pins_the_defaults_its_crbms_ran_with(option):
-    """A CRBM row made before a paced CRBM's height offsets (0.10.0) or posture correction (0.12.0) became the
+    """A CRBM row made before a paced CRBM's height offsets (0.8.0) or posture correction (0.12.0) became the
     default keeps measuring as it did."""
     for f, prior in experiment_crbm_rows():
         assert option in prior.get("options", {}), (f.name, prior.get("label"), option)
@@ -260,7 +260,7 @@ def test_the_experiment_rows_that_name_a_posture_gain_are_the_only_ones_with_one
     import re
 
     for f, prior in experiment_crbm_rows():
-        named = re.search(r"posture gain ([0-9.]+)", prior.get("label", ""))
+        named = re.search(r"posture gain (\d+(?:\.\d+)?)", prior.get("label", ""))
         assert prior["options"]["posture_gain"] == (float(named.group(1)) if named else 0), (f.name, prior.get("label"))
 
 
