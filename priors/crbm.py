@@ -744,9 +744,9 @@ class CRBMPrior(HeightOffsets, MotionPrior):
                                  f"it (the body model's rest root height, mm), got {standing_root_height}")
             self.standing_root_height = float(standing_root_height)
         self.paced = first.pace_label is not None
-        pace_spread = (PACED_SPREAD if self.paced else 0.0) if pace_spread is None else pace_spread
-        pace_drift = (PACED_DRIFT if self.paced else 0.0) if pace_drift is None else pace_drift
-        pace_jump = (PACED_JUMP if self.paced else 0.0) if pace_jump is None else pace_jump
+        pace_spread = self._paced_default(pace_spread, PACED_SPREAD)
+        pace_drift = self._paced_default(pace_drift, PACED_DRIFT)
+        pace_jump = self._paced_default(pace_jump, PACED_JUMP)
         if not 0.0 <= pace_jump <= 1.0:
             raise InputError(f"pace jump must be a probability in [0, 1], got {pace_jump}")
         if pace_jump > 0 and not self.paced:
@@ -773,11 +773,8 @@ class CRBMPrior(HeightOffsets, MotionPrior):
         self.relative_height = bool(relative_height)
         self.ground_velocity_noise, self.ground_velocity_pull = checked_ground_velocity(
             ground_velocity_noise, ground_velocity_pull, pace_jump)
-        if height_spread is None:
-            height_spread = PACED_HEIGHT_SPREAD if self.paced else 0.0
-        self.set_height_offsets(height_spread, height_drift)
-        if posture_gain is None:
-            posture_gain = PACED_POSTURE_GAIN if self.paced else 0.0
+        self.set_height_offsets(self._paced_default(height_spread, PACED_HEIGHT_SPREAD), height_drift)
+        posture_gain = self._paced_default(posture_gain, PACED_POSTURE_GAIN)
         if not 0.0 <= posture_gain <= 1.0:
             raise InputError(f"posture gain must be a fraction per frame in [0, 1], got {posture_gain}")
         self.posture_gain = float(posture_gain)
@@ -793,6 +790,13 @@ class CRBMPrior(HeightOffsets, MotionPrior):
         for m in self.models:
             m.crbm.W, m.crbm.A, m.crbm.B, m.crbm.a, m.crbm.b = (
                 getattr(m.crbm, k).to(self.device) for k in CRBM.PARAMS)
+
+    def _paced_default(self, value: float | None, paced_value: float) -> float:
+        """``value``, or where it was left unset (None) the default of a setting that only a paced model uses:
+        ``paced_value`` for a model trained with a pace input, 0 otherwise."""
+        if value is not None:
+            return value
+        return paced_value if self.paced else 0.0
 
     def settings(self) -> dict:
         return {"orders": [m.order for m in self.models], "gibbs_steps": self.gibbs_steps,
@@ -1085,6 +1089,13 @@ POSTURE_GAIN_OPTION = Option("posture_gain", float, 0.0, f"{POSTURE_GAIN_HELP} (
                              maximum=1.0)
 
 
+
+def _paced_default_option(option: Option, help_text: str, paced_value: float) -> Option:
+    """``option`` left unset by default (None, resolved by :meth:`CRBMPrior._paced_default`), its help saying so."""
+    return replace(option, default=None,
+                   help=f"{help_text} (default {paced_value:g} for a CRBM trained with a pace input, 0 otherwise)")
+
+
 @register_prior(
     "crbm", summary="Conditional RBM (Taylor 2009); several model files of increasing order grow the history, "
                     "several of one order form an ensemble",
@@ -1098,13 +1109,9 @@ POSTURE_GAIN_OPTION = Option("posture_gain", float, 0.0, f"{POSTURE_GAIN_HELP} (
                                               f"{PACED_JUMP:g})", minimum=0.0, maximum=1.0),
              GROUND_VELOCITY_OPTION,
              GROUND_VELOCITY_PULL_OPTION,
-             replace(HEIGHT_SPREAD_OPTION, default=None,
-                     help=f"{HEIGHT_SPREAD_HELP} (default {PACED_HEIGHT_SPREAD:g} for a CRBM trained with a pace "
-                          "input, 0 otherwise)"),
+             _paced_default_option(HEIGHT_SPREAD_OPTION, HEIGHT_SPREAD_HELP, PACED_HEIGHT_SPREAD),
              HEIGHT_DRIFT_OPTION,
-             replace(POSTURE_GAIN_OPTION, default=None,
-                     help=f"{POSTURE_GAIN_HELP} (default {PACED_POSTURE_GAIN:g} for a CRBM trained with a pace input, "
-                          "0 otherwise)"),
+             _paced_default_option(POSTURE_GAIN_OPTION, POSTURE_GAIN_HELP, PACED_POSTURE_GAIN),
              Option("relative_height", bool, False, "keep the person's own root height, the model's heights moved "
                                                     "by the known frames' mean root height minus the training "
                                                     "frames' (default off; for models of absolute heights, not "
