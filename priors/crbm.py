@@ -659,6 +659,24 @@ def updated_posture_offset(offset: np.ndarray, posterior: np.ndarray, predicted:
     return offset + gain * (posterior.mean(axis=0) - predicted)
 
 
+def pace_innovation(before: np.ndarray, after: np.ndarray, predicted: np.ndarray) -> float:
+    """The images' mean correction of the particles' pace over one frame (log pace, see
+    :func:`~tracker.core.representation.log_pace`): the log of :data:`PACE_FLOOR_MM` plus the mean ground step the
+    resampled particles took, measured along the mean step the prior predicted for them, minus the log of
+    :data:`PACE_FLOOR_MM` plus that predicted step's length. ``before``, ``after`` and ``predicted`` are ``P x 2``
+    ground positions (mm) of the same particles: each root before the frame, after it (diffused, annealed and
+    resampled), and where the prior put it before its ground diffusion (NaN before the first prediction: 0). The
+    step taken is measured along the predicted one so that the posterior's sideways jitter (one view's depth) does
+    not read as speed; a step taken backwards counts as standing still."""
+    if not np.all(np.isfinite(predicted)):
+        return 0.0
+    expected = (predicted - before).mean(axis=0)
+    taken = (after - before).mean(axis=0)
+    length = float(np.hypot(*expected))
+    along = float(taken @ expected) / length if length > 1e-9 else float(np.hypot(*taken))
+    return float(np.log(PACE_FLOOR_MM + max(along, 0.0)) - np.log(PACE_FLOOR_MM + length))
+
+
 class CRBMPrior(HeightOffsets, MotionPrior):
     """Samples every particle's next pose from its own history with a CRBM (one batch, torch).
 
@@ -683,7 +701,8 @@ class CRBMPrior(HeightOffsets, MotionPrior):
     by which the model's heights are shifted as well; with ``posture_gain`` > 0 (``None``, the default, is
     :data:`PACED_POSTURE_GAIN` for a paced model and 0 otherwise), ``posture_offset`` ``(Kp,)`` (rad, shared
     by the particles; :func:`updated_posture_offset`) and ``posture_predicted`` ``(P, Kp)``, the posture
-    angles the prior predicted for each particle; and ``walked`` ``(P,)``, whether its latest sample came from
+    angles the prior predicted for each particle; with ``pace_gain`` > 0, ``ground_predicted`` ``P x 2``, where
+    the prior put each root before its ground diffusion (mm; :meth:`corrected_pace`); and ``walked`` ``(P,)``, whether its latest sample came from
     the robust option's random walk (``robust_fraction``, adapted to the posterior when ``robust_adaptive``,
     see :func:`priors.common.robust_share`). Each sample's torch generator is seeded from the filter's
     generator.
@@ -707,6 +726,9 @@ class CRBMPrior(HeightOffsets, MotionPrior):
     #: what a subclass that bypasses ``__init__`` (the FCRBM prior) keeps; ``__init__`` sets
     #: :data:`PACED_POSTURE_GAIN` for a paced model by default.
     posture_gain: float = 0.0
+    #: The fraction per frame of the images' mean pace correction (:func:`pace_innovation`) added to every
+    #: particle's pace (paced models only); 0: none.
+    pace_gain: float = 0.0
 
     def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = GIBBS_STEPS,
                  device: str = "cpu", mode: str = "gibbs", root_noise_mm: float = ROOT_NOISE_MM,
@@ -714,7 +736,8 @@ class CRBMPrior(HeightOffsets, MotionPrior):
                  pace_spread: float | None = None, pace_drift: float | None = None, relative_height: bool = False,
                  pace_jump: float | None = None, standing_root_height: float | None = None,
                  ground_velocity_noise: float | None = None, ground_velocity_pull: float = 0.0,
-                 height_spread: float | None = None, height_drift: float = 0.0, posture_gain: float | None = None):
+                 height_spread: float | None = None, height_drift: float = 0.0, posture_gain: float | None = None,
+                 pace_gain: float = 0.0):
         if not models:
             raise InputError("the CRBM prior needs at least one model")
         orders = [m.order for m in models]
@@ -778,6 +801,15 @@ class CRBMPrior(HeightOffsets, MotionPrior):
         if not 0.0 <= posture_gain <= 1.0:
             raise InputError(f"posture gain must be a fraction per frame in [0, 1], got {posture_gain}")
         self.posture_gain = float(posture_gain)
+        if not 0.0 <= pace_gain <= 1.0:
+            raise InputError(f"pace gain must be a fraction per frame in [0, 1], got {pace_gain}")
+        if pace_gain > 0 and not self.paced:
+            raise InputError("pace gain corrects the pace a CRBM trained with a pace input is given (train "
+                             "--pace-input); this one has none")
+        if pace_gain > 0 and self.ground_velocity_noise is not None:
+            raise InputError("pace gain corrects the pace of the model's own ground steps; with ground velocity noise "
+                             "the pace is the particle's own ground speed")
+        self.pace_gain = float(pace_gain)
         if self.paced:
             self.summary_names, self.summary_kind = ("pace (mm/frame)",), "quantity"
         if self.height_offsets:
@@ -808,7 +840,7 @@ class CRBMPrior(HeightOffsets, MotionPrior):
                 "ground_velocity_noise_mm": self.ground_velocity_noise,
                 "ground_velocity_pull": self.ground_velocity_pull,
                 "height_spread_mm": self.height_spread, "height_drift_mm": self.height_drift,
-                "posture_gain": self.posture_gain}
+                "posture_gain": self.posture_gain, "pace_gain": self.pace_gain}
 
     def model_for(self, available: int) -> CRBMModel:
         """The highest-order model whose history is all real poses (never a padded history)."""
@@ -840,6 +872,8 @@ class CRBMPrior(HeightOffsets, MotionPrior):
             n_posture = len(posture_features(np.atleast_2d(known).shape[-1]))
             state["posture_offset"] = np.zeros((n_particles, n_posture))
             state["posture_predicted"] = np.full((n_particles, n_posture), np.nan)
+        if self.pace_gain > 0:  # no prediction yet to measure the first pace correction against
+            state["ground_predicted"] = np.full((n_particles, 2), np.nan)
         return {**state, **self.start_height_offsets(n_particles, rng)}
 
     def restart(self, state: PriorState, recent: np.ndarray, n_particles: int,
@@ -875,8 +909,8 @@ class CRBMPrior(HeightOffsets, MotionPrior):
         pace = None
         if self.paced:  # the model is told each particle's pace, which drifts (and may jump) first, or is the
             # speed of the ground step the particle takes now when that step is its own
-            pace = (self.next_pace(model, state["pace"], rng) if self.ground_velocity_noise is None
-                    else np.maximum(log_pace(state["step"]), STANDING_LOG_PACE))
+            pace = (self.next_pace(model, self.corrected_pace(history, state), rng)
+                    if self.ground_velocity_noise is None else np.maximum(log_pace(state["step"]), STANDING_LOG_PACE))
             z = np.concatenate([model.pace_input(pace), z], axis=1)
         hist = torch.tensor(z, dtype=torch.float32, device=self.device)
         generator = torch_generator(rng, self.device)
@@ -892,7 +926,9 @@ class CRBMPrior(HeightOffsets, MotionPrior):
         scale_ground_steps(f_next, np.exp(step_factor))  # the predicted step at the particle's pace
         if to_model is not None:  # and the prediction at the person's
             shift_height(f_next, -to_model)
-        poses = add_ground_diffusion(next_poses(history[:, -1], previous, f_next), self.root_noise_mm, rng)
+        poses = next_poses(history[:, -1], previous, f_next)
+        predicted_ground = poses[:, :2].copy() if self.pace_gain > 0 else None  # before the ground diffusion
+        add_ground_diffusion(poses, self.root_noise_mm, rng)
         add_heading_diffusion(poses, history[:, -1], self.heading_noise, rng)
         pending = f_next[:, step]
         if self.ground_velocity_noise is not None:  # the particle's own ground step persists, not the model's
@@ -908,6 +944,9 @@ class CRBMPrior(HeightOffsets, MotionPrior):
             new["height"] = state["height"]
         if self.height_offsets:
             new["height_offset"] = state["height_offset"]
+        if predicted_ground is not None:  # a random-walk sample's prediction is where it went
+            predicted_ground[walked] = poses[walked, :2]
+            new["ground_predicted"] = predicted_ground
         if offset is not None:
             new["posture_offset"] = np.repeat(offset[None], len(poses), axis=0)
             new["posture_predicted"] = np.repeat(f_next[:, posture].mean(axis=0)[None], len(poses), axis=0)
@@ -926,6 +965,16 @@ class CRBMPrior(HeightOffsets, MotionPrior):
         if self.height_offsets:
             shift = (0.0 if shift is None else shift) - state["height_offset"]
         return shift
+
+    def corrected_pace(self, history: np.ndarray, state: PriorState) -> np.ndarray:
+        """Each particle's log pace ``(P,)`` moved by :attr:`pace_gain` times the images' mean correction of the
+        frame just tracked (:func:`pace_innovation`; the same move for every particle, so that the particles keep
+        their spread of paces): an integrator that moves the paces the model is given until the steps it predicts
+        are, on average, the steps the images select. Unchanged without a pace gain or a frame to measure."""
+        if self.pace_gain == 0 or history.shape[1] < 2:
+            return state["pace"]
+        innovation = pace_innovation(history[:, -2, :2], history[:, -1, :2], state["ground_predicted"])
+        return state["pace"] + self.pace_gain * innovation
 
     def next_pace(self, model: CRBMModel, pace: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Each particle's log pace ``(P,)`` one frame on: a random-walk step of ``pace_drift``, with probability
@@ -1112,6 +1161,11 @@ def _paced_default_option(option: Option, help_text: str, paced_value: float) ->
              _paced_default_option(HEIGHT_SPREAD_OPTION, HEIGHT_SPREAD_HELP, PACED_HEIGHT_SPREAD),
              HEIGHT_DRIFT_OPTION,
              _paced_default_option(POSTURE_GAIN_OPTION, POSTURE_GAIN_HELP, PACED_POSTURE_GAIN),
+             Option("pace_gain", float, 0.0, "fraction per frame of the images' mean pace correction (log of the "
+                                             "ground step the resampled particles took over the one the prior "
+                                             "predicted for them) added to every particle's pace, so that the pace "
+                                             "follows a person who speeds up or slows down (CRBMs trained with a "
+                                             "pace input; default 0: off)", minimum=0.0, maximum=1.0),
              Option("relative_height", bool, False, "keep the person's own root height, the model's heights moved "
                                                     "by the known frames' mean root height minus the training "
                                                     "frames' (default off; for models of absolute heights, not "
@@ -1134,7 +1188,7 @@ def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict
                          ground_velocity_noise=options["ground_velocity_noise"],
                          ground_velocity_pull=options["ground_velocity_pull"],
                          height_spread=options["height_spread"], height_drift=options["height_drift"],
-                         posture_gain=options["posture_gain"])
+                         posture_gain=options["posture_gain"], pace_gain=options["pace_gain"])
 
     if len(models) > 1 and len({m.order for m in models}) == 1:
         return EnsemblePrior([prior([m]) for m in models])

@@ -332,3 +332,57 @@ def test_a_pace_never_falls_below_standing_and_jumps_come_from_the_training_pace
         CRBMPrior([paced], pace_jump=1.5)
     with pytest.raises(InputError, match="pace input"):  # a setting that would do nothing is refused
         CRBMPrior([plain], pace_jump=0.1)
+
+
+def test_the_pace_innovation_compares_the_step_taken_along_the_predicted_one_with_it():
+    from priors.crbm import pace_innovation
+
+    before = np.array([[0.0, 0.0], [100.0, 0.0], [0.0, 50.0]])
+    predicted = before + [0.0, 10.0]  # every particle predicted 10 mm/frame along y
+    sideways = before + [[7.0, 14.0], [5.0, 14.0], [9.0, 14.0]]  # 14 along, and 7 across that does not count
+    assert pace_innovation(before, sideways, predicted) == pytest.approx(np.log(16 / 12))
+    assert pace_innovation(before, predicted, predicted) == 0.0  # the prior's steps were the images' choice
+    backwards = before - [0.0, 5.0]
+    assert pace_innovation(before, backwards, predicted) == pytest.approx(np.log(PACE_FLOOR_MM / 12))
+    standing = pace_innovation(before, before + [3.0, 4.0], before)  # no predicted direction: the step's length
+    assert standing == pytest.approx(np.log((PACE_FLOOR_MM + 5) / PACE_FLOOR_MM))
+    assert pace_innovation(before, sideways, np.full((3, 2), np.nan)) == 0.0  # nothing predicted yet
+
+
+def test_a_pace_gain_moves_every_particles_pace_by_the_gain_times_the_images_correction(paced, walk_07_01):
+    """The particles land 6 mm further along their predicted steps than the prior put them (the images chose
+    longer steps): the next pace each particle is given is its own plus the gain times that frame's innovation,
+    the same for all, so the paces keep their spread."""
+    from priors.crbm import pace_innovation
+
+    rng = np.random.default_rng(5)
+    prior = CRBMPrior([paced], pace_drift=0.0, pace_gain=0.3)
+    history = np.repeat(walk_07_01[None, 57:60], 50, axis=0)
+    state = prior.start(walk_07_01[:60], 50, rng)
+    assert np.all(np.isnan(state["ground_predicted"]))
+    poses, state = prior.sample(history, 3, state, rng)
+    assert np.all(np.isfinite(state["ground_predicted"]))
+    step = (state["ground_predicted"] - history[:, -1, :2]).mean(axis=0)
+    poses[:, :2] = state["ground_predicted"] + 6.0 * step / np.hypot(*step)
+    history = np.concatenate([history[:, 1:], poses[:, None]], axis=1)
+    innovation = pace_innovation(history[:, -2, :2], history[:, -1, :2], state["ground_predicted"])
+    assert innovation > 0.1
+    _, after = prior.sample(history, 3, state, rng)
+    expected = np.maximum(state["pace"] + 0.3 * innovation, np.log(PACE_FLOOR_MM))
+    assert np.allclose(after["pace"], expected)
+    assert np.std(after["pace"]) == pytest.approx(np.std(state["pace"]))
+    unchanged = CRBMPrior([paced], pace_drift=0.0)  # off by default: the pace is the particle's own
+    assert unchanged.pace_gain == 0.0 and "ground_predicted" not in unchanged.start(walk_07_01[:60], 4, rng)
+
+
+def test_a_pace_gain_is_checked(paced, plain):
+    from tracker.app.api import prior_entry
+
+    with pytest.raises(InputError, match="pace gain must be a fraction"):
+        CRBMPrior([paced], pace_gain=1.5)
+    with pytest.raises(InputError, match="pace input"):  # a setting that would do nothing is refused
+        CRBMPrior([plain], pace_gain=0.1)
+    with pytest.raises(InputError, match="ground velocity noise"):
+        CRBMPrior([paced], pace_gain=0.1, ground_velocity_noise=0.5)
+    option = {o.name: o for o in prior_entry("crbm").options}["pace_gain"]
+    assert option.default == 0.0 and option.maximum == 1.0
