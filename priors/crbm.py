@@ -702,10 +702,10 @@ class CRBMPrior(HeightOffsets, MotionPrior):
     :data:`PACED_POSTURE_GAIN` for a paced model and 0 otherwise), ``posture_offset`` ``(Kp,)`` (rad, shared
     by the particles; :func:`updated_posture_offset`) and ``posture_predicted`` ``(P, Kp)``, the posture
     angles the prior predicted for each particle; with ``pace_gain`` > 0, ``ground_predicted`` ``P x 2``, where
-    the prior put each root before its ground diffusion (mm; :meth:`corrected_pace`); and ``walked`` ``(P,)``, whether its latest sample came from
-    the robust option's random walk (``robust_fraction``, adapted to the posterior when ``robust_adaptive``,
-    see :func:`priors.common.robust_share`). Each sample's torch generator is seeded from the filter's
-    generator.
+    the prior put each root before its ground diffusion (mm; :meth:`corrected_pace`); and ``walked`` ``(P,)``,
+    whether its latest sample came from the robust option's random walk (``robust_fraction``, adapted to the
+    posterior when ``robust_adaptive``, see :func:`priors.common.robust_share`). Each sample's torch generator is
+    seeded from the filter's generator.
     """
 
     name = "crbm"
