@@ -290,6 +290,14 @@ class HeightOffsets:
         return float(np.sum(weights * state["height_offset"]))
 
 
+def checked_fraction_per_frame(name: str, value: float) -> float:
+    """``value`` as a float when it is a fraction per frame in [0, 1] (a gain or a pull); otherwise an
+    :class:`InputError` naming the setting ``name``."""
+    if not 0 <= value <= 1:
+        raise InputError(f"{name} must be a fraction per frame in [0, 1], got {value}")
+    return float(value)
+
+
 def checked_ground_velocity(noise: float | None, pull: float,
                             pace_jump: float = 0.0) -> tuple[float | None, float]:
     """The settings of :func:`persist_ground_step` as ``(noise, pull)``: ``noise`` (mm/frame per frame, None for
@@ -303,8 +311,7 @@ def checked_ground_velocity(noise: float | None, pull: float,
             raise InputError("pace jump draws a pace the particle's ground velocity would not follow; with ground "
                              "velocity noise the pace is the particle's own ground speed")
         noise = float(noise)
-    if not 0 <= pull <= 1:
-        raise InputError(f"ground velocity pull must be a fraction per frame in [0, 1], got {pull}")
+    pull = checked_fraction_per_frame("ground velocity pull", pull)
     if pull > 0 and noise is None:
         raise InputError("ground velocity pull acts on each particle's own ground velocity: give it with ground "
                          "velocity noise")

@@ -45,8 +45,8 @@ from priors.common import (
     GROUND_VELOCITY_OPTION, GROUND_VELOCITY_PULL_OPTION, HEADING_NOISE_OPTION, HEIGHT_DRIFT_OPTION,
     HEIGHT_SPREAD_HELP, HEIGHT_SPREAD_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION, HeightOffsets, TrainedModel,
     UNLEARNED_MOTION_OPTIONS, add_ground_diffusion, add_heading_diffusion, check_weights, checked_data_settings,
-    checked_ground_velocity, checked_time_warp, gaussian_drift, gaussian_start, gibbs_steps_option,
-    mix_in_random_walk, normaliser_from_tensors, persist_ground_step, read_model_file, robust_share,
+    checked_fraction_per_frame, checked_ground_velocity, checked_time_warp, gaussian_drift, gaussian_start,
+    gibbs_steps_option, mix_in_random_walk, normaliser_from_tensors, persist_ground_step, read_model_file, robust_share,
     scale_ground_steps, shift_height, steps_taken, time_warp_note, torch_generator,
     torch_save_atomic,
 )
@@ -797,19 +797,16 @@ class CRBMPrior(HeightOffsets, MotionPrior):
         self.ground_velocity_noise, self.ground_velocity_pull = checked_ground_velocity(
             ground_velocity_noise, ground_velocity_pull, pace_jump)
         self.set_height_offsets(self._paced_default(height_spread, PACED_HEIGHT_SPREAD), height_drift)
-        posture_gain = self._paced_default(posture_gain, PACED_POSTURE_GAIN)
-        if not 0.0 <= posture_gain <= 1.0:
-            raise InputError(f"posture gain must be a fraction per frame in [0, 1], got {posture_gain}")
-        self.posture_gain = float(posture_gain)
-        if not 0.0 <= pace_gain <= 1.0:
-            raise InputError(f"pace gain must be a fraction per frame in [0, 1], got {pace_gain}")
+        self.posture_gain = checked_fraction_per_frame(
+            "posture gain", self._paced_default(posture_gain, PACED_POSTURE_GAIN))
+        pace_gain = checked_fraction_per_frame("pace gain", pace_gain)
         if pace_gain > 0 and not self.paced:
             raise InputError("pace gain corrects the pace a CRBM trained with a pace input is given (train "
                              "--pace-input); this one has none")
         if pace_gain > 0 and self.ground_velocity_noise is not None:
             raise InputError("pace gain corrects the pace of the model's own ground steps; with ground velocity noise "
                              "the pace is the particle's own ground speed")
-        self.pace_gain = float(pace_gain)
+        self.pace_gain = pace_gain
         if self.paced:
             self.summary_names, self.summary_kind = ("pace (mm/frame)",), "quantity"
         if self.height_offsets:
@@ -1136,7 +1133,6 @@ POSTURE_GAIN_HELP = ("fraction per frame of the images' mean posture correction 
 #: :attr:`CRBMPrior.posture_gain`.
 POSTURE_GAIN_OPTION = Option("posture_gain", float, 0.0, f"{POSTURE_GAIN_HELP} (default 0: off)", minimum=0.0,
                              maximum=1.0)
-
 
 
 def _paced_default_option(option: Option, help_text: str, paced_value: float) -> Option:
