@@ -49,6 +49,38 @@ def test_background_subtraction_default_noise(synthetic_walk):
     assert min(ious) > 0.8 and np.mean(ious) > 0.9
 
 
+@pytest.mark.parametrize("config", [ObservationConfig(), ObservationConfig(compensate_gain=False),
+                                    ObservationConfig(blur_sigma=1.0)], ids=["default", "no gain", "blurred"])
+@pytest.mark.parametrize("grey", [False, True], ids=["rgb", "grey"])
+def test_silhouette_is_the_thresholded_colour_distance(synthetic_walk, config, grey):
+    """The compiled pass marks exactly the pixels whose colour distance to the (gain-compensated) plate exceeds
+    max(threshold, 3 sigma), the distance and sigma computed here as plain float32 array operations over the
+    whole image (before the morphological clean-up, which is switched off)."""
+    import cv2
+
+    config = ObservationConfig(**{**config.__dict__, "open_radius": 0, "close_radius": 0, "min_area": 0})
+    seq = read_sequence(synthetic_walk.root)
+    image, background = seq.image(1, 2), seq.background(2)
+    if grey:
+        image, background = (cv2.cvtColor(a, cv2.COLOR_RGB2GRAY) for a in (image, background))
+
+    def blurred(a):
+        a = a.astype(np.float32)
+        return cv2.GaussianBlur(a, (0, 0), config.blur_sigma) if config.blur_sigma else a
+    img, bg = blurred(image), blurred(background)
+    gain = 1.0
+    if config.compensate_gain:
+        grey_of = (lambda a: a) if grey else (lambda a: a.mean(axis=2))
+        gi, gb = grey_of(img[::4, ::4]), grey_of(bg[::4, ::4])
+        gain = float(np.median(gi[gb > 20] / gb[gb > 20]))
+    diff = np.abs(img - bg * np.float32(gain))
+    dist = diff if grey else np.sqrt(np.square(diff).sum(axis=2))
+    sigma = float(np.median(dist[::4, ::4])) / (0.6745 if grey else 1.5382)
+    want = dist > max(config.diff_threshold, config.noise_factor * sigma)
+    got = silhouette(image, background, config)
+    assert 1000 < want.sum() and np.array_equal(got, want)
+
+
 def test_background_subtraction_clean_frames(walk_07_11, tmp_path):
     out = synthesize(walk_07_11, tmp_path / "clean", SynthConfig(start=80, frames=3, noise=0.0, seed=1),
                      keep_masks=True)
