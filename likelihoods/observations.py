@@ -97,8 +97,8 @@ def clean_mask(mask: np.ndarray, config: ObservationConfig = DEFAULT_OBSERVATION
 class BackgroundPlate:
     """A background plate with what :func:`silhouette` derives from it once per sequence and view.
 
-    ``image``: the plate as given (``H x W x 3`` or ``H x W`` uint8); ``values``: float32, blurred by
-    ``blur_sigma``; ``grey_sample``: the grey levels (float32) of every 4th row and column that exceed 20,
+    ``image``: the plate as given (``H x W x 3`` or ``H x W`` uint8); ``values``: ``image`` itself, or float32
+    blurred by ``blur_sigma``; ``grey_sample``: the grey levels (float32) of every 4th row and column that exceed 20,
     ``sample_valid`` (bool, on the 4th rows and columns) says which: the denominators of the gain statistic.
     """
 
@@ -110,8 +110,8 @@ class BackgroundPlate:
 
     @classmethod
     def of(cls, background: np.ndarray, config: ObservationConfig = DEFAULT_OBSERVATION) -> "BackgroundPlate":
-        values = _blur(background, config.blur_sigma)
-        grey = _grey_float(values[::4, ::4])
+        values = _blur(background, config.blur_sigma) if config.blur_sigma > 0 else background
+        grey = _grey_float(values[::4, ::4].astype(np.float32))
         valid = grey > 20.0
         return cls(background, config.blur_sigma, values, valid, grey[valid])
 
@@ -141,26 +141,32 @@ def silhouette(image: np.ndarray, background: np.ndarray | BackgroundPlate,
         chi_median = 0.6745  # median of |N(0, 1)|
     sigma = float(np.median(dist)) / chi_median
     threshold = max(config.diff_threshold, config.noise_factor * sigma)
-    mask = np.empty(image.shape[:2], np.uint8)
-    channels = img.shape[2] if img.ndim == 3 else 1
-    _beyond(img.reshape(*mask.shape, channels), plate.values.reshape(*mask.shape, channels), np.float32(gain),
-            np.float32(threshold * threshold), mask)
-    return clean_mask(mask.view(bool), config)
+    mask = np.empty(image.shape[:2], bool)
+    _beyond(np.ascontiguousarray(img).reshape(-1), np.ascontiguousarray(plate.values).reshape(-1),
+            img.shape[2] if img.ndim == 3 else 1, np.float32(gain), np.float32(threshold * threshold),
+            mask.reshape(-1))
+    return clean_mask(mask, config)
 
 
 @njit(cache=True, nogil=True)
-def _beyond(image, plate, gain, threshold_squared, out):
-    """``out[i, j] = 1`` where the squared colour distance of ``image`` (``H x W x C``, uint8 or float32) to
-    ``gain`` times ``plate`` (``H x W x C`` float32) exceeds ``threshold_squared``, else 0 (``out`` uint8
-    ``H x W``): float32 throughout, without the GIL."""
-    H, W, C = image.shape
-    for i in range(H):
-        for j in range(W):
+def _beyond(image, plate, channels, gain, threshold_squared, out):
+    """``out[i] = True`` where the squared colour distance of pixel ``i`` of ``image`` to ``gain`` times ``plate``
+    exceeds ``threshold_squared`` (``image`` and ``plate`` flat, ``channels`` values per pixel, uint8 or float32;
+    ``out`` flat bool): float32 throughout, without the GIL. Three channels are spelled out so that the loop
+    compiles to vector instructions (7x faster than a loop over the channels)."""
+    if channels == 3:
+        for i in range(out.size):
+            d0 = np.float32(image[3 * i]) - np.float32(plate[3 * i]) * gain
+            d1 = np.float32(image[3 * i + 1]) - np.float32(plate[3 * i + 1]) * gain
+            d2 = np.float32(image[3 * i + 2]) - np.float32(plate[3 * i + 2]) * gain
+            out[i] = d0 * d0 + d1 * d1 + d2 * d2 > threshold_squared
+    else:
+        for i in range(out.size):
             total = np.float32(0.0)
-            for c in range(C):
-                d = np.float32(image[i, j, c]) - plate[i, j, c] * gain
+            for c in range(channels):
+                d = np.float32(image[channels * i + c]) - np.float32(plate[channels * i + c]) * gain
                 total += d * d
-            out[i, j] = 1 if total > threshold_squared else 0
+            out[i] = total > threshold_squared
 
 
 def _channel_sum(img: np.ndarray) -> np.ndarray:
