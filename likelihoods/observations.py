@@ -143,9 +143,21 @@ def silhouette(image: np.ndarray, background: np.ndarray | BackgroundPlate,
     threshold = max(config.diff_threshold, config.noise_factor * sigma)
     mask = np.empty(image.shape[:2], bool)
     _beyond(np.ascontiguousarray(img).reshape(-1), np.ascontiguousarray(plate.values).reshape(-1),
-            img.shape[2] if img.ndim == 3 else 1, np.float32(gain), np.float32(threshold * threshold),
-            mask.reshape(-1))
+            img.shape[2] if img.ndim == 3 else 1, np.float32(gain), squared_threshold(threshold), mask.reshape(-1))
     return clean_mask(mask, config)
+
+
+def squared_threshold(threshold: float) -> np.float32:
+    """The largest float32 ``s`` whose float32 square root is at most ``float32(threshold)``: a squared distance
+    exceeds it exactly when its float32 square root exceeds the threshold, so that comparing squares (no square
+    root per pixel) marks the same pixels as comparing distances, ties included."""
+    t = np.float32(threshold)
+    s = np.float32(t * t)
+    while s > 0 and np.sqrt(s) > t:
+        s = np.nextafter(s, np.float32(0.0))
+    while np.sqrt(np.nextafter(s, np.float32(np.inf))) <= t:
+        s = np.nextafter(s, np.float32(np.inf))
+    return s
 
 
 @njit(cache=True, nogil=True)
@@ -170,8 +182,8 @@ def _beyond(image, plate, channels, gain, threshold_squared, out):
 
 
 def _channel_sum(img: np.ndarray) -> np.ndarray:
-    """The sum over the channels of ``H x W x C`` (as ``sum(axis=2)`` adds them, in order; several times faster
-    for few channels)."""
+    """The sum over the channels of a float ``H x W x C`` array (as ``sum(axis=2)`` adds them, in order; several
+    times faster for few channels). A uint8 array would wrap around: callers convert first."""
     total = img[..., 0].copy()
     for c in range(1, img.shape[2]):
         total += img[..., c]

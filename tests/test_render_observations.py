@@ -50,35 +50,58 @@ def test_background_subtraction_default_noise(synthetic_walk):
 
 
 @pytest.mark.parametrize("config", [ObservationConfig(), ObservationConfig(compensate_gain=False),
-                                    ObservationConfig(blur_sigma=1.0)], ids=["default", "no gain", "blurred"])
+                                    ObservationConfig(blur_sigma=1.0), ObservationConfig(diff_threshold=1.0)],
+                         ids=["default", "no gain", "blurred", "noise decides"])
 @pytest.mark.parametrize("grey", [False, True], ids=["rgb", "grey"])
 def test_silhouette_is_the_thresholded_colour_distance(synthetic_walk, config, grey):
     """The compiled pass marks exactly the pixels whose colour distance to the (gain-compensated) plate exceeds
     max(threshold, 3 sigma), the distance and sigma computed here as plain float32 array operations over the
-    whole image (before the morphological clean-up, which is switched off)."""
+    whole image (before the morphological clean-up, which is switched off). The image is brightened by 15% (so
+    that the gain is not 1 and distances are not whole numbers), given mirrored (not contiguous), and the plate
+    is prepared once and used for two frames."""
     import cv2
+
+    from likelihoods.observations import BackgroundPlate
 
     config = ObservationConfig(**{**config.__dict__, "open_radius": 0, "close_radius": 0, "min_area": 0})
     seq = read_sequence(synthetic_walk.root)
-    image, background = seq.image(1, 2), seq.background(2)
+    background = seq.background(2)[:, ::-1]
     if grey:
-        image, background = (cv2.cvtColor(a, cv2.COLOR_RGB2GRAY) for a in (image, background))
+        background = cv2.cvtColor(np.ascontiguousarray(background), cv2.COLOR_RGB2GRAY)
+    plate = BackgroundPlate.of(background, config)
 
     def blurred(a):
         a = a.astype(np.float32)
         return cv2.GaussianBlur(a, (0, 0), config.blur_sigma) if config.blur_sigma else a
-    img, bg = blurred(image), blurred(background)
-    gain = 1.0
-    if config.compensate_gain:
-        grey_of = (lambda a: a) if grey else (lambda a: a.mean(axis=2))
-        gi, gb = grey_of(img[::4, ::4]), grey_of(bg[::4, ::4])
-        gain = float(np.median(gi[gb > 20] / gb[gb > 20]))
-    diff = np.abs(img - bg * np.float32(gain))
-    dist = diff if grey else np.sqrt(np.square(diff).sum(axis=2))
-    sigma = float(np.median(dist[::4, ::4])) / (0.6745 if grey else 1.5382)
-    want = dist > max(config.diff_threshold, config.noise_factor * sigma)
-    got = silhouette(image, background, config)
-    assert 1000 < want.sum() and np.array_equal(got, want)
+    for frame in (1, 2):
+        image = np.clip(seq.image(frame, 2)[:, ::-1] * 1.15, 0, 255).astype(np.uint8)
+        if grey:
+            image = cv2.cvtColor(np.ascontiguousarray(image), cv2.COLOR_RGB2GRAY)
+        img, bg = blurred(image), blurred(background)
+        gain = 1.0
+        if config.compensate_gain:
+            grey_of = (lambda a: a) if grey else (lambda a: a.mean(axis=2))
+            gi, gb = grey_of(img[::4, ::4]), grey_of(bg[::4, ::4])
+            gain = float(np.median(gi[gb > 20] / gb[gb > 20]))
+            assert abs(gain - 1.15) < 0.05
+        diff = np.abs(img - bg * np.float32(gain))
+        dist = diff if grey else np.sqrt(np.square(diff).sum(axis=2))
+        sigma = float(np.median(dist[::4, ::4])) / (0.6745 if grey else 1.5382)
+        threshold = max(config.diff_threshold, config.noise_factor * sigma)
+        if config.diff_threshold == 1.0:
+            assert threshold > 1.0  # the noise estimate, not the floor, sets it
+        want = dist > threshold
+        got = silhouette(image, plate, config)
+        assert 0 < want.sum() < want.size and np.array_equal(got, want)
+
+
+def test_squared_threshold_compares_squares_as_the_square_roots_compare():
+    from likelihoods.observations import squared_threshold
+
+    for t in np.random.default_rng(0).uniform(1.0, 60.0, 200).tolist() + [10.0, 3.0]:
+        s, t32 = squared_threshold(t), np.float32(t)
+        near = s + np.arange(-40, 40, dtype=np.float32) * np.spacing(s)
+        assert np.array_equal(near > s, np.sqrt(near) > t32)
 
 
 def test_background_subtraction_clean_frames(walk_07_11, tmp_path):
