@@ -3,11 +3,12 @@
     python benchmarks/error_split.py RESULTS/leave_out_16 RESULTS/leave_out_91 ... [--baseline zero-velocity]
 
 For every folder `compare` wrote and every row of its grid (prior, views, particles, layers; training seeds
-pooled, as in its table): the mean marker error over the runs (mm), the same error with each frame's root height error taken out of
-the estimate's markers (the estimate moved vertically so that its root is at the true height), with its whole root
-translation error taken out (the pelvis-relative error), and the mean signed root height error (mm, estimate minus
-truth); each error also as a ratio to the baseline's (same folder, views, particles and layers). Reads each run's
-``result.json`` and ``estimates.npz`` and the sequence's ground truth. Prints a Markdown table.
+pooled, as in its table): the mean marker error over the runs (mm); the same error with each frame's root height
+error taken out of the estimate's markers (the estimate moved vertically so that its root is at the true height);
+with its whole root translation error taken out (the pelvis-relative error); and the mean signed root height error
+(mm, estimate minus truth). Each error also as a ratio to the baseline's (same folder, views, particles and
+layers). Reads each run's ``result.json`` and ``estimates.npz`` and the sequence's ground truth. Prints a Markdown
+table.
 """
 from __future__ import annotations
 
