@@ -97,9 +97,10 @@ def clean_mask(mask: np.ndarray, config: ObservationConfig = DEFAULT_OBSERVATION
 class BackgroundPlate:
     """A background plate with what :func:`silhouette` derives from it once per sequence and view.
 
-    ``image``: the plate as given (``H x W x 3`` or ``H x W`` uint8); ``values``: ``image`` itself, or float32
-    blurred by ``blur_sigma``; ``grey_sample``: the grey levels (float32) of every 4th row and column that exceed 20,
-    ``sample_valid`` (bool, on the 4th rows and columns) says which: the denominators of the gain statistic.
+    ``image``: the plate as given (``H x W x 3`` or ``H x W`` uint8); ``values``: ``image`` itself (contiguous),
+    or float32 blurred by ``blur_sigma``; ``grey_sample``: the grey levels (float32) of every 4th row and column
+    that exceed 20, ``sample_valid`` (bool, on the 4th rows and columns) says which: the denominators of the gain
+    statistic.
     """
 
     image: np.ndarray
@@ -110,7 +111,8 @@ class BackgroundPlate:
 
     @classmethod
     def of(cls, background: np.ndarray, config: ObservationConfig = DEFAULT_OBSERVATION) -> "BackgroundPlate":
-        values = _blur(background, config.blur_sigma) if config.blur_sigma > 0 else background
+        blurred = config.blur_sigma > 0
+        values = _blur(background, config.blur_sigma) if blurred else np.ascontiguousarray(background)
         grey = _grey_float(values[::4, ::4].astype(np.float32))
         valid = grey > 20.0
         return cls(background, config.blur_sigma, values, valid, grey[valid])
@@ -142,7 +144,7 @@ def silhouette(image: np.ndarray, background: np.ndarray | BackgroundPlate,
     sigma = float(np.median(dist)) / chi_median
     threshold = max(config.diff_threshold, config.noise_factor * sigma)
     mask = np.empty(image.shape[:2], bool)
-    _beyond(np.ascontiguousarray(img).reshape(-1), np.ascontiguousarray(plate.values).reshape(-1),
+    _beyond(np.ascontiguousarray(img).reshape(-1), plate.values.reshape(-1),  # (the plate made contiguous once)
             img.shape[2] if img.ndim == 3 else 1, np.float32(gain), squared_threshold(threshold), mask.reshape(-1))
     return clean_mask(mask, config)
 
