@@ -15,10 +15,16 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import sys
 from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from tracker.core.metrics import marker_error  # noqa: E402
 
 
 #: The grid axes that :func:`tracker.app.experiment.row_label` appends to a prior's label.
@@ -42,7 +48,7 @@ def split(run: Path) -> tuple[tuple[str, str, int, int], np.ndarray]:
     height_only[:, 2] = root_error[:, 2]
 
     def mean_error(shift: np.ndarray) -> float:
-        return float(np.linalg.norm(est - shift[:, None] - true, axis=2).mean())
+        return float(marker_error(est - shift[:, None], true).mean())
     return row, np.array([mean_error(np.zeros_like(root_error)), mean_error(height_only), mean_error(root_error),
                           float(root_error[:, 2].mean())])
 
