@@ -21,7 +21,10 @@ sys.path.insert(0, str(REPO))
 
 from data_tools.asf_amc import asf_amc_clip  # noqa: E402
 from data_tools.retarget import retarget  # noqa: E402
-from priors.crbm import CRBMConfig, CRBMPrior, train_crbm  # noqa: E402
+from priors.parts import GroundDiffusion
+from priors.crbm_model import CRBMConfig  # noqa: E402
+from priors.crbm import CRBMPrior
+from priors.crbm_training import train_crbm
 from tracker.core.body import DOF_NAMES  # noqa: E402
 from tracker.core.kinematics import markers  # noqa: E402
 from tracker.core.metrics import marker_error  # noqa: E402
@@ -52,8 +55,8 @@ def main() -> None:
         m = train_crbm(train, CRBMConfig(order=order, hidden=150, epochs=500, cd_k=10), 60.0, DOF_NAMES,
                        rng=np.random.default_rng(0))
         print(f"order {order}: trained in {m.training_seconds:.1f} s", flush=True)
-        results[f"CRBM-{order} Gibbs"] = rollout(CRBMPrior([m], gibbs_steps=30, root_noise_mm=0.0), past, HORIZON, seed=0)
-        results[f"CRBM-{order} free energy"] = rollout(CRBMPrior([m], mode="free-energy", root_noise_mm=0.0), past, HORIZON,
+        results[f"CRBM-{order} Gibbs"] = rollout(CRBMPrior([m], gibbs_steps=30, ground=GroundDiffusion(0.0)), past, HORIZON, seed=0)
+        results[f"CRBM-{order} free energy"] = rollout(CRBMPrior([m], mode="free-energy", ground=GroundDiffusion(0.0)), past, HORIZON,
                                                        seed=0)
     table = {name: marker_error(markers(model, pred), truth).mean(axis=0) for name, pred in results.items()}
     steps = [1, 2, 3, 5, 10, 15, 20]

@@ -37,7 +37,10 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from data_tools.load import load_training_clips  # noqa: E402
-from priors.gpdm import SPARSE_METHODS, GPDMConfig, GPDMPrior, GPDMPriorModel, train_gpdm  # noqa: E402
+from priors.parts import HeightOffset  # noqa: E402
+from priors.gpdm_model import SPARSE_METHODS, GPDMConfig  # noqa: E402
+from priors.gpdm import GPDMPrior
+from priors.gpdm_training import GPDMPriorModel, train_gpdm
 from tracker.core.body import DOF_NAMES  # noqa: E402
 from tracker.core.representation import clip_features, poses_to_invariant, step_rms  # noqa: E402
 
@@ -68,7 +71,7 @@ def forecast(model, Y_test: np.ndarray, joints: list[int], joint_std: np.ndarray
 def step_ms(model, norm, clips) -> float:
     """Best of 20 calls of ``GPDMPrior.sample`` for 1000 particles, in ms."""
     prior = GPDMPrior(GPDMPriorModel(model, norm, 60.0, "15-cone", list(DOF_NAMES), [], step_rms(clips)),
-                      height_spread=0.0)  # as its published figures ran (the default is 50 since 0.10.0)
+                      height=HeightOffset(0.0))  # as its published figures ran
     rng = np.random.default_rng(0)
     known = clips[0][:2]
     state = prior.start(known, PARTICLES, rng)

@@ -23,8 +23,13 @@ from data_tools.asf_amc import asf_amc_clip  # noqa: E402
 from data_tools.retarget import retarget  # noqa: E402
 from data_tools.sequence import read_sequence  # noqa: E402
 from data_tools.synth import SynthConfig, synthesize  # noqa: E402
-from priors.crbm import CRBMConfig, CRBMPrior, train_crbm  # noqa: E402
-from priors.gpdm import GPDMConfig, GPDMPrior, train_gpdm_prior  # noqa: E402
+from priors.parts import HeightOffset
+from priors.crbm_model import CRBMConfig  # noqa: E402
+from priors.crbm import CRBMPrior
+from priors.crbm_training import train_crbm
+from priors.gpdm_model import GPDMConfig  # noqa: E402
+from priors.gpdm import GPDMPrior
+from priors.gpdm_training import train_gpdm_prior
 from priors.random_walk import ConstantVelocityPrior, ZeroVelocityPrior  # noqa: E402
 from tracker.core.representation import step_rms  # noqa: E402
 from tracker.core.body import DOF_NAMES  # noqa: E402
@@ -73,7 +78,7 @@ def main() -> None:
                                 DOF_NAMES)
         print(f"GPDM: trained in {gpdm.gpdm.training_seconds:.1f} s on {sum(len(t) for t in train)} frames",
               flush=True)
-        priors["gpdm"] = GPDMPrior(gpdm, height_spread=0.0)  # as its published rows ran (default 50 since 0.10.0)
+        priors["gpdm"] = GPDMPrior(gpdm, height=HeightOffset(0.0))  # as its published rows ran
     configs = [("4 views", [0, 1, 2, 3], False), ("1 view", [0], False)]
     if args.bidirectional:
         configs.append(("1 view, bidirectional", [0], True))

@@ -14,7 +14,11 @@ import argparse
 
 import numpy as np
 
-from priors.crbm import CRBMPrior, load_crbm
+from priors.parts import GroundDiffusion
+
+from priors.crbm import CRBMPrior
+
+from priors.crbm_file import load_crbm
 from tracker.app.api import load_training_clips
 from tracker.core.kinematics import markers
 from tracker.core.representation import pending_step
@@ -52,7 +56,7 @@ def main() -> None:
     print("|---|---|---|---|")
     for item in args.models:
         name, _, path = item.partition("=")
-        prior = CRBMPrior([load_crbm(path)], gibbs_steps=30, root_noise_mm=0.0)
+        prior = CRBMPrior([load_crbm(path)], gibbs_steps=30, ground=GroundDiffusion(0.0))
         pred = rollout(prior, past, HORIZON, args.seed)
         cells = []
         for h in (1, 5, 20):

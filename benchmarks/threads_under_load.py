@@ -54,7 +54,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as d:
         d = Path(d)
         tracker.synthesize(test_walk, d / "seq", skeleton=asf, frames=args.frames + 2)
-        tracker.train("crbm", [train_walk], skeletons=[asf], order=1, epochs=300, rng=0).save(d / "c1.pt")
+        tracker.train("crbm", [train_walk], skeletons=[asf], order=1, epochs=300, seed=0).save(d / "c1.pt")
         for threads in ("set", "library defaults"):
             idle = seconds_per_frame(d / "seq", d / "c1.pt", threads, args.particles, args.frames + 2)
             hog = mp.Process(target=busy, daemon=True)

@@ -98,7 +98,9 @@ def crbm_tracking(tmp: Path) -> None:
 
 def crbm_sampling() -> None:
     """CRBM prior: time to sample the next pose of 1000 particles (the default Gibbs steps), orders 1, 3, 6."""
-    from priors.crbm import CRBMConfig, CRBMPrior, train_crbm
+    from priors.crbm_model import CRBMConfig
+    from priors.crbm import CRBMPrior
+    from priors.crbm_training import train_crbm
     from tracker.core.body import DOF_NAMES
 
     mocap = SHARED / "mocap" / "cmu" / "07"

@@ -27,7 +27,7 @@ sequence = tracker.synthesize(test_walk, out / "sequence", skeleton=skeleton, fr
                               overwrite=True)
 
 # 2. A first-order CRBM trained on the other walk (the generator comes from the seed we pass).
-crbm = tracker.train("crbm", [train_walk], skeletons=[skeleton], order=1, epochs=args.epochs, rng=0)
+crbm = tracker.train("crbm", [train_walk], skeletons=[skeleton], order=1, epochs=args.epochs, seed=0)
 crbm.save(out / "crbm1.pt")
 
 # 3. Track with each prior over a few seeds; each result can be saved as the command line does.

@@ -17,7 +17,7 @@ Generation (Sec. 4.3.1), for a batch of histories of ``N + M`` frames:
 3. a mean-field down-pass through the first layer: ``v_t = a_hat^0 + W^0 h^0_t`` with the first layer's dynamic
    generative bias from ``v_{t-N..t-1}``.
 
-As a tracking prior (``deep-crbm``) the pose step is the CRBM prior's (:class:`priors.crbm.CRBMPrior`): with fewer
+As a tracking prior (``deep-crbm``) the pose step and the parts are the CRBM prior's (:class:`priors.crbm.CRBMPrior`): with fewer
 than ``N + M`` real history frames the first layer alone (and the lower orders its file carries) draws the pose,
 so the history grows through the lower orders first (Sec. 6.4).
 """
@@ -31,18 +31,15 @@ from typing import Callable, ClassVar, Sequence
 import numpy as np
 import torch
 
-from priors.common import (
-    GROUND_VELOCITY_OPTION, GROUND_VELOCITY_PULL_OPTION, HEADING_NOISE_OPTION, HEIGHT_DRIFT_OPTION,
-    HEIGHT_SPREAD_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION,
-    gibbs_steps_option, read_model_file, torch_generator, torch_save_atomic,
-)
+from priors.common import gibbs_steps_option, read_model_file, torch_generator, torch_save_atomic
 from priors.contrastive import ContrastiveConfig, finish_epoch, minibatches, momentum_step, window_index
-from priors.crbm import (
-    CRBM, CRBM_TRAIN_OPTIONS, POSTURE_GAIN_OPTION, CRBMModel, CRBMPrior, _growth_orders, _model_from_document,
-    bernoulli, bernoulli_, make_windows, train_crbm_prior,
-)
-from priors.fcrbm import Drawer
+from priors.crbm import CRBMPrior, learned_parts
+from priors.crbm_file import model_from_document
+from priors.crbm_model import CRBM, CRBMModel, bernoulli, bernoulli_
+from priors.crbm_training import CRBM_TRAIN_OPTIONS, growth_orders, make_windows, train_crbm_prior
+from priors.parts import GroundDiffusion, HeightOffset, PostureOffset
 from tracker.core.errors import InputError
+from tracker.engine.prior import PriorState
 from tracker.engine.registry import Option, PriorContext, TrainingData, register_prior, resolve_options
 
 FORMAT = "pose-tracker deep-crbm v1"
@@ -154,6 +151,15 @@ class DeepCRBMModel:
         """History frames the two layers need together (``N + M``)."""
         return self.bottom.order + self.top.order
 
+    @property
+    def normaliser(self):
+        """The first layer's feature normaliser (the features both layers see)."""
+        return self.bottom.normaliser
+
+    @property
+    def pose_step_rms(self) -> np.ndarray:
+        return self.bottom.pose_step_rms
+
     def summary(self) -> str:
         errs = self.reconstruction_errors
         top = f"second layer error {errs[0]:.4f} -> {errs[-1]:.4f}, " if errs else ""
@@ -181,12 +187,9 @@ def load_deep_crbm(path: str | Path, device: str = "cpu") -> DeepCRBMModel:
     path = Path(path)
     doc = read_model_file(path, FORMAT, "deep CRBM")
     try:
-        bottom = _model_from_document(doc["bottom"], path, device)
+        bottom = model_from_document(doc["bottom"], path, device)
         if bottom.pace_label is not None:
             raise InputError("deep CRBM's first layer has a pace input, which the deep prior does not use", path)
-        if bottom.standing_height:
-            raise InputError("deep CRBM's first layer learned heights above standing, which the deep prior does not "
-                             "use", path)
         unknown = sorted(set(doc["top_config"]) - set(TopConfig.__dataclass_fields__))
         if unknown:
             raise InputError(f"deep CRBM model file has unknown settings {', '.join(unknown)}", path)
@@ -215,30 +218,17 @@ def load_deep_crbm(path: str | Path, device: str = "cpu") -> DeepCRBMModel:
                          path) from None
 
 
-@dataclass
-class _DeepSampler:
-    bottom: CRBM
-    top: CRBM
-
-    def gibbs(self, history: torch.Tensor, steps: int, generator: torch.Generator | None) -> torch.Tensor:
-        return deep_gibbs(self.bottom, self.top, history, steps, generator)
-
-
 class DeepCRBMPrior(CRBMPrior):
     """Samples every particle's next pose through both layers once ``N + M`` history frames are real poses, and
-    with the first layer (or the lower orders its file carries) before; the pose step and the per-particle state
-    are the CRBM prior's."""
+    with the first layer (or the lower orders its file carries) before; the pose step, the parts and the
+    per-particle state are the CRBM prior's."""
 
     name = "deep-crbm"
 
-    def __init__(self, model: DeepCRBMModel, gibbs_steps: int = 30, device: str = "cpu",
-                 root_noise_mm: float = ROOT_NOISE_MM, heading_noise: float = 0.0,
-                 ground_velocity_noise: float | None = None, ground_velocity_pull: float = 0.0,
-                 height_spread: float = 0.0, height_drift: float = 0.0, posture_gain: float = 0.0):
-        super().__init__([model.bottom], gibbs_steps=gibbs_steps, device=device, root_noise_mm=root_noise_mm,
-                         heading_noise=heading_noise, ground_velocity_noise=ground_velocity_noise,
-                         ground_velocity_pull=ground_velocity_pull, height_spread=height_spread,
-                         height_drift=height_drift, posture_gain=posture_gain)
+    def __init__(self, model: DeepCRBMModel, gibbs_steps: int = 30, *, device: str = "cpu",
+                 ground: GroundDiffusion = GroundDiffusion(), height: HeightOffset | None = None,
+                 posture: PostureOffset | None = None):
+        super().__init__([model.bottom], gibbs_steps, device=device, ground=ground, height=height, posture=posture)
         self.deep = model
         for k in CRBM.PARAMS:
             setattr(model.top, k, getattr(model.top, k).to(self.device))
@@ -248,16 +238,21 @@ class DeepCRBMPrior(CRBMPrior):
         return {**super().settings(), "layers": [self.deep.bottom.order, self.deep.top.order],
                 "hidden": [self.deep.bottom.crbm.n_hidden, self.deep.top.n_hidden]}
 
-    def model_for(self, available: int):  # type: ignore[override]
-        if available >= self.deep.order:
-            b = self.deep.bottom
-            return Drawer(self.deep.order, b.normaliser, b.pose_step_rms, _DeepSampler(b.crbm, self.deep.top))
-        return super().model_for(available)
+    def model_for(self, available: int):
+        """Both layers once ``N + M`` history frames are real poses, the first layer's models before."""
+        return self.deep if available >= self.deep.order else super().model_for(available)
+
+    def draw(self, model, conditioning: torch.Tensor, generator: torch.Generator,
+             state: PriorState) -> torch.Tensor:
+        if model is not self.deep:
+            return super().draw(model, conditioning, generator, state)
+        with torch.no_grad():
+            return deep_gibbs(self.deep.bottom.crbm, self.deep.top, conditioning, self.gibbs_steps, generator)
 
     def label_for(self, available: int) -> str:
         if available >= self.deep.order:
             return f"deep crbm order {self.deep.bottom.order}+{self.deep.top.order}"
-        return super().label_for(available)
+        return f"crbm order {self.model_for(available).order}"
 
 
 def train_deep_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator,
@@ -271,10 +266,9 @@ def train_deep_crbm_prior(data: TrainingData, options: dict, rng: np.random.Gene
                                      {k: v for k, v in options.items() if k in crbm_options and v is not None})
     bottom_options["checkpoint_every"] = None
     bottom_options["pace_input"] = False  # the second layer is trained on, and samples through, a plain first layer
-    bottom_options["standing_height"] = False
     top_cfg = TopConfig(order=options["top_order"], hidden=options["top_hidden"], epochs=options["top_epochs"],
                         cd_k=bottom_options["cd_k"], batch_size=bottom_options["batch_size"]).check()
-    stages = 1 + len(_growth_orders(bottom_options["grow_from"], bottom_options["order"]))
+    stages = 1 + len(growth_orders(bottom_options["grow_from"], bottom_options["order"]))
     total = bottom_options["epochs"] * stages + top_cfg.epochs
     bottom = train_crbm_prior(data, bottom_options, rng, None if progress is None else
                               (lambda done, _, metrics: progress(done, total, metrics)))
@@ -285,8 +279,7 @@ def train_deep_crbm_prior(data: TrainingData, options: dict, rng: np.random.Gene
     return DeepCRBMModel(bottom, top, top_cfg, errors, time.perf_counter() - t0)
 
 
-DEEP_TRAIN_OPTIONS = tuple(o for o in CRBM_TRAIN_OPTIONS if o.name not in ("checkpoint_every", "pace_input",
-                                                                               "standing_height")) + (
+DEEP_TRAIN_OPTIONS = tuple(o for o in CRBM_TRAIN_OPTIONS if o.name not in ("checkpoint_every", "pace_input")) + (
     Option("top_order", int, TopConfig.order, "order M of the second layer (default 2)", minimum=1, maximum=100),
     Option("top_hidden", int, TopConfig.hidden, "hidden units of the second layer (default 100)", minimum=1,
            maximum=100000),
@@ -298,20 +291,8 @@ DEEP_TRAIN_OPTIONS = tuple(o for o in CRBM_TRAIN_OPTIONS if o.name not in ("chec
 @register_prior(
     "deep-crbm", summary="two-layer CRBM (Taylor 2009, Sec. 4.3): a second CRBM on the first one's hidden units",
     model_files="one", train=train_deep_crbm_prior, train_options=DEEP_TRAIN_OPTIONS,
-    options=(gibbs_steps_option(30),
-             ROOT_NOISE_OPTION,
-             HEADING_NOISE_OPTION,
-             GROUND_VELOCITY_OPTION,
-             GROUND_VELOCITY_PULL_OPTION,
-             HEIGHT_SPREAD_OPTION,
-             HEIGHT_DRIFT_OPTION,
-             POSTURE_GAIN_OPTION))
+    options=(gibbs_steps_option(30), *GroundDiffusion.OPTIONS, *HeightOffset.OPTIONS, *PostureOffset.OPTIONS))
 def build_deep_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> DeepCRBMPrior:
     model = load_deep_crbm(model_files[0], device=context.device)
     model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, model_files[0])
-    return DeepCRBMPrior(model, gibbs_steps=options["gibbs_steps"], device=context.device,
-                         root_noise_mm=options["root_noise"], heading_noise=options["heading_noise"],
-                         ground_velocity_noise=options["ground_velocity_noise"],
-                         ground_velocity_pull=options["ground_velocity_pull"],
-                         height_spread=options["height_spread"], height_drift=options["height_drift"],
-                         posture_gain=options["posture_gain"])
+    return DeepCRBMPrior(model, options["gibbs_steps"], device=context.device, **learned_parts(options, paced=False))

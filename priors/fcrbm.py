@@ -1,467 +1,33 @@
-"""Factored, style-gated Conditional RBM motion prior (Taylor & Hinton, ICML 2009; Taylor 2009, Ch. 5), in torch.
+"""The FCRBM motion prior: every particle carries a style label, and its pose is drawn by the FCRBM with the label
+clamped (Taylor 2009, Ch. 5; the model is :mod:`priors.fcrbm_model`). Registered as ``fcrbm``.
 
-Model (Gaussian visible units with unit variance on normalised invariant features ``v_t`` ``(K,)``, binary hidden
-units ``h_t`` ``(H,)``, history ``v_<t`` ``(N K,)`` oldest first, one-hot or blended labels ``y_t`` ``(P,)``)::
-
-    z_t  = R^T y_t                                            style features (L,)        (eq. 6)
-    s_f  = sum_l Z_lf z_l                                      style input to factor f    (tied, Sec. 3.1)
-    a_hat = a + Av [(Ap^T v_<t) * s]                           dynamic visible bias       (eq. 4)
-    b_hat = b + Bh [(Bp^T v_<t) * s]                           dynamic hidden bias        (eq. 5)
-    E = 1/2 |v_t - a_hat|^2 - sum_f (Wv^T v_t)_f (Wh^T h_t)_f s_f - b_hat . h_t              (eq. 3)
-    p(h_j = 1 | v_t, v_<t, y_t) = sigmoid(b_hat_j + sum_f Wh_jf (Wv^T v_t)_f s_f)            (eq. 5.12)
-    p(v_t | h_t, v_<t, y_t)     = N(a_hat + Wv [(Wh^T h_t) * s], I)                          (eq. 5.13)
-    F(v_t | v_<t, y_t) = 1/2 |v_t - a_hat|^2 - sum_j softplus(b_hat_j + sum_f Wh_jf (Wv^T v_t)_f s_f)
-
-Shapes of the parameters: ``Wv`` ``K x F``, ``Wh`` ``H x F``, ``Av`` ``K x F``, ``Ap`` ``NK x F``, ``Bh`` ``H x F``,
-``Bp`` ``NK x F``, ``Z`` ``L x F`` (the feature-to-factor weights, tied between the three sub-models as in the
-paper's reported models: ``W^z = A^z = B^z``, so all three sub-models have ``F`` factors), ``R`` ``P x L``, biases
-``a`` ``(K,)`` and ``b`` ``(H,)``.
-
-Training: CD-k on mini-batches of randomly permuted (N+1)-frame windows (every window carries its clip's label),
-the statistics of eqs. 5.14-5.23 (:meth:`FCRBM.free_energy_gradients`: the gradient of the free energy, hidden
-probabilities in both phases; binary hidden samples drive the reconstructions), momentum 0.9, weight decay on the
-weights, learning rate 1e-2 except the autoregressive parameters ``Av``, ``Ap``, the autoregressive part of the
-tied ``Z`` and the label-to-feature ``R``, which learn at 1e-3 (Sec. 4.2). Gaussian noise on the history as for the
-CRBM (:func:`priors.crbm.history_noise_scale`), and the labels are balanced by repeating the windows of the rarer
-ones (the paper repeats its shorter sequences).
-
-Generation: alternating Gibbs sampling from the last history frame with the labels clamped (binary hidden samples,
-expected visible values, probabilities on the final step). Blends and transitions interpolate the label vector
-(:func:`generate`, :func:`transition_styles`).
-
-Tracking (:class:`FCRBMPrior`, registered as ``fcrbm``): each particle carries a discrete style label besides its
-pose history, and its pose is drawn with its label clamped. By default an equal share of the particles carries
-each label and the filter weighs the labels against each other (mixture tracking, :mod:`tracker.engine.mixture`,
-switching with probability ``style_switch`` per frame); with ``style_inference="particles"`` each particle's label
-switches on its own with that probability. The filter's posterior over the style is the weighted histogram of the
-particles' labels (:meth:`FCRBMPrior.summarize`), recorded per frame in ``result.json``. Particles
-that share a label share the effective weights ``Wv diag(s) Wh^T``, so sampling works on one ``K x H`` matrix per
-label (:meth:`FCRBM.gibbs`).
+By default an equal share of the particles carries each label and the filter weighs the labels against each other
+(mixture tracking, :mod:`tracker.engine.mixture`, switching with probability ``style_switch`` per frame); with
+``style_inference="particles"`` each particle's label switches on its own with that probability. The filter's
+posterior over the style is the weighted histogram of the particles' labels (:meth:`FCRBMPrior.summarize`),
+recorded per frame in ``result.json``.
 """
 from __future__ import annotations
 
-import math
-import re
-import time
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
-from typing import Any, Callable, ClassVar, Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 import torch
 
-from priors.common import (
-    GROUND_VELOCITY_OPTION, GROUND_VELOCITY_PULL_OPTION, HEADING_NOISE_OPTION, ROOT_NOISE_MM, ROOT_NOISE_OPTION,
-    TrainedModel, check_weights, checked_data_settings, checked_ground_velocity, checked_time_warp,
-    gibbs_steps_option, normaliser_from_tensors, read_model_file, time_warp_note, torch_generator,
+from priors.common import gibbs_steps_option
+from priors.conditional import ConditionalPrior
+from priors.crbm_training import CRBM_TRAIN_OPTIONS, growth_orders, parse_history_noise
+from priors.fcrbm_model import (
+    STYLE_INFERENCE, STYLE_TEMPERATURE, FCRBMConfig, FCRBMModel, load_fcrbm, parse_labels, train_fcrbm,
 )
-from priors.contrastive import (
-    ContrastiveConfig, balanced_starts, finish_epoch, minibatches, momentum_step, window_index,
-)
-from priors.crbm import (
-    CRBM_TRAIN_OPTIONS, CRBMPrior, _growth_orders, below_, bernoulli, history_noise_scale, make_windows,
-    parse_history_noise, uniform16,
-)
+from priors.parts import GroundDiffusion, GrowingModels
 from tracker.core.errors import InputError
-from tracker.core.representation import FeatureNormaliser, step_rms
 from tracker.engine.mixture import Mixture, switching
 from tracker.engine.prior import PriorState
 from tracker.engine.registry import Option, PriorContext, TrainingData, register_prior
 
-FORMAT = "pose-tracker fcrbm v1"
-
-#: A label: letters, digits, '_', '-' and '.', starting with a letter or digit.
-LABEL_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$")
-#: With at most this many distinct style rows in a batch, Gibbs sampling uses one effective weight matrix per row
-#: value (:meth:`FCRBM.gibbs`); with more (e.g. every particle a different blend) the factored form.
-GROUPED_STYLES_MAX = 16
-#: How the FCRBM prior infers an unknown style: ``"mixture"`` keeps a fixed share of the particles on every label
-#: and moves weight between them (mixture tracking, :mod:`tracker.engine.mixture`); ``"particles"`` lets every
-#: particle carry and switch its own label, the posterior being the weighted histogram (before session 8).
-STYLE_INFERENCE = ("mixture", "particles")
-#: Temperature of the labels' evidence in mixture inference (the likelihood to the power ``1 / T`` when the
-#: labels are weighed against each other). Chosen on a tuning fold (``docs/fcrbm.md``, "Mixture tracking").
-STYLE_TEMPERATURE = 10.0
-
-
-@dataclass
-class FCRBMConfig(ContrastiveConfig):
-    """Training settings of an FCRBM (Taylor & Hinton 2009, Sec. 4.2): :class:`~priors.contrastive.ContrastiveConfig`'s
-    with the paper's defaults, and the factors, style features, history noise and label balance."""
-
-    epochs: int = 300
-    learning_rate: float = 1e-2
-    autoregressive_learning_rate: float = 1e-3
-    factors: int = 100
-    features: int = 20
-    history_noise: float | str = "auto"
-    balance: bool = True
-
-    KIND: ClassVar[str] = "FCRBM"
-    COUNTS: ClassVar[tuple[str, ...]] = ContrastiveConfig.COUNTS + ("factors", "features")
-
-
-def parse_labels(text: str | Sequence[str], sources: Sequence[str]) -> list[str]:
-    """One label per training clip, in clip order, from ``"walk,walk,run"`` (a list, or the text of one, is
-    accepted too). A wrong count or a malformed label is an :class:`InputError` naming the clips."""
-    items = list(text) if isinstance(text, (list, tuple)) else str(text).split(",")
-    labels = [str(t).strip().strip("[]'\" ") for t in items]
-    labels = [t for t in labels if t] if len(labels) > 1 or labels[0] else []
-    where = ", ".join(Path(s).name for s in sources) or None
-    if len(labels) != len(sources):
-        raise InputError(f"labels: {len(labels)} label(s) given for {len(sources)} training clip(s); give one per "
-                         "clip in clip order, e.g. --labels walk,walk,run", where)
-    bad = [t for t in labels if not LABEL_PATTERN.match(t)]
-    if bad:
-        raise InputError(f"labels: {bad[0]!r} is not a label (letters, digits, '_', '-', '.')",
-                         sources[labels.index(bad[0])])
-    return labels
-
-
-def one_hot(index: torch.Tensor, n: int, dtype: torch.dtype = torch.float32) -> torch.Tensor:
-    """Rows ``B x n`` with a one at ``index`` ``(B,)``."""
-    out = torch.zeros(len(index), n, dtype=dtype, device=index.device)
-    out[torch.arange(len(index), device=index.device), index] = 1
-    return out
-
-
-class FCRBM:
-    """Parameters and inference of one factored, style-gated CRBM (tensors of one dtype on one device)."""
-
-    PARAMS = ("Wv", "Wh", "Av", "Ap", "Bh", "Bp", "Z", "R", "a", "b")
-    #: Parameters with weight decay (every weight matrix; not the biases).
-    DECAYED = ("Wv", "Wh", "Av", "Ap", "Bh", "Bp", "Z", "R")
-    #: Parameters that learn at the smaller autoregressive rate (with the autoregressive part of ``Z``).
-    SLOW = ("Av", "Ap", "R")
-
-    def __init__(self, n_visible: int, n_hidden: int, order: int, n_labels: int, n_features: int, n_factors: int,
-                 generator: torch.Generator | None = None, device: str | torch.device = "cpu",
-                 dtype: torch.dtype = torch.float32):
-        K, H, N, P, L, F = n_visible, n_hidden, order, n_labels, n_features, n_factors
-        self.n_visible, self.n_hidden, self.order, self.n_labels = K, H, N, P
-        self.n_features, self.n_factors = L, F
-        kw = {"device": torch.device(device), "dtype": dtype, "generator": generator}
-        shapes = self.shapes()
-        # Unit-to-factor weights small (as the CRBM's), style path of unit scale so that the three-way products
-        # are not all vanishingly small at the start: z ~ N(0, 1), s = Z^T z ~ N(0, 1).
-        scale = {"R": 1.0, "Z": 1.0 / math.sqrt(L)}
-        self.params = {k: (torch.randn(*shapes[k], **kw) * scale.get(k, 0.05)) if k not in ("a", "b") else
-                       torch.zeros(*shapes[k], device=kw["device"], dtype=dtype) for k in self.PARAMS}
-
-    def shapes(self) -> dict[str, tuple[int, ...]]:
-        K, H, N, P, L, F = (self.n_visible, self.n_hidden, self.order, self.n_labels, self.n_features,
-                            self.n_factors)
-        return {"Wv": (K, F), "Wh": (H, F), "Av": (K, F), "Ap": (N * K, F), "Bh": (H, F), "Bp": (N * K, F),
-                "Z": (L, F), "R": (P, L), "a": (K,), "b": (H,)}
-
-    def __getattr__(self, name: str) -> torch.Tensor:
-        params = self.__dict__.get("params")
-        if params is not None and name in params:
-            return params[name]
-        raise AttributeError(name)
-
-    def to(self, device: str | torch.device | None = None, dtype: torch.dtype | None = None) -> "FCRBM":
-        """Move (or convert) every parameter, in place; returns self."""
-        self.params = {k: v.to(device or v.device, dtype or v.dtype) for k, v in self.params.items()}
-        return self
-
-    def state_dict(self) -> dict[str, torch.Tensor]:
-        return {k: v.detach().cpu().clone() for k, v in self.params.items()}
-
-    def load_state_dict(self, state: dict[str, torch.Tensor]) -> None:
-        ref = self.params["a"]
-        self.params = {k: state[k].to(ref.device, ref.dtype) for k in self.PARAMS}
-
-    # -- inference ------------------------------------------------------------------------------------------
-
-    def style_factors(self, y: torch.Tensor) -> torch.Tensor:
-        """The style's input ``B x F`` to every factor from label rows ``y`` ``B x P`` (one-hot or blends)."""
-        return (y @ self.R) @ self.Z
-
-    def biases(self, history: torch.Tensor, s: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Dynamic biases ``a_hat`` ``B x K`` and ``b_hat`` ``B x H`` from histories ``B x NK`` and style factors."""
-        return (self.a + ((history @ self.Ap) * s) @ self.Av.T, self.b + ((history @ self.Bp) * s) @ self.Bh.T)
-
-    def hidden_probabilities(self, v: torch.Tensor, s: torch.Tensor, b_hat: torch.Tensor) -> torch.Tensor:
-        return torch.sigmoid(b_hat + ((v @ self.Wv) * s) @ self.Wh.T)
-
-    def visible_means(self, h: torch.Tensor, s: torch.Tensor, a_hat: torch.Tensor) -> torch.Tensor:
-        return a_hat + ((h @ self.Wh) * s) @ self.Wv.T
-
-    def free_energy(self, v: torch.Tensor, history: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
-        """Free energy ``(B,)`` of frames ``v`` ``B x K`` given histories ``B x NK`` and labels ``B x P``."""
-        s = self.style_factors(y)
-        a_hat, b_hat = self.biases(history, s)
-        x = b_hat + ((v @ self.Wv) * s) @ self.Wh.T
-        return 0.5 * ((v - a_hat) ** 2).sum(-1) - torch.nn.functional.softplus(x).sum(-1)
-
-    def free_energy_gradients(self, v: torch.Tensor, history: torch.Tensor, y: torch.Tensor
-                              ) -> dict[str, torch.Tensor]:
-        """The batch mean of ``dF/dtheta`` for every parameter (eqs. 5.14-5.23 up to sign: the CD statistic of a
-        phase), plus ``'Z_autoregressive'``, the part of ``dF/dZ`` that reaches the tied ``Z`` through the
-        autoregressive sub-model (it learns at the autoregressive rate)."""
-        n = len(v)
-        zs = y @ self.R
-        s = zs @ self.Z
-        ap, bp, fv = history @ self.Ap, history @ self.Bp, v @ self.Wv
-        am, bm = ap * s, bp * s
-        e = v - (self.a + am @ self.Av.T)                       # -dF/da_hat
-        p = torch.sigmoid(self.b + bm @ self.Bh.T + (fv * s) @ self.Wh.T)  # -dF/db_hat
-        g, q, r = p @ self.Wh, p @ self.Bh, e @ self.Av           # -dF/d(factor products)
-        ds_rest, ds_ar = -(g * fv) - (q * bp), -(r * ap)          # dF/ds through W and B, through A
-        ds = ds_rest + ds_ar
-        return {
-            "Wv": -(v.T @ (g * s)) / n, "Wh": -(p.T @ (fv * s)) / n,
-            "Av": -(e.T @ am) / n, "Ap": -(history.T @ (r * s)) / n,
-            "Bh": -(p.T @ bm) / n, "Bp": -(history.T @ (q * s)) / n,
-            "Z": zs.T @ ds / n, "Z_autoregressive": zs.T @ ds_ar / n,
-            "R": y.T @ (ds @ self.Z.T) / n, "a": -e.mean(0), "b": -p.mean(0),
-        }
-
-    def gibbs(self, history: torch.Tensor, y: torch.Tensor, steps: int, generator: torch.Generator | None,
-              init: torch.Tensor | None = None, grouped: bool | None = None) -> torch.Tensor:
-        """Next frames ``B x K`` by alternating Gibbs sampling with the labels ``y`` ``B x P`` clamped, from ``init``
-        (default: the last history frame): binary hidden samples, expected visible values, hidden probabilities
-        on the final step (as :meth:`priors.crbm.CRBM.gibbs`).
-
-        Rows with the same label vector share the effective weights ``Wv diag(s) Wh^T`` ``K x H``; with at most
-        :data:`GROUPED_STYLES_MAX` distinct rows (``grouped=None``) sampling runs on those matrices, rows sorted
-        by style, else on the factored form. Both draw the same random numbers (one ``B x H`` array of uniform
-        integers per step, :func:`priors.crbm.uniform16`, its rows taken in the order of the rows sorted by style)
-        and agree to rounding. Sampling writes into its arrays in place (``out=``), so parameters must not require
-        gradients (training uses the explicit CD statistics of :meth:`free_energy_gradients`).
-        """
-        s = self.style_factors(y)
-        a_hat, b_hat = self.biases(history, s)
-        v = history[:, -self.n_visible:] if init is None else init
-        B, H = len(v), self.n_hidden
-        styles, inverse, order = group_rows(y)
-        if grouped is None:
-            grouped = len(styles) <= GROUPED_STYLES_MAX
-        if not grouped:
-            rank = torch.empty_like(order)
-            rank[order] = torch.arange(B, device=order.device)
-            for step in range(steps):
-                p = self.hidden_probabilities(v, s, b_hat)
-                h = p if step == steps - 1 else below_(uniform16((B, H), generator, v.device)[rank], p)
-                v = self.visible_means(h, s, a_hat)
-            return v
-        weights = torch.einsum("kf,sf,hf->skh", self.Wv, self.style_factors(styles), self.Wh)  # S x K x H
-        bounds = [0] + torch.cumsum(torch.bincount(inverse, minlength=len(styles)), 0).tolist()
-        groups = [(slice(bounds[i], bounds[i + 1]), weights[i]) for i in range(len(styles))]
-        a_hat, b_hat, v = a_hat[order], b_hat[order], v[order]
-        h = torch.empty((B, H), device=v.device, dtype=v.dtype)
-        for step in range(steps):
-            u = None if step == steps - 1 else uniform16((B, H), generator, v.device)
-            for rows, W in groups:  # h[rows], v[rows]: views of contiguous row blocks, written in place
-                torch.addmm(b_hat[rows], v[rows], W, out=h[rows]).sigmoid_()
-                if u is not None:
-                    below_(u[rows], h[rows])
-            v = torch.empty_like(v)
-            for rows, W in groups:
-                torch.addmm(a_hat[rows], h[rows], W.T, out=v[rows])
-        out = torch.empty_like(v)
-        out[order] = v
-        return out
-
-
-def group_rows(y: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """The distinct rows of ``y`` ``B x P`` in lexicographic order ``S x P`` (as ``torch.unique(y, dim=0)``), each
-    row's index among them ``(B,)``, and the stable permutation ``(B,)`` that sorts the rows by it.
-
-    Successive stable sorts of the columns, last column first: a few 1-D sorts instead of ``torch.unique``'s
-    row-by-row comparisons (about ten times faster for 1000 rows on CPU).
-    """
-    order = torch.arange(len(y), device=y.device)
-    for column in reversed(range(y.shape[1])):
-        order = order[torch.argsort(y[order, column], stable=True)]
-    ordered = y[order]
-    first = torch.ones(len(y), dtype=torch.bool, device=y.device)
-    first[1:] = (ordered[1:] != ordered[:-1]).any(1)
-    inverse = torch.empty_like(order)
-    inverse[order] = torch.cumsum(first, 0) - 1
-    return ordered[first], inverse, order
-
-
-# ---------------------------------------------------------------------------
-# The trained model: FCRBM + labels + normaliser + the settings it was trained with
-# ---------------------------------------------------------------------------
-
-@dataclass(kw_only=True)
-class FCRBMModel(TrainedModel):
-    """A trained FCRBM: its weights, settings and labels (with each training clip's), the lower orders it grows
-    from, and what :class:`~priors.common.TrainedModel` keeps."""
-
-    fcrbm: FCRBM
-    labels: list[str]
-    config: FCRBMConfig
-    clip_labels: list[str]
-    #: Lower-order FCRBMs trained with this one on the same clips and labels, which grow the history from the
-    #: known frames (as the CRBM's, Taylor 2009 Sec. 6.4); saved in the same file.
-    growth: list["FCRBMModel"] = field(default_factory=list)
-
-    KIND: ClassVar[str] = "FCRBM"
-
-    @property
-    def order(self) -> int:
-        return self.fcrbm.order
-
-    def summary(self) -> str:
-        """One line on how training went."""
-        fit = self.fit_note()
-        grow = f" (grows from order {', '.join(str(g.order) for g in self.growth)})" if self.growth else ""
-        return (f"FCRBM order {self.order}{grow}, {self.fcrbm.n_hidden} hidden units, {self.fcrbm.n_factors} "
-                f"factors, labels {', '.join(self.labels)}{time_warp_note(self.time_warp)}: {fit}"
-                f"{self.training_seconds:.1f} s")
-
-    def to_document(self) -> dict:
-        """The model file's dictionary (tensors and plain values; ``torch.load(weights_only=True)`` reads it)."""
-        return {"format": FORMAT, "params": self.fcrbm.state_dict(), "labels": list(self.labels),
-                "config": asdict(self.config), **self.data_document(), "clip_labels": list(self.clip_labels),
-                "growth": [g.to_document() for g in self.growth]}
-
-    def label_index(self, label: str) -> int:
-        if label not in self.labels:
-            raise InputError(f"style {label!r} is not a label of this FCRBM (its labels: {', '.join(self.labels)})")
-        return self.labels.index(label)
-
-
-def load_fcrbm(path: str | Path, device: str = "cpu") -> FCRBMModel:
-    """An FCRBM model file (with the lower-order models it grows from), every part checked: a missing key, a
-    weight of the wrong shape, a non-finite weight or normaliser, a bad label set or an unknown setting is an
-    :class:`InputError` naming the file."""
-    path = Path(path)
-    return _from_document(read_model_file(path, FORMAT, "FCRBM"), path, device)
-
-
-def _check_labels(labels: Any, path: Path) -> list[str]:
-    if not isinstance(labels, list) or not labels or not all(isinstance(t, str) for t in labels):
-        raise InputError("FCRBM model file's labels must be a non-empty list of strings", path)
-    if len(set(labels)) != len(labels) or not all(LABEL_PATTERN.match(t) for t in labels):
-        raise InputError(f"FCRBM model file's labels {labels} are repeated or malformed", path)
-    return labels
-
-
-def _from_document(doc: dict, path: Path, device: str) -> FCRBMModel:
-    try:
-        unknown = sorted(set(doc["config"]) - set(FCRBMConfig.__dataclass_fields__))
-        if unknown:
-            raise InputError(f"FCRBM model file has unknown settings {', '.join(unknown)}", path)
-        try:
-            cfg = FCRBMConfig(**doc["config"]).check()
-        except (TypeError, ValueError, InputError) as exc:
-            raise InputError(f"FCRBM model file has bad settings ({getattr(exc, 'reason', exc)})", path) from None
-        labels = _check_labels(doc["labels"], path)
-        clip_labels = [str(t) for t in doc["clip_labels"]]
-        if set(clip_labels) - set(labels) or len(clip_labels) != len(doc["sources"]):
-            raise InputError("FCRBM model file's clip labels do not match its labels and sources", path)
-        params = doc["params"]
-        if not isinstance(params, dict) or any(not isinstance(params.get(k), torch.Tensor) for k in FCRBM.PARAMS):
-            raise InputError(f"FCRBM model file lacks weights {', '.join(FCRBM.PARAMS)}", path)
-        for k in ("Wv", "Wh", "Z"):
-            if params[k].ndim != 2:
-                raise InputError(f"FCRBM weight {k} must be 2-D, got shape {tuple(params[k].shape)}", path)
-        K, H, F, L = params["Wv"].shape[0], params["Wh"].shape[0], params["Wv"].shape[1], params["Z"].shape[0]
-        net = FCRBM(K, H, cfg.order, len(labels), L, F, device=device)
-        check_weights(params, net.shapes(), "FCRBM weight", f"order {cfg.order} with {K} visible, {H} hidden units, "
-                      f"{F} factors, {L} features and {len(labels)} labels", path)
-        net.load_state_dict(params)
-        normaliser = normaliser_from_tensors(doc["normaliser"], path)
-        if normaliser.n_kept != K:
-            raise InputError(f"model has {K} visible units but its normaliser keeps {normaliser.n_kept}", path)
-        fps, body_model, dof_names, sources, step = checked_data_settings(doc, "FCRBM", path)
-        growth = [_from_document(g, path, device) for g in doc.get("growth", [])]
-        if any(g.labels != labels for g in growth):
-            raise InputError("FCRBM model file's growth models have other labels", path)
-        return FCRBMModel(fcrbm=net, labels=labels, normaliser=normaliser, config=cfg, fps=fps, body_model=body_model,
-                          dof_names=dof_names, sources=sources, clip_labels=clip_labels, pose_step_rms=step,
-                          reconstruction_errors=[float(e) for e in doc["reconstruction_errors"]],
-                          training_seconds=float(doc["training_seconds"]), growth=growth,
-                          time_warp=checked_time_warp(doc.get("time_warp"), "FCRBM", path))
-    except InputError:
-        raise
-    except KeyError as exc:
-        raise InputError(f"FCRBM model file lacks {exc.args[0]!r}", path) from None
-    except (TypeError, ValueError, AttributeError, RuntimeError, IndexError) as exc:
-        raise InputError(f"FCRBM model file is malformed ({type(exc).__name__}: {str(exc)[:100]})", path) from None
-
-
-# ---------------------------------------------------------------------------
-# Training
-# ---------------------------------------------------------------------------
-
-def train_fcrbm(clips: Sequence[np.ndarray], clip_labels: Sequence[str], config: FCRBMConfig, fps: float,
-                dof_names: Sequence[str], body_model: str = "15-cone", sources: Sequence[str] = (),
-                progress: Callable[[int, float], None] | None = None, device: str = "cpu", *,
-                rng: np.random.Generator, labels: Sequence[str] | None = None) -> FCRBMModel:
-    """Train an FCRBM on pose clips (each ``T x D`` at ``fps``), clip ``i`` labelled ``clip_labels[i]``, with CD-k;
-    every random draw comes from ``rng``. ``labels`` fixes the label order (default: first appearance).
-    ``progress(epoch, reconstruction_error)`` is called after every epoch."""
-    cfg = config.check()
-    sources = list(sources) or [f"clip {i + 1}" for i in range(len(clips))]
-    if len(clip_labels) != len(clips):
-        raise InputError(f"{len(clip_labels)} label(s) for {len(clips)} training clip(s)")
-    labels = list(labels) if labels is not None else list(dict.fromkeys(clip_labels))
-    t0 = time.perf_counter()
-    g = torch_generator(rng, device)
-    data = make_windows(clips, cfg.order, dof_names)
-    frames = data.frames.to(device)
-    K, N, H = frames.shape[1], cfg.order, cfg.hidden
-    # The label of every window: the clip its start lies in (make_windows keeps T_i - 1 frames of clip i).
-    ends = torch.tensor(np.cumsum([len(c) - 1 for c in clips]))
-    clip_of = torch.searchsorted(ends, data.starts, right=True)
-    label_of_clip = torch.tensor([labels.index(t) for t in clip_labels])
-    window_label = label_of_clip[clip_of]
-    for i, label in enumerate(labels):
-        if not bool((window_label == i).any()):
-            short = [s for s, t in zip(sources, clip_labels) if t == label]
-            raise InputError(f"label {label!r} has no clip longer than {N + 2} frames to train order {N} on",
-                             ", ".join(Path(s).name for s in short) or None)
-    starts = balanced_starts(data.starts, window_label) if cfg.balance else data.starts
-    frame_label = torch.zeros(len(frames), dtype=torch.long)
-    frame_label[data.starts] = window_label
-    frame_label = frame_label.to(device)
-    starts = starts.to(device)
-    net = FCRBM(K, H, N, len(labels), cfg.features, cfg.factors, generator=g, device=device)
-    noise = history_noise_scale(data).to(device) if cfg.history_noise == "auto" else \
-        torch.full((K,), float(cfg.history_noise), device=device)
-    noise = noise.repeat(N)
-    rates = {k: cfg.autoregressive_learning_rate if k in FCRBM.SLOW else cfg.learning_rate for k in FCRBM.PARAMS}
-    ar_share = cfg.autoregressive_learning_rate / cfg.learning_rate if cfg.learning_rate else 0.0
-    velocity = {k: torch.zeros_like(v) for k, v in net.params.items()}
-    model = FCRBMModel(fcrbm=net, labels=labels, normaliser=data.normaliser, config=cfg, fps=fps,
-                       body_model=body_model, dof_names=list(dof_names), sources=sources,
-                       clip_labels=list(clip_labels), pose_step_rms=step_rms(clips))
-    for epoch in range(cfg.epochs):
-        err_sum, count = 0.0, 0
-        for batch in minibatches(starts, cfg.batch_size, g):
-            window = frames[window_index(batch, N + 1)]
-            v0, n = window[:, -1], len(batch)
-            hist = window[:, :-1].reshape(n, N * K)
-            if cfg.history_noise:
-                hist = hist + torch.randn(hist.shape, generator=g, device=device) * noise
-            y = one_hot(frame_label[batch], len(labels))
-            s = net.style_factors(y)
-            a_hat, b_hat = net.biases(hist, s)
-            h = bernoulli(net.hidden_probabilities(v0, s, b_hat), g)
-            for _ in range(cfg.cd_k):
-                vk = net.visible_means(h, s, a_hat)
-                h = bernoulli(net.hidden_probabilities(vk, s, b_hat), g)
-            pos, neg = net.free_energy_gradients(v0, hist, y), net.free_energy_gradients(vk, hist, y)
-            ascent = {k: neg[k] - pos[k] for k in pos}  # lower F at the data, raise it at the reconstructions
-            ar = ascent.pop("Z_autoregressive")
-            ascent["Z"] = ascent["Z"] - ar + ar_share * ar
-            momentum_step(net.params, velocity, ascent, rates, cfg.momentum, cfg.weight_decay, FCRBM.DECAYED)
-            err_sum += float(((v0 - vk) ** 2).sum())
-            count += n * K
-        finish_epoch(model.reconstruction_errors, err_sum, count, epoch, "FCRBM", progress)
-    model.training_seconds = time.perf_counter() - t0
-    return model
-
-
-# ---------------------------------------------------------------------------
-# Generation with fixed, blended or changing styles
-# ---------------------------------------------------------------------------
 
 def transition_styles(n_labels: int, first: int, second: int, frames: int, start: int, length: int) -> np.ndarray:
     """Label rows ``frames x n_labels``: label ``first`` until frame ``start``, then a linear blend over ``length``
@@ -481,12 +47,12 @@ def generate(model: FCRBMModel, start: np.ndarray, styles: np.ndarray, rng: np.r
     styles = np.asarray(styles, float)
     if styles.ndim != 2 or styles.shape[1] != len(model.labels):
         raise InputError(f"styles must be T x {len(model.labels)} (one column per label), got {styles.shape}")
-    prior = FCRBMPrior([model], gibbs_steps=gibbs_steps, root_noise_mm=0.0)
+    prior = FCRBMPrior([model], gibbs_steps, ground=GroundDiffusion(0.0))
     start = np.atleast_2d(np.asarray(start, float))
     n = prior.order
     if len(start) < n:
         raise InputError(f"generation needs {n} known frames, got {len(start)}")
-    state = _without_style(prior.start(start, 1, rng))
+    state = prior.start(start, 1, rng)
     history, out = start[None, -n:], []
     for row in styles:
         x, state = prior.sample_styled(history, n, state, row[None], rng)
@@ -498,19 +64,6 @@ def generate(model: FCRBMModel, start: np.ndarray, styles: np.ndarray, rng: np.r
 # ---------------------------------------------------------------------------
 # As a tracking prior
 # ---------------------------------------------------------------------------
-
-def _with_style(crbm_state: PriorState, style: np.ndarray, clock: np.ndarray) -> dict:
-    """The FCRBM prior's per-particle state: the CRBM prior's (a dict of arrays, or one array kept as
-    ``'crbm'``) with the ``'style'`` labels ``(P,)`` and the ``'clock'`` ``(P,)`` (the sequence frame the next
-    sample is for, which a style schedule reads) added."""
-    base = dict(crbm_state) if isinstance(crbm_state, dict) else {"crbm": crbm_state}
-    return {**base, "style": style, "clock": clock}
-
-
-def _without_style(state: dict) -> PriorState:
-    """The CRBM prior's part of the FCRBM prior's state (inverse of :func:`_with_style`)."""
-    rest = {k: v for k, v in state.items() if k not in ("style", "clock")}
-    return rest["crbm"] if set(rest) == {"crbm"} else rest
 
 
 def parse_style_schedule(text: str, labels: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
@@ -535,114 +88,69 @@ def parse_style_schedule(text: str, labels: Sequence[str]) -> tuple[np.ndarray, 
     return np.array(frames, np.int64), np.array(indices, np.int64)
 
 
-@dataclass
-class Drawer:
-    """What :meth:`priors.crbm.CRBMPrior.sample` uses of a model: its order, normaliser, one-step scale, and a
-    ``crbm`` whose ``gibbs(history, steps, generator)`` draws the next normalised frames ``B x K`` from histories
-    ``B x (order K)``. The FCRBM and the deep CRBM priors hand one to the CRBM prior's pose step."""
-
-    order: int
-    normaliser: FeatureNormaliser
-    pose_step_rms: np.ndarray
-    crbm: Any
-    #: Whether the features' root height is above standing (see :attr:`priors.crbm.CRBMModel.standing_height`).
-    standing_height: bool = False
 
 
-@dataclass
-class _StyledSampler:
-    """An FCRBM with every row's labels clamped: ``gibbs(history, steps, generator)`` as the CRBM's."""
-
-    fcrbm: FCRBM
-    styles: torch.Tensor | None
-
-    def gibbs(self, history: torch.Tensor, steps: int, generator: torch.Generator | None) -> torch.Tensor:
-        return self.fcrbm.gibbs(history, self.styles, steps, generator)
-
-
-class FCRBMPrior(CRBMPrior):
+class FCRBMPrior(ConditionalPrior):
     """Samples every particle's next pose with an FCRBM, the particle's own style label clamped.
 
-    Per-particle state: the CRBM prior's (the pending root step) with ``"style"`` ``(P,)``, the label indices.
-    An unknown style is inferred by mixture tracking (``style_inference="mixture"``, the default): every label
-    keeps an equal share of the particles, and the filter moves weight between the labels by their tempered
-    evidence and switches with probability ``style_switch`` per frame (:meth:`mixture`,
-    :mod:`tracker.engine.mixture`). With ``"particles"`` every particle's label switches with probability
-    ``style_switch`` to one of the other labels, chosen uniformly, before its pose is drawn. ``style`` fixes
-    every particle's label (no switching: the oracle), or follows a schedule.
-    The pose step itself (invariant features, normalisation, integration of the root, ground and heading
-    diffusion) is the CRBM prior's (:meth:`priors.crbm.CRBMPrior.sample`), with the FCRBM drawing the features.
-    :meth:`summarize` gives the filter's posterior over the labels, recorded per frame.
+    Per-particle state: :class:`~priors.conditional.ConditionalPrior`'s (the pending root step) with ``style``
+    ``(P,)``, the label indices, and ``clock`` ``(P,)``, the sequence frame the next sample is for (which a style
+    schedule reads). An unknown style is inferred by mixture tracking (``style_inference="mixture"``, the
+    default): every label keeps an equal share of the particles, and the filter moves weight between the labels by
+    their tempered evidence and switches with probability ``style_switch`` per frame (:meth:`mixture`). With
+    ``"particles"`` every particle's label switches with probability ``style_switch`` to one of the other labels,
+    chosen uniformly, before its pose is drawn. ``style`` fixes every particle's label (no switching: the
+    oracle), or follows a schedule. :meth:`summarize` gives the filter's posterior over the labels.
     """
 
     name = "fcrbm"
+    summary_kind = "posterior"
 
-    def __init__(self, models: Sequence[FCRBMModel], gibbs_steps: int = 30, device: str = "cpu",
-                 root_noise_mm: float = ROOT_NOISE_MM, heading_noise: float = 0.0, style_switch: float = 0.05,
-                 style: str | None = None, style_inference: str = "mixture",
-                 style_temperature: float = STYLE_TEMPERATURE, ground_velocity_noise: float | None = None,
-                 ground_velocity_pull: float = 0.0):
-        if not models:
-            raise InputError("the FCRBM prior needs at least one model")
-        by_order = {m.order: m for m in models}
-        for m in models:
-            for g in m.growth:
-                by_order.setdefault(g.order, g)
-        self.models = [by_order[o] for o in sorted(by_order)]
-        first = self.models[0]
-        for m in self.models[1:]:
+    def __init__(self, models: Sequence[FCRBMModel], gibbs_steps: int = 30, *, device: str = "cpu",
+                 ground: GroundDiffusion = GroundDiffusion(), style_switch: float = 0.05, style: str | None = None,
+                 style_inference: str = "mixture", style_temperature: float = STYLE_TEMPERATURE):
+        grown = GrowingModels(models, "FCRBM")
+        first = grown.first
+        for m in grown.models[1:]:
             if (m.dof_names, m.body_model, m.labels) != (first.dof_names, first.body_model, first.labels) \
                     or abs(m.fps - first.fps) > 1e-6:
                 raise InputError("FCRBM models for one prior must share body model, pose layout, frame rate and "
                                  "labels")
-        checks = {"Gibbs steps": (gibbs_steps, gibbs_steps >= 1), "root noise": (root_noise_mm, root_noise_mm >= 0),
-                  "heading noise": (heading_noise, heading_noise >= 0),
+        checks = {"Gibbs steps": (gibbs_steps, gibbs_steps >= 1),
                   "style switch": (style_switch, 0 <= style_switch <= 1),
                   "style inference": (style_inference, style_inference in STYLE_INFERENCE),
                   "style temperature": (style_temperature, style_temperature >= 1)}
         for what, (value, ok) in checks.items():
             if not ok:
                 raise InputError(f"FCRBM prior: bad {what} {value!r}")
+        super().__init__(grown, device=device, ground=ground)
         self.labels = list(first.labels)
         self.style = None if style in (None, "") else str(style)
         self.schedule = None if self.style is None else parse_style_schedule(self.style, self.labels)
         self.style_switch = float(style_switch)
         self.style_inference, self.style_temperature = style_inference, float(style_temperature)
-        # CRBMPrior.__init__ is not called: it moves ``m.crbm`` weights (an FCRBM model has ``fcrbm``) and checks
-        # no labels. Every attribute CRBMPrior.start/sample/model_for/settings read is set here instead; the
-        # sampling options this prior leaves at the CRBM prior's defaults (pose step, see class docstring):
-        self.mode, self.robust_fraction, self.robust_adaptive, self.pace_spread, self.pace_drift = \
-            "gibbs", 0.0, False, 0.0, 0.0  # the pace input's attributes keep CRBMPrior's class defaults (off)
-        self.root_noise_mm, self.heading_noise = float(root_noise_mm), float(heading_noise)
-        self.ground_velocity_noise, self.ground_velocity_pull = checked_ground_velocity(ground_velocity_noise,
-                                                                                        ground_velocity_pull)
-        self.gibbs_steps, self.order = int(gibbs_steps), self.models[-1].order
-        self.device = torch.device(device)
-        for m in self.models:
+        self.gibbs_steps = int(gibbs_steps)
+        for m in grown:
             m.fcrbm.to(self.device)
         self.summary_names = tuple(self.labels)
-        self._styles: torch.Tensor | None = None
 
     def settings(self) -> dict:
-        return {"orders": [m.order for m in self.models], "gibbs_steps": self.gibbs_steps, "labels": self.labels,
-                "style": self.style, "style_switch": self.style_switch, "style_inference": self.style_inference,
-                "style_temperature": self.style_temperature,
-                "root_noise_mm": self.root_noise_mm, "heading_noise_rad": self.heading_noise,
-                "ground_velocity_noise_mm": self.ground_velocity_noise,
-                "ground_velocity_pull": self.ground_velocity_pull}
+        return {**super().settings(), "gibbs_steps": self.gibbs_steps, "labels": self.labels, "style": self.style,
+                "style_switch": self.style_switch, "style_inference": self.style_inference,
+                "style_temperature": self.style_temperature}
 
-    def model_for(self, available: int) -> Drawer:  # type: ignore[override]
-        m = super().model_for(available)
-        return Drawer(m.order, m.normaliser, m.pose_step_rms, _StyledSampler(m.fcrbm, self._styles))
-
-    def label_for(self, available: int) -> str:
-        return f"fcrbm order {self.model_for(available).order}"
+    def draw(self, model: FCRBMModel, conditioning: torch.Tensor, generator: torch.Generator,
+             state: PriorState) -> torch.Tensor:
+        """The FCRBM's Gibbs samples with the label rows ``state["style_rows"]`` ``P x L`` clamped."""
+        rows = torch.as_tensor(np.asarray(state["style_rows"]), dtype=torch.float32, device=self.device)
+        with torch.no_grad():
+            return model.fcrbm.gibbs(conditioning, rows, self.gibbs_steps, generator)
 
     def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
         """The pending step of the last known frame, and every particle's label: the ``style`` (schedule) given;
         else with mixture inference an equal share of the particles per label (particle ``i`` label ``i mod L``),
         with per-particle inference drawn uniformly. The clock starts at the first tracked frame, ``len(known)``."""
-        crbm_state = super().start(known, n_particles, rng)
+        state = super().start(known, n_particles, rng)
         clock = np.full(n_particles, len(known), np.int64)
         if self.schedule is not None:
             style = self.scheduled(clock)
@@ -650,7 +158,7 @@ class FCRBMPrior(CRBMPrior):
             style = np.arange(n_particles) % len(self.labels)
         else:
             style = rng.integers(len(self.labels), size=n_particles)
-        return _with_style(crbm_state, style.astype(np.int64), clock)
+        return {**state, "style": style.astype(np.int64), "clock": clock}
 
     def restart(self, state: PriorState, recent: np.ndarray, n_particles: int,
                 rng: np.random.Generator) -> PriorState:
@@ -685,31 +193,24 @@ class FCRBMPrior(CRBMPrior):
         flip = rng.random(len(style)) < self.style_switch
         return np.where(flip, (style + rng.integers(1, L, size=len(style))) % L, style)
 
-    def sample_styled(self, history: np.ndarray, available: int, crbm_state: PriorState, styles: np.ndarray,
+    def sample_styled(self, history: np.ndarray, available: int, state: PriorState, rows: np.ndarray,
                       rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
-        """Next poses ``P x D`` and the CRBM prior's next state with the label rows ``styles`` ``P x L`` clamped."""
-        self._styles = torch.as_tensor(np.asarray(styles), dtype=torch.float32, device=self.device)
-        try:
-            return super().sample(history, available, crbm_state, rng)
-        finally:
-            self._styles = None
+        """Next poses ``P x D`` and the pose step's next state with the label rows ``rows`` ``P x L`` (one-hot, or
+        blends) clamped."""
+        return super().sample(history, available, {**state, "style_rows": rows}, rng)
 
     def sample(self, history: np.ndarray, available: int, state: PriorState,
                rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
         clock = np.asarray(state["clock"])
         style = self.scheduled(clock) if self.schedule is not None else self.switch(np.asarray(state["style"]), rng)
         onehot = np.eye(len(self.labels), dtype=np.float32)[style]
-        poses, crbm_state = self.sample_styled(history, available, _without_style(state), onehot, rng)
-        return poses, _with_style(crbm_state, style, clock + 1)
+        poses, new = self.sample_styled(history, available, state, onehot, rng)
+        return poses, {**new, "style": style, "clock": clock + 1}
 
     def summarize(self, state: PriorState, weights: np.ndarray) -> np.ndarray:
         """The posterior over the labels ``(L,)``: the normalised ``weights`` ``(P,)`` summed per label."""
         return np.bincount(np.asarray(state["style"]), weights=weights, minlength=len(self.labels))
 
-
-# ---------------------------------------------------------------------------
-# Registration: building from model files, training from clips
-# ---------------------------------------------------------------------------
 
 def train_fcrbm_prior(data: TrainingData, options: dict, rng: np.random.Generator,
                       progress: Callable[[int, int, dict], None] | None = None,
@@ -719,16 +220,14 @@ def train_fcrbm_prior(data: TrainingData, options: dict, rng: np.random.Generato
     if options["labels"] is None:
         raise InputError("the FCRBM needs one label per training clip: --labels walk,walk,run (labels = "
                          "\"walk,walk,run\" in an experiment's train options)")
-    given = data.given_sources if data.origins else data.sources
-    clip_labels = parse_labels(options["labels"], given or [f"clip {i + 1}" for i in range(data.n_given)])
-    clip_labels = [clip_labels[data.origin_of(i)] for i in range(len(data.clips))]  # time-warped copies
+    clip_labels = parse_labels(options["labels"], data.sources or [f"clip {i + 1}" for i in range(len(data.clips))])
     noise = parse_history_noise(options["history_noise"])
     config = FCRBMConfig(order=options["order"], hidden=options["hidden"], factors=options["factors"],
                          features=options["features"], epochs=options["epochs"], cd_k=options["cd_k"],
                          batch_size=options["batch_size"], learning_rate=options["learning_rate"],
                          autoregressive_learning_rate=options["autoregressive_learning_rate"],
                          history_noise=noise).check()
-    orders = _growth_orders(options["grow_from"], config.order) + [config.order]
+    orders = growth_orders(options["grow_from"], config.order) + [config.order]
     labels = list(dict.fromkeys(clip_labels))
     total = config.epochs * len(orders)
     models = []
@@ -738,8 +237,6 @@ def train_fcrbm_prior(data: TrainingData, options: dict, rng: np.random.Generato
         models.append(train_fcrbm(list(data.clips), clip_labels, replace(config, order=order), data.fps,
                                   data.body_model.dof_names, data.body_model.name, list(data.sources), report,
                                   rng=rng, labels=labels))
-    for m in models:
-        m.time_warp = list(data.time_warp)
     model = models[-1]
     model.growth = models[:-1]
     return model
@@ -775,17 +272,14 @@ FCRBM_TRAIN_OPTIONS = (
                      "result.json reports the posterior over the labels per frame",
     model_files="one", train=train_fcrbm_prior, train_options=FCRBM_TRAIN_OPTIONS,
     options=(gibbs_steps_option(30),
-             ROOT_NOISE_OPTION,
-             HEADING_NOISE_OPTION,
-             GROUND_VELOCITY_OPTION,
-             GROUND_VELOCITY_PULL_OPTION,
+             *GroundDiffusion.OPTIONS,
              Option("style_switch", float, 0.05, "probability per frame that the style switches to another label "
                                                  "(default 0.05)", minimum=0.0, maximum=1.0),
              Option("style", str, None, "give every particle this label and never switch (the oracle), or a "
                                         "schedule walk,run@120 (label per sequence frame, for an activity "
                                         "change); default: inferred"),
              Option("style_inference", str, "mixture", "how an unknown style is inferred: mixture (a fixed share "
-                    "of the particles per label, weight moving between labels; default) or particles (each "
+                    "of the particles per label, weight moving between labels) or particles (each "
                     "particle switches its own label)", choices=STYLE_INFERENCE),
              Option("style_temperature", float, STYLE_TEMPERATURE, "mixture inference: the likelihood is raised "
                     f"to 1/T when the labels are weighed (default {STYLE_TEMPERATURE:g})", minimum=1.0,
@@ -793,9 +287,7 @@ FCRBM_TRAIN_OPTIONS = (
 def build_fcrbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> FCRBMPrior:
     model = load_fcrbm(model_files[0], device=context.device)
     model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, model_files[0])
-    return FCRBMPrior([model], gibbs_steps=options["gibbs_steps"], device=context.device,
-                      root_noise_mm=options["root_noise"], heading_noise=options["heading_noise"],
-                      style_switch=options["style_switch"], style=options["style"],
-                      style_inference=options["style_inference"], style_temperature=options["style_temperature"],
-                      ground_velocity_noise=options["ground_velocity_noise"],
-                      ground_velocity_pull=options["ground_velocity_pull"])
+    return FCRBMPrior([model], options["gibbs_steps"], device=context.device,
+                      ground=GroundDiffusion(options["root_noise"]), style_switch=options["style_switch"],
+                      style=options["style"], style_inference=options["style_inference"],
+                      style_temperature=options["style_temperature"])

@@ -6,7 +6,15 @@ import numpy as np
 import pytest
 import torch
 
-from priors.crbm import CRBM, CRBMConfig, CRBMPrior, bernoulli, load_crbm, make_windows, train_crbm
+from priors.parts import GroundDiffusion, PostureOffset
+
+from priors.crbm_model import CRBM, CRBMConfig, bernoulli
+
+from priors.crbm import CRBMPrior
+
+from priors.crbm_file import load_crbm
+
+from priors.crbm_training import make_windows, train_crbm
 
 CRBM_PARAMS = CRBM.PARAMS
 from tracker.core.body import DOF_NAMES
@@ -35,7 +43,7 @@ def test_binary_samples_are_16_bit_uniforms_below_the_probabilities():
     """The sampler's contract, which every seeded CRBM/FCRBM result depends on (since 0.11.0): one uniform 16-bit
     integer per unit, four from each 64-bit draw of the generator, 1 where it is below ``p * 2^16``; float 0/1 in
     ``p``'s dtype, ``p`` left unchanged."""
-    from priors.crbm import uniform16
+    from priors.crbm_model import uniform16
 
     for dtype in (torch.float32, torch.float64):
         p = torch.rand(40, 7, generator=torch.Generator().manual_seed(1), dtype=dtype)
@@ -104,7 +112,7 @@ def test_free_energy_descent_finds_a_minimum(crbm3, walks):
 
 
 def test_generated_walk_stays_in_range_and_keeps_walking(crbm3, walks):
-    prior = CRBMPrior([crbm3], gibbs_steps=30, root_noise_mm=0.0)  # pure generation
+    prior = CRBMPrior([crbm3], gibbs_steps=30, ground=GroundDiffusion(0.0))  # pure generation
     start = walks[0][:4]
     state = prior.start(start, 1, np.random.default_rng(0))
     hist = start[None, -3:]
@@ -178,7 +186,7 @@ def test_a_higher_order_model_file_grows_from_its_own_lower_order(walk_32_frames
     from data_tools.samples import sample_walks
 
     asf, walks = sample_walks()
-    model = tracker.train("crbm", [walks[0]], skeletons=[asf], order=3, epochs=3, hidden=16, rng=0)
+    model = tracker.train("crbm", [walks[0]], skeletons=[asf], order=3, epochs=3, hidden=16, seed=0)
     assert [g.order for g in model.growth] == [1]
     model.save(tmp_path / "c3.pt")
     loaded = load_crbm(tmp_path / "c3.pt")
@@ -217,7 +225,7 @@ def test_interrupted_training_resumes_to_the_same_model(tmp_path):
     from data_tools.samples import sample_walks
 
     asf, walks = sample_walks()
-    settings = dict(skeletons=[asf], order=3, epochs=6, hidden=16, rng=0, checkpoint_every=2)
+    settings = dict(skeletons=[asf], order=3, epochs=6, hidden=16, seed=0, checkpoint_every=2)
     whole = tracker.train("crbm", [walks[0]], **settings)
     calls = []
 
@@ -238,7 +246,7 @@ def test_interrupted_training_resumes_to_the_same_model(tmp_path):
 
 
 def test_split_validation_holds_out_the_end_of_each_clip():
-    from priors.crbm import split_validation
+    from priors.crbm_training import split_validation
 
     # Order-2 windows of clips of 10 and 6 frames (none predicts a clip's last frame, see make_windows).
     starts = torch.tensor([0, 1, 2, 3, 4, 5, 6, 10, 11, 12])
@@ -284,60 +292,12 @@ def test_two_models_of_one_order_are_refused_not_silently_dropped(crbm3):
 
 
 def test_the_history_noise_option_is_auto_or_a_number_in_range():
-    from priors.crbm import parse_history_noise
+    from priors.crbm_training import parse_history_noise
 
     assert parse_history_noise("auto") == "auto" and parse_history_noise("0.5") == 0.5 and parse_history_noise(0) == 0
     for bad, expected in [("abc", "'auto' or a number"), ("200", r"\[0, 100\]"), (-1, r"\[0, 100\]")]:
         with pytest.raises(InputError, match=expected):
             parse_history_noise(bad)
-
-
-def test_posture_offsets_scale_only_the_posture_angles(walks):
-    from priors.crbm import posture_offset_scale
-    from tracker.core.representation import feature_names
-
-    norm = make_windows(walks[:1], 1, DOF_NAMES).normaliser
-    scale = posture_offset_scale(norm, 0.1).numpy()
-    kept = norm.kept_names
-    assert len(scale) == norm.n_kept
-    for name, s, std in zip(kept, scale, norm.std[norm.keep]):
-        if name in ("forward_velocity", "lateral_velocity", "height", "yaw_rate"):
-            assert s == 0
-        else:  # pitch, roll and every joint angle: 0.1 rad in normalised units
-            assert s == pytest.approx(0.1 / std, rel=1e-6)
-    assert set(feature_names(DOF_NAMES)[6:]) & set(kept)
-
-
-def test_a_model_trained_with_posture_offsets_keeps_a_shifted_posture(walks):
-    """Every posture angle of an unseen walk shifted by 0.1 rad: the one-step prediction (free-energy best guess)
-    of a model trained with posture offsets keeps more of the shift than the same model trained without, which
-    pulls the posture back toward its training walks' (full-size models of issue 13: 0.87 against 0.37)."""
-    f = poses_to_invariant(walks[2])[:-1]
-    posture = posture_features(f.shape[1])
-    shifted = f.copy()
-    shifted[:, posture] += 0.1
-    kept = []
-    for offset in (0.0, 0.1):
-        m = train_crbm(walks[:2], CRBMConfig(order=1, hidden=50, epochs=200, posture_offset=offset), 60.0,
-                       DOF_NAMES, rng=np.random.default_rng(3))
-        pred = [m.normaliser.inverse(m.crbm.best_guess(torch.tensor(m.normaliser.transform(g[:-1]),
-                                                                    dtype=torch.float32)).numpy())
-                for g in (f, shifted)]
-        kept.append(float((pred[1] - pred[0])[:, posture].mean()) / 0.1)
-    assert kept[1] > kept[0] + 0.05, kept
-
-
-def test_the_posture_offset_is_checked_and_kept_in_the_model_file(walks, tmp_path):
-    for bad in (-0.1, 4.0, True):
-        with pytest.raises(InputError, match="posture offset"):
-            CRBMConfig(posture_offset=bad).check()
-    m = train_crbm(walks[:1], CRBMConfig(order=1, hidden=10, epochs=2, posture_offset=0.05), 60.0, DOF_NAMES,
-                   rng=np.random.default_rng(0))
-    m.save(tmp_path / "m.pt")
-    assert load_crbm(tmp_path / "m.pt").config.posture_offset == 0.05
-    plain = train_crbm(walks[:1], CRBMConfig(order=1, hidden=10, epochs=2), 60.0, DOF_NAMES,
-                       rng=np.random.default_rng(0))
-    assert "posture_offset" not in plain.to_document()["config"]  # files at the default read as before
 
 
 def test_a_posture_offset_shifts_the_models_history_and_prediction_alike(crbm3, walks):
@@ -346,7 +306,7 @@ def test_a_posture_offset_shifts_the_models_history_and_prediction_alike(crbm3, 
     known = walks[2][:4]
     shifted = known.copy()
     shifted[:, 6:] += 0.1
-    prior = CRBMPrior([crbm3], mode="free-energy", root_noise_mm=0.0, posture_gain=0.5)
+    prior = CRBMPrior([crbm3], mode="free-energy", ground=GroundDiffusion(0.0), posture=PostureOffset(0.5))
     rng = np.random.default_rng(0)
     predictions = []
     for history, offset in ((known, 0.0), (shifted, 0.1)):
@@ -364,12 +324,12 @@ def test_the_posture_offset_integrates_the_images_mean_correction(crbm3, walks):
     """When the resampled particles sit a constant 0.05 rad from the prior's mean prediction on every joint angle,
     the offset moves by the gain times 0.05 on those angles and by nothing on the root's pitch and roll; the
     default (no gain) carries no offset state at all."""
-    from priors.crbm import updated_posture_offset
+    from priors.parts import updated_posture_offset
 
     assert np.array_equal(updated_posture_offset(np.ones(2), np.zeros((3, 2)), np.full(2, np.nan), 0.5), np.ones(2))
     assert np.allclose(updated_posture_offset(np.ones(2), np.full((3, 2), 0.3), np.full(2, 0.1), 0.5), [1.1, 1.1])
     known = walks[2][:4]
-    prior = CRBMPrior([crbm3], mode="free-energy", root_noise_mm=0.0, posture_gain=0.25)
+    prior = CRBMPrior([crbm3], mode="free-energy", ground=GroundDiffusion(0.0), posture=PostureOffset(0.25))
     rng = np.random.default_rng(0)
     state = prior.start(known, 4, rng)
     history = np.repeat(known[None, 1:], 4, axis=0)
@@ -384,4 +344,4 @@ def test_the_posture_offset_integrates_the_images_mean_correction(crbm3, walks):
     assert prior.summarize(state, np.full(4, 0.25))[-1] > 0
     assert "posture_offset" not in CRBMPrior([crbm3]).start(known, 4, rng)
     with pytest.raises(InputError, match="posture gain"):
-        CRBMPrior([crbm3], posture_gain=1.5)
+        CRBMPrior([crbm3], posture=PostureOffset(1.5))

@@ -6,10 +6,11 @@ import numpy as np
 import pytest
 import torch
 
-from priors.crbm import CRBM, CRBMConfig, train_crbm
-from priors.deep_crbm import (
-    DeepCRBMModel, DeepCRBMPrior, TopConfig, deep_gibbs, first_layer_activations, load_deep_crbm, train_top,
-)
+from priors.parts import HeightOffset, PostureOffset
+from priors.crbm_model import CRBM, CRBMConfig
+
+from priors.crbm_training import train_crbm
+from priors.deep_crbm import DeepCRBMModel, DeepCRBMPrior, TopConfig, deep_gibbs, first_layer_activations, load_deep_crbm, train_top
 from tracker.core.body import DOF_NAMES
 from tracker.core.errors import InputError
 
@@ -75,8 +76,8 @@ def test_the_deep_prior_carries_its_offsets_through_both_layers(deep, walks, off
     rad larger): the first layer sees the same history."""
     joints = list(range(6, walks[0].shape[1]))
     option, key, entries, dims, shift, summary = {
-        "height": ({"height_spread": 40.0}, "height_offset", slice(None), [2], 60.0, "height offset (mm)"),
-        "posture": ({"posture_gain": 0.2}, "posture_offset", (slice(None), slice(2, None)),  # the joint angles'
+        "height": ({"height": HeightOffset(40.0)}, "height_offset", slice(None), [2], 60.0, "height offset (mm)"),
+        "posture": ({"posture": PostureOffset(0.2)}, "posture_offset", (slice(None), slice(2, None)),  # the joint angles'
                     joints, 0.1, "posture offset rms (deg)")}[offset]
     prior = DeepCRBMPrior(deep, gibbs_steps=5, **option)
     assert prior.summary_names == (summary,)
@@ -128,7 +129,7 @@ def test_train_and_track_through_the_api_and_the_cli(walk_32_frames, tmp_path, c
 
     asf, files = sample_walks()
     model = tracker.train("deep-crbm", files, skeletons=[asf], order=1, hidden=16, epochs=3, top_order=2,
-                          top_hidden=8, top_epochs=3, rng=0)
+                          top_hidden=8, top_epochs=3, seed=0)
     assert "second layer order 2" in model.summary()
     model.save(tmp_path / "d.pt")
     res = tracker.track(walk_32_frames, "deep-crbm", models=[tmp_path / "d.pt"], particles=40, frames=6, seed=0,

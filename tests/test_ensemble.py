@@ -82,8 +82,8 @@ def test_crbm_files_of_one_order_track_as_an_ensemble(mocap_dir, walk_32_frames,
 
     clips = [mocap_dir / "07" / "07_01.amc"]
     for seed in (0, 1):
-        tracker.train("crbm", clips, order=2, epochs=3, hidden=10, rng=seed).save(tmp_path / f"m{seed}.pt")
-    tracker.train("crbm", clips, order=1, epochs=3, hidden=10, grow_from="none", rng=0).save(tmp_path / "o1.pt")
+        tracker.train("crbm", clips, order=2, epochs=3, hidden=10, seed=seed).save(tmp_path / f"m{seed}.pt")
+    tracker.train("crbm", clips, order=1, epochs=3, hidden=10, grow_from="none", seed=0).save(tmp_path / "o1.pt")
     run = tracker.track(walk_32_frames, "crbm", models=[tmp_path / "m0.pt", tmp_path / "m1.pt"], particles=60,
                         frames=6, seed=0)
     assert run.records["prior_labels"][-1] == "crbm order 2 (ensemble of 2)"

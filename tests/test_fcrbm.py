@@ -8,10 +8,9 @@ import numpy as np
 import pytest
 import torch
 
-from priors.fcrbm import (
-    FCRBM, FCRBMConfig, FCRBMPrior, generate, group_rows, load_fcrbm, parse_labels, train_fcrbm,
-    transition_styles,
-)
+from priors.fcrbm_model import FCRBM, FCRBMConfig, group_rows, load_fcrbm, parse_labels, train_fcrbm
+
+from priors.fcrbm import FCRBMPrior, generate, transition_styles
 from tracker.core.body import DOF_NAMES
 from tracker.core.errors import InputError
 
@@ -249,7 +248,7 @@ def test_train_and_track_through_the_api(s2, walk_32_frames, tmp_path):
 
     files = [s2 / "02_01.amc", s2 / "02_03.amc"]
     model = tracker.train("fcrbm", files, labels="walk,run", order=2, epochs=4, hidden=16, factors=8, features=3,
-                          rng=0)
+                          seed=0)
     assert [g.order for g in model.growth] == [1] and "labels walk, run" in model.summary()
     model.save(tmp_path / "f.pt")
     res = tracker.track(walk_32_frames, "fcrbm", models=[tmp_path / "f.pt"], particles=60, frames=6, seed=0,
@@ -273,7 +272,7 @@ def test_mixture_inference_is_annealed_by_default_and_plain_when_asked(s2, walk_
 
     files = [s2 / "02_01.amc", s2 / "02_03.amc"]
     tracker.train("fcrbm", files, labels="walk,run", order=1, epochs=2, hidden=10, factors=5, features=3,
-                  rng=0).save(tmp_path / "f.pt")
+                  seed=0).save(tmp_path / "f.pt")
     models = [tmp_path / "f.pt"]
     res = tracker.track(walk_32_frames, "fcrbm", models=models, particles=40, frames=4, seed=0)
     plain = tracker.track(walk_32_frames, "fcrbm", models=models, particles=40, frames=4, seed=0,

@@ -3,7 +3,11 @@ import numpy as np
 import pytest
 import torch
 
-from priors.gpdm import GPDM, GPDMConfig, load_gpdm, save_gpdm, train_gpdm
+from priors.parts import GroundDiffusion, HeightOffset
+
+from priors.gpdm_model import GPDM, GPDMConfig
+
+from priors.gpdm_training import load_gpdm, save_gpdm, train_gpdm
 from tracker.core.errors import InputError
 
 
@@ -100,7 +104,7 @@ def test_bad_config_and_data():
 
 @pytest.fixture(scope="module")
 def gpdm_prior_model(walk_07_01):
-    from priors.gpdm import train_gpdm_prior
+    from priors.gpdm_training import train_gpdm_prior
     from tracker.core.body import DOF_NAMES
 
     return train_gpdm_prior([walk_07_01.poses], GPDMConfig(iterations=100), 60.0, DOF_NAMES, sources=["07_01"])
@@ -109,7 +113,7 @@ def gpdm_prior_model(walk_07_01):
 def test_gpdm_prior_samples_a_batch_of_walking_poses(gpdm_prior_model, walk_07_01):
     from priors.gpdm import GPDMPrior
 
-    prior = GPDMPrior(gpdm_prior_model, root_noise_mm=0.0)
+    prior = GPDMPrior(gpdm_prior_model, ground=GroundDiffusion(0.0))
     known = walk_07_01.poses[:2]
     state = prior.start(known, 200, np.random.default_rng(0))
     assert state["latent"].shape == (200, 3) and state["step"].shape == (200, 3)
@@ -129,7 +133,7 @@ def test_gpdm_prior_samples_a_batch_of_walking_poses(gpdm_prior_model, walk_07_0
 
 
 def test_gpdm_prior_file_round_trip_and_mismatch(gpdm_prior_model, tmp_path):
-    from priors.gpdm import load_gpdm_prior
+    from priors.gpdm_training import load_gpdm_prior
 
     gpdm_prior_model.save(tmp_path / "g.pt")
     loaded = load_gpdm_prior(tmp_path / "g.pt")
@@ -160,7 +164,7 @@ def test_train_and_track_gpdm_cli(mocap_dir, walk_32_frames, tmp_path):
 # --- sparse (inducing-point) GPDM and the batched prior step ---------------------------------------------------
 
 def test_sparse_gradients_match_finite_differences(walk_features):
-    from priors.gpdm import inducing_frames
+    from priors.gpdm_model import inducing_frames
 
     Y = walk_features[:40, :6]
     m = GPDM(Y, [20, 20], GPDMConfig(order=2, balance=3.0), active=inducing_frames(Y, 12))
@@ -181,7 +185,7 @@ def test_sparse_gradients_match_finite_differences(walk_features):
 
 
 def test_inducing_setting_and_frame_choice(walk_features):
-    from priors.gpdm import AUTO_INDUCING, EXACT_MAX_FRAMES, inducing_frames
+    from priors.gpdm_model import AUTO_INDUCING, EXACT_MAX_FRAMES, inducing_frames
 
     assert GPDMConfig().inducing_count(EXACT_MAX_FRAMES) == 0
     assert GPDMConfig().inducing_count(EXACT_MAX_FRAMES + 1) == AUTO_INDUCING
@@ -251,7 +255,7 @@ def test_sparse_model_round_trips_and_old_files_load_exact(two_walks, tmp_path):
 
 @pytest.fixture(scope="module")
 def sparse_prior_model(gpdm_prior_model, walk_07_01, walk_07_11):
-    from priors.gpdm import train_gpdm_prior
+    from priors.gpdm_training import train_gpdm_prior
     from tracker.core.body import DOF_NAMES
 
     return train_gpdm_prior([walk_07_01.poses, walk_07_11.poses], GPDMConfig(iterations=30, inducing=40), 60.0,
@@ -321,10 +325,10 @@ def test_interrupted_training_resumes_to_the_same_model(tmp_path):
     0.10 away in X after 50 iterations)."""
     import tracker
     from data_tools.samples import sample_walks
-    from priors.gpdm import GPDM_PARAMETERS
+    from priors.gpdm_training import GPDM_PARAMETERS
 
     asf, walks = sample_walks()
-    settings = dict(skeletons=[asf], iterations=30, rng=0, checkpoint_every=10)
+    settings = dict(skeletons=[asf], iterations=30, seed=0, checkpoint_every=10)
     whole = tracker.train("gpdm", [walks[0]], **settings)
     checkpoint = tmp_path / "g.pt.checkpoint"
     calls = []
@@ -393,7 +397,7 @@ def _normaliser(key, factor):
     (lambda d: d["extra"].pop("normaliser"), "lacks 'normaliser'"),
 ])
 def test_broken_model_files_are_refused(small_gpdm_file, tmp_path, damage, expected):
-    from priors.gpdm import load_gpdm_prior
+    from priors.gpdm_training import load_gpdm_prior
 
     doc = torch.load(small_gpdm_file, weights_only=True)
     damage(doc)
@@ -405,7 +409,7 @@ def test_broken_model_files_are_refused(small_gpdm_file, tmp_path, damage, expec
 
 
 def test_foreign_and_corrupt_model_files_are_refused(small_gpdm_file, tmp_path):
-    from priors.gpdm import load_gpdm_prior
+    from priors.gpdm_training import load_gpdm_prior
 
     text, cut, other = tmp_path / "text.pt", tmp_path / "cut.pt", tmp_path / "other.pt"
     text.write_text("not a model\n")
@@ -428,7 +432,7 @@ def test_a_particles_height_offset_moves_the_gpdms_heights_by_exactly_that_offse
     """The same latent history and noise with an offset of 70 mm give the same pose 70 mm higher."""
     from priors.gpdm import GPDMPrior
 
-    prior = GPDMPrior(gpdm_prior_model, height_spread=30.0)
+    prior = GPDMPrior(gpdm_prior_model, height=HeightOffset(30.0))
     assert prior.summary_names == ("height offset (mm)",) and prior.summary_kind == "quantity"
     state = prior.start(walk_07_01.poses[:2], 20, np.random.default_rng(0))
     hist = np.repeat(walk_07_01.poses[None, 1:2], 20, axis=0)
@@ -447,7 +451,7 @@ def test_gpdm_height_offsets_start_spread_drift_are_summarised_and_batched_equal
     from priors.gpdm import GPDMPrior
     from tracker.app.api import prior_entry
 
-    prior = GPDMPrior(gpdm_prior_model, height_spread=40.0, height_drift=2.0)
+    prior = GPDMPrior(gpdm_prior_model, height=HeightOffset(40.0, 2.0))
     known = walk_07_01.poses[:2]
     state = prior.start(known, 4000, np.random.default_rng(5))
     assert np.std(state["height_offset"]) == pytest.approx(40.0, rel=0.05)
@@ -465,30 +469,12 @@ def test_gpdm_height_offsets_start_spread_drift_are_summarised_and_batched_equal
                           {k: v[i:i + 1] for k, v in noise.items()}) for i in range(P)]
     assert np.allclose(batched, np.concatenate([r[0] for r in rows]), atol=2e-4)
     assert np.array_equal(bstate["height_offset"], np.concatenate([r[1]["height_offset"] for r in rows]))
-    assert GPDMPrior(gpdm_prior_model).height_spread == 50.0  # the default since round 19
+    assert GPDMPrior(gpdm_prior_model).height.spread == 50.0  # the default
     option = {o.name: o for o in prior_entry("gpdm").options}["height_spread"]
-    assert option.default == 50.0 and "default 50" in option.help
-    plain = GPDMPrior(gpdm_prior_model, height_spread=0.0)
+    assert option.default == 50.0 and "(default 50)" in option.described()
+    plain = GPDMPrior(gpdm_prior_model, height=HeightOffset(0.0))
     assert "height_offset" not in plain.start(known, 10, np.random.default_rng(0)) and plain.summary_names == ()
     assert plain.summarize(plain.start(known, 10, np.random.default_rng(0)), np.full(10, 0.1)) is None
-    for bad in ({"height_spread": -1.0}, {"height_drift": float("nan")}):
+    for bad in ((-1.0, 0.0), (0.0, float("nan"))):
         with pytest.raises(InputError, match="height"):
-            GPDMPrior(gpdm_prior_model, **bad)
-
-
-def test_a_robust_sample_gets_the_latent_point_of_its_pose_at_the_models_height(gpdm_prior_model, walk_07_01):
-    """A random-walk sample of a particle 80 mm above the model's heights is projected as if it were not."""
-    from priors.gpdm import GPDMPrior
-
-    prior = GPDMPrior(gpdm_prior_model, robust_fraction=1.0, root_noise_mm=0.0, height_spread=10.0)
-    known = walk_07_01.poses[:2]
-    state = prior.start(known, 8, np.random.default_rng(0))
-    latents = []
-    for offset, lift in ((0.0, 0.0), (80.0, 80.0), (0.0, 80.0)):
-        hist = np.repeat(known[None, -1:], 8, axis=0)
-        hist[..., 2] += lift
-        _, new = prior.sample(hist, 1, {**state, "height_offset": np.full(8, offset)}, np.random.default_rng(3))
-        assert new["walked"].all()
-        latents.append(new["latent"])
-    assert np.allclose(latents[0], latents[1], atol=1e-5)
-    assert not np.allclose(latents[0], latents[2], atol=1e-5)  # 80 mm not taken off: other latent points
+            HeightOffset(*bad)

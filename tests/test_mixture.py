@@ -254,16 +254,3 @@ def test_a_tempered_mixture_still_follows_the_change_of_mode():
     forward = out["prior_summary"][:, 0]
     assert np.all(forward[5:20] > 0.8) and np.all(forward[26:] < 0.2)
     assert np.max(np.abs(out["mean_poses"][:, 0] - truth)) < 2.0
-
-
-def test_every_experiment_says_how_its_fcrbm_infers_the_style():
-    """A row that infers the style keeps measuring what its published table measured whatever the default."""
-    import tomllib
-    from pathlib import Path
-
-    files = sorted((Path(__file__).parents[1] / "benchmarks" / "experiments").rglob("*.toml"))
-    for f in files:
-        for prior in tomllib.loads(f.read_text()).get("prior", []):
-            options = prior.get("options", {})
-            if prior.get("name") == "fcrbm" and "style" not in options:
-                assert "style_inference" in options, (f.name, prior.get("label"))

@@ -1,10 +1,7 @@
-"""Pace augmentation: time-warping training clips (tracker.core.timewarp) and train's time_warp option."""
-import subprocess
-import sys
+"""Replaying a pose clip at another speed (tracker.core.timewarp): slerped rotations, interpolated positions."""
 
 import numpy as np
 import pytest
-import torch
 
 from tracker.core.body import fifteen_cone_model
 from tracker.core.errors import InputError
@@ -90,72 +87,3 @@ def test_bad_speeds_are_refused_naming_the_option_and_the_range(bad):
 def test_speeds_are_parsed_in_order_without_duplicates():
     assert parse_speeds("0.6, 0.8,1,1.25,1") == (0.6, 0.8, 1.0, 1.25)
     assert parse_speeds([0.5, 2]) == (0.5, 2.0) and parse_speeds("[0.7, 1]") == (0.7, 1.0)
-
-
-def test_crbm_and_fcrbm_train_on_warped_clips_and_record_the_speeds(tmp_path):
-    import tracker
-    from data_tools.samples import sample_walks
-    from priors.crbm import load_crbm
-    from priors.fcrbm import load_fcrbm
-
-    asf, walks = sample_walks()
-    model = tracker.train("crbm", [walks[0]], skeletons=[asf], order=2, epochs=2, hidden=8, rng=0,
-                          time_warp="0.5,1,2")
-    assert model.time_warp == [0.5, 1.0, 2.0] and [g.time_warp for g in model.growth] == [[0.5, 1.0, 2.0]]
-    assert len(model.sources) == 3 and model.sources[0].endswith("07_01.amc @ 0.5x")
-    assert "clips replayed at speeds 0.5, 1, 2" in model.summary()
-    model.save(tmp_path / "c.pt")
-    loaded = load_crbm(tmp_path / "c.pt")
-    assert loaded.time_warp == [0.5, 1.0, 2.0] and loaded.summary() == model.summary()
-    plain = tracker.train("crbm", [walks[0]], skeletons=[asf], order=1, epochs=2, hidden=8, rng=0, time_warp="1")
-    assert plain.time_warp == [1.0] and "replayed" not in plain.summary() and len(plain.sources) == 1
-    # The warped data is more data: the normaliser sees slower and faster steps than the clip has.
-    assert model.normaliser.std[0] > plain.normaliser.std[0]
-
-    fc = tracker.train("fcrbm", [walks[0], walks[1]], skeletons=[asf], labels="slow,fast", order=1, epochs=2,
-                       hidden=8, factors=4, features=2, rng=0, time_warp="0.8,1.25")
-    assert fc.clip_labels == ["slow", "slow", "fast", "fast"] and fc.time_warp == [0.8, 1.25]
-    fc.save(tmp_path / "f.pt")
-    assert load_fcrbm(tmp_path / "f.pt").time_warp == [0.8, 1.25]
-    with pytest.raises(InputError, match="1 label"):  # labels are per given clip, not per warped copy
-        tracker.train("fcrbm", [walks[0], walks[1]], skeletons=[asf], labels="walk", epochs=1, time_warp="0.8,1")
-
-
-def test_a_model_file_with_a_bad_time_warp_is_refused(tmp_path):
-    import tracker
-    from data_tools.samples import sample_walks
-    from priors.crbm import load_crbm
-
-    asf, walks = sample_walks()
-    doc = tracker.train("crbm", [walks[0]], skeletons=[asf], order=1, epochs=1, hidden=4, rng=0).to_document()
-    for bad in ([0.0], [float("nan")], "fast", []):
-        doc["time_warp"] = bad
-        torch.save(doc, tmp_path / "bad.pt")
-        with pytest.raises(InputError, match="time_warp"):
-            load_crbm(tmp_path / "bad.pt")
-    del doc["time_warp"]  # files from before the option: the clips as given
-    torch.save(doc, tmp_path / "old.pt")
-    assert load_crbm(tmp_path / "old.pt").time_warp == [1.0]
-
-
-def test_every_learned_prior_takes_the_option_declared_once():
-    from tracker.app.api import available_priors, prior_entry
-    from tracker.engine.registry import TRAINING_DATA_OPTIONS
-
-    learned = [n for n in available_priors() if prior_entry(n).train is not None]
-    assert {"crbm", "gpdm", "fcrbm", "deep-crbm"} <= set(learned)
-    for name in learned:
-        options = [o for o in prior_entry(name).train_options if o.name == "time_warp"]
-        assert options == [TRAINING_DATA_OPTIONS[0]], name
-
-
-@pytest.mark.parametrize("bad", ["0", "-0.5", "nan", "1e9", "", "0.6,x"])
-def test_the_cli_refuses_bad_speeds_with_exit_2(tmp_path, bad):
-    from data_tools.samples import sample_walks
-
-    asf, walks = sample_walks()
-    r = subprocess.run([sys.executable, "-m", "tracker", "train", "--prior", "gpdm", "--mocap", str(walks[0]),
-                        "--time-warp", bad, "--out", str(tmp_path / "m.pt")], capture_output=True, text=True)
-    last = r.stderr.strip().splitlines()[-1]
-    assert r.returncode == 2 and "time_warp must be comma-separated playback speeds, each in [0.1, 10]" in last
-    assert "Traceback" not in r.stderr and not (tmp_path / "m.pt").exists()

@@ -5,13 +5,13 @@ and the shell produce the same numbers and the same files::
 
     import tracker
     seq = tracker.synthesize("07_02.amc", "walk", frames=60)
-    model = tracker.train("crbm", ["07_01.amc"], order=1, epochs=300, rng=0)
+    model = tracker.train("crbm", ["07_01.amc"], order=1, epochs=300, seed=0)
     model.save("crbm1.pt")
     for prior, models in [("zero-velocity", []), ("crbm", ["crbm1.pt"])]:
         result = tracker.track(seq, prior, models=models, particles=500, seed=0)
         print(prior, result.mean_error)
 
-Random numbers: every function that draws takes ``seed`` / ``rng`` (an int, a
+Random numbers: every function that draws takes ``seed`` (an int, a
 ``numpy.random.SeedSequence`` or a ``numpy.random.Generator``); nothing touches
 global random state.
 """
@@ -184,15 +184,14 @@ def build_likelihood(name: str, sequence: Sequence, views: Iterable[int] | None 
 # -- training -------------------------------------------------------------------------------------------------
 
 def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
-          skeletons: Iterable[str | Path] | None = None, fps: float = 60.0, rng: SeedLike = 0,
+          skeletons: Iterable[str | Path] | None = None, fps: float = 60.0, seed: SeedLike = 0,
           progress: Callable[[int, int, dict], None] | None = None, checkpoint: str | Path | None = None,
           resume: bool = False, **options) -> Any:
     """Train the learned prior ``prior`` on mocap files (or retargeted clips) of any subjects and lengths.
 
     Each AMC pairs with its own skeleton (``skeletons``: one for all or one per file; default
     ``<subject>.asf`` beside it). ``options`` are the prior's training options (see
-    ``python -m tracker train --help``), among them ``time_warp`` (every learned prior's: the clips are also
-    replayed at these playback speeds, :mod:`tracker.core.timewarp`). Returns the trained model;
+    ``python -m tracker train --help``). Returns the trained model;
     ``model.save(path)`` writes its file.
     With ``checkpoint`` (a file path) and the prior's ``checkpoint_every`` option, training state is saved as
     it goes; ``resume=True`` continues from it to the model an uninterrupted run gives.
@@ -216,16 +215,13 @@ def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
         clips, sources, fps = items, [c.source for c in items], rates[0]
     else:
         clips, sources = load_training_clips(items, skeletons, fps), [str(f) for f in items]
-    # Pace augmentation (the time_warp option every learned prior takes): the clips replayed at each speed.
-    data = TrainingData(tuple(c.poses for c in clips), fps, clips[0].model, tuple(sources),
-                        standing_heights=tuple(float(c.model.rest_root_height) for c in clips)).time_warped(
-        resolved["time_warp"])
+    data = TrainingData(tuple(c.poses for c in clips), fps, clips[0].model, tuple(sources))
     extra = {}
     if resume:
         if not entry.resumable:
             raise InputError(f"training of prior {prior} cannot be resumed")
         extra["resume"] = True
-    return entry.train(data, resolved, make_rng(rng), progress, None if checkpoint is None else Path(checkpoint),
+    return entry.train(data, resolved, make_rng(seed), progress, None if checkpoint is None else Path(checkpoint),
                        **extra)
 
 

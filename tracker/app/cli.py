@@ -241,7 +241,7 @@ def _add_plugin_options(parser: argparse.ArgumentParser, declared: dict[str, tup
     first: dict[str, Option] = {}
     for plugin, options in declared.items():
         for o in options:
-            users.setdefault(o.name, []).append(f"{plugin.split()[-1]}: {o.help}")
+            users.setdefault(o.name, []).append(f"{plugin.split()[-1]}: {o.described()}")
             first.setdefault(o.name, o)
     taken = set(parser._option_string_actions)  # the command's own flags
     for name, o in first.items():
@@ -432,7 +432,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     print(f"training a {args.prior} prior on {len(args.mocap)} clip(s) at {args.fps:g} fps", flush=True)
     checkpoint = out.with_name(out.name + ".checkpoint")
     try:
-        model = train(args.prior, args.mocap, skeletons=args.skeleton, fps=args.fps, rng=args.seed,
+        model = train(args.prior, args.mocap, skeletons=args.skeleton, fps=args.fps, seed=args.seed,
                       progress=_progress_bar(f"training {args.prior}"), checkpoint=checkpoint, resume=args.resume,
                       **options)
     except KeyboardInterrupt:  # Ctrl-C: the last checkpoint (if any) stays for --resume; no model is written

@@ -87,7 +87,7 @@ def prepare_models(exp: Experiment, out: Path, version: str, say: Callable[[str]
                     clips = load_clips(t.mocap, exp.fps, t.skeletons)
                 except InputError as exc:
                     raise InputError(f"prior {p.label!r}: {exc}", exp.path) from None
-                model = train(p.name, clips, fps=exp.fps, rng=t.seed, **t.options)
+                model = train(p.name, clips, fps=exp.fps, seed=t.seed, **t.options)
                 with atomic_path(path) as tmp:
                     model.save(tmp)
             files.append(path)

@@ -23,7 +23,7 @@ def run_demo(out: Path, frames: int = 90) -> int:
                      progress=lambda it: tqdm(it, desc="rendering", unit="frame"))
     clip = load_clip(train_walk, asf, fps=60.0)
     print(f"2/4 Training a first-order CRBM (150 hidden units, CD-10, 300 epochs) on {train_walk.stem}")
-    crbm = train("crbm", [clip], fps=60.0, rng=0, order=1, hidden=150, epochs=300)
+    crbm = train("crbm", [clip], fps=60.0, seed=0, order=1, hidden=150, epochs=300)
     crbm.save(out / "crbm1.pt")
     print(f"   {crbm.summary()} -> {out / 'crbm1.pt'}")
     print(f"3/4 Tracking with each prior, 1000 particles, {TRACK_ANNEALING_LAYERS} annealing layers (the default), "

@@ -30,7 +30,6 @@ import numpy as np
 from tracker.core.body import BodyModel
 from tracker.core.cameras import CameraRig
 from tracker.core.errors import InputError
-from tracker.core.timewarp import exp_map_triples, parse_speeds, time_warp_clip
 
 @dataclass(frozen=True)
 class Option:
@@ -48,6 +47,22 @@ class Option:
     maximum: float | None = None
     #: Checks a text option's value (raising :class:`InputError` with the rule, naming the option).
     check: Callable[[str, str], Any] | None = None
+    #: What the default is, in words, where it is not simply ``default`` (e.g. it depends on the model file).
+    default_note: str = ""
+
+    def described(self) -> str:
+        """The help text with the default stated (unless the text already states it)."""
+        if "(default" in self.help:
+            return self.help
+        if self.default_note:
+            default = self.default_note
+        elif self.default is None:
+            return self.help
+        elif self.type is bool:
+            default = "on" if self.default else "off"
+        else:
+            default = format(self.default, "g") if isinstance(self.default, float) else str(self.default)
+        return f"{self.help} (default {default})"
 
     @property
     def flag(self) -> str:
@@ -134,72 +149,16 @@ class PriorContext:
 
 @dataclass(frozen=True)
 class TrainingData:
-    """Pose clips (each ``T_i x D`` at ``fps`` Hz, retargeted to ``body_model``) and where they came from.
-
-    After :meth:`time_warped` the clips are the given ones replayed at each of the playback speeds
-    ``time_warp`` (clip by clip, every speed of one clip in turn); ``origins[i]`` is the given clip that clip
-    ``i`` replays and ``given_sources`` are the given clips' sources (a prior that takes one setting per given
-    clip, like the FCRBM's labels, maps it through ``origins``). Learned priors record ``time_warp`` in their
-    model files. ``standing_heights`` (mm, one per clip, or empty when unknown) is each clip's subject's standing
-    root height, the ``rest_root_height`` of the body model the clip was retargeted to."""
+    """Pose clips (each ``T_i x D`` at ``fps`` Hz, retargeted to ``body_model``) and where they came from."""
 
     clips: tuple[np.ndarray, ...]
     fps: float
     body_model: BodyModel
     sources: tuple[str, ...] = ()
-    time_warp: tuple[float, ...] = (1.0,)
-    origins: tuple[int, ...] = ()
-    given_sources: tuple[str, ...] = ()
-    standing_heights: tuple[float, ...] = ()
 
     @property
     def n_frames(self) -> int:
         return sum(len(c) for c in self.clips)
-
-    @property
-    def n_given(self) -> int:
-        """How many clips were given (before time-warping)."""
-        return max(self.origins) + 1 if self.origins else len(self.clips)
-
-    def origin_of(self, i: int) -> int:
-        return self.origins[i] if self.origins else i
-
-    def time_warped(self, speeds) -> "TrainingData":
-        """These clips replayed at each playback speed of ``speeds`` (``"0.6,0.8,1,1.25"`` or numbers; see
-        :mod:`tracker.core.timewarp`), still at ``fps``; the sources say the speed (``07_01.amc @ 0.8x``)."""
-        speeds = parse_speeds(speeds)
-        if self.origins:
-            raise InputError("training clips are already time-warped")
-        triples = exp_map_triples(self.body_model)
-        names = self.sources or tuple(f"clip {i + 1}" for i in range(len(self.clips)))
-        clips, sources, origins = [], [], []
-        for i, (poses, name) in enumerate(zip(self.clips, names)):
-            for s in speeds:
-                clips.append(time_warp_clip(poses, s, triples))
-                sources.append(name if speeds == (1.0,) else f"{name} @ {s:g}x")
-                origins.append(i)
-        standing = tuple(self.standing_heights[i] for i in origins) if self.standing_heights else ()
-        return TrainingData(tuple(clips), self.fps, self.body_model, tuple(sources), speeds, tuple(origins),
-                            tuple(self.sources), standing)
-
-
-def _check_time_warp(value: str, owner: str) -> None:
-    parse_speeds(value, f"{owner}: time_warp")
-
-
-#: Playback speeds every training clip is replayed at (:mod:`tracker.core.timewarp`) before any learned prior
-#: trains on them: pace augmentation, so that a model trained on walkers of one pace follows slower and faster
-#: ones. "1" is the clips as given.
-DEFAULT_TIME_WARP = "1"
-
-#: Training options of every learned prior, declared here once: :func:`register_prior` adds them to each
-#: learned prior's ``train_options``, and :func:`tracker.app.api.train` applies them to the clips.
-TRAINING_DATA_OPTIONS = (
-    Option("time_warp", str, DEFAULT_TIME_WARP,
-           "pace augmentation: also train on every clip replayed at these playback speeds, comma-separated, each "
-           f"in [0.1, 10] (e.g. 0.6,0.8,1,1.25; default {DEFAULT_TIME_WARP}); the model file records them",
-           check=_check_time_warp),
-)
 
 
 @dataclass(frozen=True)
@@ -282,10 +241,6 @@ def register_prior(name: str, *, summary: str = "", options: Sequence[Option] = 
     """
     if model_files not in ("none", "one", "several"):
         raise ValueError(f"model_files must be 'none', 'one' or 'several', got {model_files!r}")
-
-    if train is not None:  # the options every learned prior's training takes (time-warping the clips)
-        own = {o.name for o in train_options}
-        train_options = tuple(train_options) + tuple(o for o in TRAINING_DATA_OPTIONS if o.name not in own)
 
     def decorate(build):
         PRIORS.add(PriorEntry(name, build, summary, tuple(options), model_files, train, tuple(train_options),

@@ -1,10 +1,18 @@
-"""The CRBM's pace input (``train --pace-input``): the pace label of training frames, a model whose gait speed
-follows the pace it is given, the per-particle pace while tracking, and the model file's checks."""
+"""The CRBM prior's parts (:mod:`priors.parts`): the pace input (``train --pace-input``) with the pace label of
+training frames, a model whose gait speed follows the pace it is given and the per-particle pace while tracking;
+each particle's root-height offset; the posture offset; their defaults for a paced model; the model file's
+checks."""
 import numpy as np
 import pytest
 import torch
 
-from priors.crbm import CRBMConfig, CRBMPrior, PACED_DRIFT, PACED_JUMP, PACED_SPREAD, load_crbm, train_crbm
+from priors.parts import GroundDiffusion
+
+from priors.crbm import CRBMPrior
+from priors.crbm_file import load_crbm
+from priors.crbm_model import CRBMConfig
+from priors.crbm_training import train_crbm
+from priors.parts import PACE_DRIFT, PACE_SPREAD, HeightOffset, PaceInput, PostureOffset
 from tracker.core.body import DOF_NAMES, fifteen_cone_model
 from tracker.core.errors import InputError
 from tracker.core.representation import PACE_FLOOR_MM, clip_log_pace, poses_to_invariant
@@ -58,7 +66,7 @@ def test_the_pace_label_is_the_log_of_the_smoothed_ground_speed(walk_07_01):
 def test_the_model_walks_at_the_pace_it_is_given(paced, walk_07_01):
     """Rolled out for 90 frames from the same real history, the ground speed follows the pace input: the
     slower the pace given, the slower the walk, whatever the history's own speed."""
-    prior = CRBMPrior([paced], gibbs_steps=5, pace_spread=0.0, pace_drift=0.0, pace_jump=0.0, root_noise_mm=0.0)
+    prior = CRBMPrior([paced], gibbs_steps=5, pace=PaceInput(0.0, 0.0), ground=GroundDiffusion(0.0))
     rng = np.random.default_rng(0)
     speeds = []
     for mm_per_frame in (8.0, 16.0, 24.0):
@@ -74,18 +82,17 @@ def test_the_model_walks_at_the_pace_it_is_given(paced, walk_07_01):
 
 def test_each_particle_starts_at_the_known_pace_and_drifts(paced, walk_07_01):
     prior = CRBMPrior([paced])
-    assert (prior.pace_spread, prior.pace_drift) == (PACED_SPREAD, PACED_DRIFT)
+    assert (prior.pace.spread, prior.pace.drift) == (PACE_SPREAD, PACE_DRIFT)
     rng = np.random.default_rng(1)
     state = prior.start(walk_07_01[:60], 4000, rng)
     step = poses_to_invariant(walk_07_01[58:60])[-1]
     known = np.log(PACE_FLOOR_MM + np.hypot(step[0], step[1]))
     assert np.mean(state["pace"]) == pytest.approx(known, abs=0.02)
-    assert np.std(state["pace"]) == pytest.approx(PACED_SPREAD, rel=0.05)
-    assert np.all(state["log_pace"] == 0)  # a paced model's ground steps are its own, never rescaled
+    assert np.std(state["pace"]) == pytest.approx(PACE_SPREAD, rel=0.05)
     history = np.repeat(walk_07_01[None, 57:60], 4000, axis=0)
     _, after = prior.sample(history, 3, state, rng)
     moved = after["pace"] - state["pace"]
-    assert PACED_JUMP == 0 and np.std(moved) == pytest.approx(PACED_DRIFT, rel=0.05)  # no jumps by default
+    assert np.std(moved) == pytest.approx(PACE_DRIFT, rel=0.05)
     weights = np.full(4000, 1 / 4000)
     assert prior.summarize(after, weights)[0] == pytest.approx(np.mean(np.exp(after["pace"]) - PACE_FLOOR_MM))
     assert prior.summary_names == ("pace (mm/frame)", "height offset (mm)", "posture offset rms (deg)")  # by default
@@ -124,12 +131,12 @@ def test_paced_model_files_are_checked(paced, plain, tmp_path):
 def test_paced_and_unpaced_models_do_not_mix(paced, plain):
     with pytest.raises(InputError, match="pace input or none"):
         CRBMPrior([plain, paced])
-    assert CRBMPrior([plain]).pace_spread == 0.0  # the unpaced defaults are unchanged
+    assert CRBMPrior([plain]).pace is None and "pace" not in CRBMPrior([plain]).start(np.zeros((3, 40)), 2, None)
     assert plain.to_document()["pace_label"] is None
 
 
 def test_train_and_track_a_paced_model_from_the_command_line(mocap_dir, walk_32_frames, tmp_path):
-    """``train --pace-input --time-warp`` writes a paced model file; ``track`` with it records the posterior mean
+    """``train --pace-input`` writes a paced model file; ``track`` with it records the posterior mean
     pace per frame in result.json and draws it."""
     import json
     import subprocess
@@ -138,7 +145,7 @@ def test_train_and_track_a_paced_model_from_the_command_line(mocap_dir, walk_32_
     model = tmp_path / "paced.pt"
     r = subprocess.run([sys.executable, "-m", "tracker", "train", "--prior", "crbm", "--mocap",
                         str(mocap_dir / "07" / "07_01.amc"), "--order", "2", "--epochs", "5", "--hidden", "20",
-                        "--pace-input", "--time-warp", "0.7,1", "--out", str(model)], capture_output=True, text=True)
+                        "--pace-input", "--out", str(model)], capture_output=True, text=True)
     assert r.returncode == 0 and "paced" in r.stdout, r.stderr[-500:]
     out = tmp_path / "t"
     r = subprocess.run([sys.executable, "-m", "tracker", "track", str(walk_32_frames.root), "--prior", "crbm",
@@ -175,19 +182,10 @@ def height_error_on_a_lowered_walk(prior, walk: np.ndarray, particles: int, fram
     return error
 
 
-def test_relative_height_keeps_a_shorter_persons_own_height(paced, walk_07_01):
-    """The same walk 100 mm lower (a shorter person): with ``relative_height`` the sampled root heights follow
-    the person's, without it the model pulls them back up toward the training subject's."""
-    errors = {relative: height_error_on_a_lowered_walk(
-        CRBMPrior([paced], pace_spread=0.0, pace_drift=0.0, pace_jump=0.0, relative_height=relative),
-        walk_07_01, particles=50, frames=30, seed=2) for relative in (False, True)}
-    assert abs(errors[True]) < 25 and errors[False] > 50, errors
-
-
 def test_a_particles_height_offset_moves_the_models_heights_by_exactly_that_offset(paced, walk_07_01):
     """A particle whose history and offset are both 70 mm higher samples the same pose 70 mm higher: the model
     sees the same input."""
-    prior = CRBMPrior([paced], pace_spread=0.0, pace_drift=0.0, pace_jump=0.0, height_spread=30.0)
+    prior = CRBMPrior([paced], pace=PaceInput(0.0, 0.0), height=HeightOffset(30.0))
     history = np.repeat(walk_07_01[None, 57:60], 20, axis=0)
     raised = history.copy()
     raised[..., 2] += 70.0
@@ -205,7 +203,7 @@ def test_a_particles_height_offset_moves_the_models_heights_by_exactly_that_offs
 
 def test_height_offsets_start_spread_drift_and_are_summarised(paced, walk_07_01):
     rng = np.random.default_rng(5)
-    prior = CRBMPrior([paced], height_spread=40.0, height_drift=2.0, posture_gain=0.0)
+    prior = CRBMPrior([paced], height=HeightOffset(40.0, 2.0), posture=PostureOffset(0.0))
     assert prior.summary_names == ("pace (mm/frame)", "height offset (mm)")
     state = prior.start(walk_07_01[:60], 4000, rng)
     assert np.std(state["height_offset"]) == pytest.approx(40.0, rel=0.05)
@@ -216,21 +214,21 @@ def test_height_offsets_start_spread_drift_and_are_summarised(paced, walk_07_01)
     weights[:2] = 0.5
     summary = prior.summarize(new, weights)
     assert summary[1] == pytest.approx(np.mean(new["height_offset"][:2]))
-    plain = CRBMPrior([paced], height_spread=0.0, posture_gain=0.0)
+    plain = CRBMPrior([paced], height=HeightOffset(0.0), posture=PostureOffset(0.0))
     assert "height_offset" not in plain.start(walk_07_01[:60], 10, rng) and len(plain.summary_names) == 1
-    for bad in ({"height_spread": -1.0}, {"height_drift": float("nan")}):
+    for bad in ((-1.0, 0.0), (0.0, float("nan"))):
         with pytest.raises(InputError, match="height"):
-            CRBMPrior([paced], **bad)
+            HeightOffset(*bad)
 
 
 def test_a_paced_crbm_gives_each_particle_a_height_offset_by_default(paced, plain, walk_07_01):
     from priors.crbm import PACED_HEIGHT_SPREAD
     from tracker.app.api import prior_entry
 
-    assert PACED_HEIGHT_SPREAD == 50.0 and CRBMPrior([paced]).height_spread == PACED_HEIGHT_SPREAD
-    assert CRBMPrior([plain]).height_spread == 0.0 and CRBMPrior([paced], height_spread=0.0).height_spread == 0.0
+    assert PACED_HEIGHT_SPREAD == 50.0 and CRBMPrior([paced]).height.spread == PACED_HEIGHT_SPREAD
+    assert CRBMPrior([plain]).height is None and CRBMPrior([paced], height=HeightOffset(0.0)).height is None
     option = {o.name: o for o in prior_entry("crbm").options}["height_spread"]
-    assert option.default is None and "50 for a CRBM trained with a pace input" in option.help
+    assert option.default is None and "(default 50 for a model trained with a pace input" in option.described()
     state = CRBMPrior([paced]).start(walk_07_01[:60], 4000, np.random.default_rng(8))
     assert np.std(state["height_offset"]) == pytest.approx(PACED_HEIGHT_SPREAD, rel=0.05)
 
@@ -239,29 +237,12 @@ def test_a_paced_crbm_corrects_its_posture_by_default(paced, plain):
     from priors.crbm import PACED_POSTURE_GAIN
     from tracker.app.api import prior_entry
 
-    assert PACED_POSTURE_GAIN == 0.1 and CRBMPrior([paced]).posture_gain == PACED_POSTURE_GAIN
-    assert CRBMPrior([plain]).posture_gain == 0.0 and CRBMPrior([paced], posture_gain=0.0).posture_gain == 0.0
+    assert PACED_POSTURE_GAIN == 0.1 and CRBMPrior([paced]).posture.gain == PACED_POSTURE_GAIN
+    assert CRBMPrior([plain]).posture is None and CRBMPrior([paced], posture=PostureOffset(0.0)).posture is None
     option = {o.name: o for o in prior_entry("crbm").options}["posture_gain"]
-    assert option.default is None and f"{PACED_POSTURE_GAIN:g} for a CRBM trained with a pace input" in option.help
+    assert option.default is None and f"(default {PACED_POSTURE_GAIN:g} for a model" in option.described()
     deep = {o.name: o for o in prior_entry("deep-crbm").options}["posture_gain"]
     assert deep.default == 0.0
-
-
-@pytest.mark.parametrize("option", ["height_spread", "posture_gain"])
-def test_every_experiment_pins_the_defaults_its_crbms_ran_with(option):
-    """A CRBM row made before a paced CRBM's height offsets (0.8.0) or posture correction (0.12.0) became the
-    default keeps measuring as it did."""
-    for f, prior in experiment_crbm_rows():
-        assert option in prior.get("options", {}), (f.name, prior.get("label"), option)
-
-
-def test_the_experiment_rows_that_name_a_posture_gain_are_the_only_ones_with_one():
-    """Rows labelled "posture gain G" (rounds 23 and 24) track with G; every other CRBM row is pinned to 0."""
-    import re
-
-    for f, prior in experiment_crbm_rows():
-        named = re.search(r"posture gain (\d+(?:\.\d+)?)", prior.get("label", ""))
-        assert prior["options"]["posture_gain"] == (float(named.group(1)) if named else 0), (f.name, prior.get("label"))
 
 
 def test_height_offsets_selected_by_the_images_follow_a_shorter_person(paced, walk_07_01):
@@ -269,42 +250,16 @@ def test_height_offsets_selected_by_the_images_follow_a_shorter_person(paced, wa
     person's (a stand-in for the likelihood) and resampled: with height offsets the sampled heights follow the
     person, without them the model keeps pulling the particles back up to the training subject's height."""
     errors = {spread: height_error_on_a_lowered_walk(
-        CRBMPrior([paced], pace_spread=0.0, pace_drift=0.0, pace_jump=0.0, height_spread=spread),
+        CRBMPrior([paced], pace=PaceInput(0.0, 0.0), height=HeightOffset(spread)),
         walk_07_01, particles=300, frames=40, seed=6, select_sd=20.0) for spread in (0.0, 60.0)}
     assert abs(errors[60.0]) < 25 and errors[0.0] > 40, errors
 
 
 def test_by_default_a_pace_input_only_for_clips_of_several_paces(walk_07_01):
-    from priors.crbm import given_clips, paces_vary
-    from tracker.engine.registry import TrainingData
+    from priors.crbm_training import paces_vary
 
     assert not paces_vary([walk_07_01], 60.0)  # one walk: a 1% spread of paces
     assert paces_vary([walk_07_01, time_warp_clip(walk_07_01, 0.6, TRIPLES)], 60.0)
-    # The default looks at the clips as given: --time-warp alone does not make a paced model.
-    data = TrainingData((walk_07_01,), 60.0, fifteen_cone_model(), ("07_01.amc",)).time_warped("0.6,0.9,1.3")
-    assert [len(c) for c in given_clips(data)] == [len(data.clips[1])]  # the copy at 0.9, nearest 1
-    assert not paces_vary(given_clips(data), 60.0)
-
-
-def experiment_crbm_rows():
-    """Every ``[[prior]]`` entry named crbm in the experiment files, with its file."""
-    import tomllib
-    from pathlib import Path
-
-    files = sorted((Path(__file__).parents[1] / "benchmarks" / "experiments").rglob("*.toml"))
-    assert files
-    for f in files:
-        for prior in tomllib.loads(f.read_text()).get("prior", []):
-            if prior.get("name") == "crbm":
-                yield f, prior
-
-
-def test_every_experiment_pins_the_pace_input_and_height_reference_of_its_crbms():
-    """An experiment's CRBM rows keep measuring what their published table measured whatever train's defaults."""
-    for f, prior in experiment_crbm_rows():
-        for entry in prior.get("train", []):
-            for option in ("pace_input", "standing_height"):
-                assert option in entry.get("options", {}), (f.name, prior.get("label"), option)
 
 
 def test_a_deep_crbm_file_with_a_paced_first_layer_is_refused(paced, tmp_path):
@@ -317,72 +272,13 @@ def test_a_deep_crbm_file_with_a_paced_first_layer_is_refused(paced, tmp_path):
     assert str(path) in str(err.value)
 
 
-def test_a_pace_never_falls_below_standing_and_jumps_come_from_the_training_paces(paced, plain):
-    prior = CRBMPrior([paced], pace_drift=0.5, pace_jump=0.5)
+def test_a_pace_never_falls_below_standing_and_pace_settings_need_a_pace_input(paced, plain):
     rng = np.random.default_rng(4)
     low = np.full(20000, np.log(PACE_FLOOR_MM) - 0.2)
-    out = prior.next_pace(paced, low, rng)
+    out = PaceInput(drift=0.5).advance(low, rng)
     assert out.min() == pytest.approx(np.log(PACE_FLOOR_MM))  # a negative ground speed means nothing
-    fresh = prior.next_pace(paced, np.full(20000, 10.0), rng)  # far above every training pace
-    drawn = fresh[np.abs(fresh - 10.0) > 3]
-    assert len(drawn) / 20000 == pytest.approx(0.5, abs=0.02)
-    assert np.mean(drawn) == pytest.approx(paced.pace_label[0], abs=0.02)
-    assert np.std(drawn) == pytest.approx(paced.pace_label[1], rel=0.05)
-    with pytest.raises(InputError, match="pace jump"):
-        CRBMPrior([paced], pace_jump=1.5)
+    for bad in ((-0.1, 0.05), (0.3, 2.0)):
+        with pytest.raises(InputError, match="pace"):
+            PaceInput(*bad)
     with pytest.raises(InputError, match="pace input"):  # a setting that would do nothing is refused
-        CRBMPrior([plain], pace_jump=0.1)
-
-
-def test_the_pace_innovation_compares_the_step_taken_along_the_predicted_one_with_it():
-    from priors.crbm import pace_innovation
-
-    before = np.array([[0.0, 0.0], [100.0, 0.0], [0.0, 50.0]])
-    predicted = before + [0.0, 10.0]  # every particle predicted 10 mm/frame along y
-    sideways = before + [[7.0, 14.0], [5.0, 14.0], [9.0, 14.0]]  # 14 along, and 7 across that does not count
-    assert pace_innovation(before, sideways, predicted) == pytest.approx(np.log(16 / 12))
-    assert pace_innovation(before, predicted, predicted) == 0.0  # the prior's steps were the images' choice
-    backwards = before - [0.0, 5.0]
-    assert pace_innovation(before, backwards, predicted) == pytest.approx(np.log(PACE_FLOOR_MM / 12))
-    standing = pace_innovation(before, before + [3.0, 4.0], before)  # no predicted direction: the step's length
-    assert standing == pytest.approx(np.log((PACE_FLOOR_MM + 5) / PACE_FLOOR_MM))
-    assert pace_innovation(before, sideways, np.full((3, 2), np.nan)) == 0.0  # nothing predicted yet
-
-
-def test_a_pace_gain_moves_every_particles_pace_by_the_gain_times_the_images_correction(paced, walk_07_01):
-    """The particles land 6 mm further along their predicted steps than the prior put them (the images chose
-    longer steps): the next pace each particle is given is its own plus the gain times that frame's innovation,
-    the same for all, so the paces keep their spread."""
-    from priors.crbm import pace_innovation
-
-    rng = np.random.default_rng(5)
-    prior = CRBMPrior([paced], pace_drift=0.0, pace_gain=0.3)
-    history = np.repeat(walk_07_01[None, 57:60], 50, axis=0)
-    state = prior.start(walk_07_01[:60], 50, rng)
-    assert np.all(np.isnan(state["ground_predicted"]))
-    poses, state = prior.sample(history, 3, state, rng)
-    assert np.all(np.isfinite(state["ground_predicted"]))
-    step = (state["ground_predicted"] - history[:, -1, :2]).mean(axis=0)
-    poses[:, :2] = state["ground_predicted"] + 6.0 * step / np.hypot(*step)
-    history = np.concatenate([history[:, 1:], poses[:, None]], axis=1)
-    innovation = pace_innovation(history[:, -2, :2], history[:, -1, :2], state["ground_predicted"])
-    assert innovation > 0.1
-    _, after = prior.sample(history, 3, state, rng)
-    expected = np.maximum(state["pace"] + 0.3 * innovation, np.log(PACE_FLOOR_MM))
-    assert np.allclose(after["pace"], expected)
-    assert np.std(after["pace"]) == pytest.approx(np.std(state["pace"]))
-    unchanged = CRBMPrior([paced], pace_drift=0.0)  # off by default: the pace is the particle's own
-    assert unchanged.pace_gain == 0.0 and "ground_predicted" not in unchanged.start(walk_07_01[:60], 4, rng)
-
-
-def test_a_pace_gain_is_checked(paced, plain):
-    from tracker.app.api import prior_entry
-
-    with pytest.raises(InputError, match="pace gain must be a fraction"):
-        CRBMPrior([paced], pace_gain=1.5)
-    with pytest.raises(InputError, match="pace input"):  # a setting that would do nothing is refused
-        CRBMPrior([plain], pace_gain=0.1)
-    with pytest.raises(InputError, match="ground velocity noise"):
-        CRBMPrior([paced], pace_gain=0.1, ground_velocity_noise=0.5)
-    option = {o.name: o for o in prior_entry("crbm").options}["pace_gain"]
-    assert option.default == 0.0 and option.maximum == 1.0
+        CRBMPrior([plain], pace=PaceInput())
