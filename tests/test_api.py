@@ -207,3 +207,14 @@ def test_a_plugin_option_clashing_with_a_command_flag_is_refused(tmp_path):
     r = subprocess.run([sys.executable, "-m", "tracker", "--plugin", str(plugin), "track", "--help"],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "clashes with a flag" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_seconds_per_frame_is_measured_whatever_is_recorded(synthetic_walk, random_walk_std):
+    """A run that records only some quantities still reports its wall time per frame."""
+    import tracker
+
+    tracker.set_threads(1)
+    for record in (("ess", "particles", "weights"), {"ess": lambda step: step.ess}):
+        result = tracker.track(synthetic_walk, "zero-velocity", particles=50, frames=4, seed=0, annealing_layers=1,
+                               step_std=random_walk_std, record=record)
+        assert result.seconds_per_frame > 0 and result.to_dict()["seconds_per_frame"] > 0

@@ -23,7 +23,7 @@ from tracker.core.metrics import marker_error
 from tracker.engine.filter import FilterConfig, ParticleFilter
 from tracker.engine.likelihood import Likelihood
 from tracker.engine.prior import MotionPrior
-from tracker.engine.recording import DEFAULT_RECORD, STAGES, FrameStep
+from tracker.engine.recording import DEFAULT_RECORD, RECORDERS, STAGES, FrameStep
 
 
 @dataclass
@@ -219,10 +219,12 @@ def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, conf
     if n0 >= T:
         raise InputError(f"nothing to track: {n0} known frame(s) and only {T} frame(s) requested", seq.root)
     gt = seq.groundtruth
+    # The result needs the estimates and each frame's wall time (seconds_per_frame) whatever else is recorded.
     if isinstance(record, Mapping):
-        record = {"mean_poses": lambda s: s.mean, "best_poses": lambda s: s.best, **dict(record)}
-    else:  # the result needs these whatever else the caller records
-        record = list(record) + [k for k in ("mean_poses", "best_poses") if k not in record]
+        record = {"mean_poses": lambda s: s.mean, "best_poses": lambda s: s.best,
+                  "wall_seconds": RECORDERS["wall_seconds"], **dict(record)}
+    else:
+        record = list(record) + [k for k in ("mean_poses", "best_poses", "wall_seconds") if k not in record]
     names = list(prior.summary_names)
     summary = (names, prior.summary_kind)
     if names and isinstance(record, dict):
