@@ -527,8 +527,8 @@ def huge_noise(fx: Fixtures) -> list[Case]:
                        "--width", "64", "--height", "48", "--noise", "1e308", "--out", str(out)], "refuse",
                       ("--noise",), absent=(out,)))
     for flag, prior, model in (("--root-noise", "zero-velocity", None), ("--root-noise", "crbm", fx.crbm),
-                               ("--heading-noise", "crbm", fx.crbm), ("--latent-noise", "gpdm", fx.gpdm),
-                               ("--root-noise", "gpdm", fx.gpdm), ("--robust-fraction", "crbm", fx.crbm),
+                               ("--height-spread", "crbm", fx.crbm), ("--latent-noise", "gpdm", fx.gpdm),
+                               ("--root-noise", "gpdm", fx.gpdm), ("--posture-gain", "crbm", fx.crbm),
                                ("--sharpness", "zero-velocity", None), ("--prior-scale", "zero-velocity", None)):
         d = fx.case_dir()
         extra = ("--model", str(model)) if model else ()
