@@ -215,6 +215,6 @@ def test_seconds_per_frame_is_measured_whatever_is_recorded(synthetic_walk, rand
 
     tracker.set_threads(1)
     for record in (("ess", "particles", "weights"), {"ess": lambda step: step.ess}):
-        result = tracker.track(synthetic_walk, "zero-velocity", particles=50, frames=4, seed=0, annealing_layers=1,
+        result = tracker.track(synthetic_walk.root, "zero-velocity", particles=50, frames=4, seed=0, annealing_layers=1,
                                step_std=random_walk_std, record=record)
         assert result.seconds_per_frame > 0 and result.to_dict()["seconds_per_frame"] > 0

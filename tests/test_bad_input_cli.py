@@ -85,7 +85,7 @@ def test_refusals_found_while_tracking_starts_come_before_the_progress_bar(seq, 
     init = tmp_path / "init.npz"
     np.savez(init, poses=np.zeros((2, 1)))
     one_line_refusal(*run_cli(_track(seq, tmp_path, "--init", str(init)), capsys), "init.npz", "poses must have shape")
-    one_line_refusal(*run_cli(_track(seq, tmp_path, "--known-frames", "1000"), capsys), "--known-frames 1000",
+    one_line_refusal(*run_cli(_track(seq, tmp_path, "--known-frames", "1000"), capsys), "known frames 1000",
                      "the run has 3 frame(s) and 3 of them would be known")
     assert not (tmp_path / "out" / "estimates.npz").exists()
 

@@ -30,7 +30,7 @@ from data_tools.synth import SynthConfig, synthesize as render_sequence
 from tracker.app.plugins import load_plugins
 from tracker.app.threads import configured_threads
 from tracker.app.tracking import (
-    TrackingInterrupted, TrackingResult, check_views, run_tracking, seed_description,
+    TrackingInterrupted, TrackingResult, check_frames, check_views, run_tracking, seed_description,
 )
 from tracker.core.arrays import torch_device
 from tracker.core.errors import InputError
@@ -263,11 +263,8 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     """
     seq = sequence if isinstance(sequence, Sequence) else load_sequence(sequence)
     views = check_views(views, seq.n_views, seq.root)
-    if isinstance(known_frames, bool) or not isinstance(known_frames, (int, np.integer)) or known_frames < 1:
-        raise InputError(f"known_frames must be an integer of at least 1, got {known_frames!r}")
+    check_frames(seq, frames, known_frames, init)  # before anything is built or loaded
     config = FilterConfig(n_particles=particles, resampling=resampling, annealing_layers=annealing_layers).check()
-    if frames is not None and not 1 <= int(frames) <= seq.n_frames:
-        raise InputError(f"frames {frames} is outside 1..{seq.n_frames} (the sequence's length)", seq.root)
     rng = make_rng(seed)
     if isinstance(prior, str):
         prior_obj = build_prior(prior, seq, models, train_mocap=train_mocap, step_std=step_std, device=device,

@@ -125,12 +125,19 @@ class TrackingResult:
         }
 
     def save(self, out: str | Path) -> dict[str, Any]:
-        """Write ``OUT/result.json`` and ``OUT/estimates.npz`` (each atomically); returns the JSON content."""
+        """Write ``OUT/result.json`` and ``OUT/estimates.npz`` (each atomically), and for a prior with a per-frame
+        summary (a style posterior, a pace) ``OUT/prior_summary.png``; returns the JSON content."""
         out = Path(out)
         result = self.to_dict()
         with atomic_path(out / "estimates.npz") as tmp:
             write_estimates(tmp, self.poses, self.markers, self.best_poses)
         write_text_atomic(out / "result.json", json.dumps(result, indent=1))
+        if self.prior_summary is not None:
+            from tracker.app.visualize import summary_plot
+
+            kind = "posterior" if self.summary_kind == "posterior" else "posterior mean"
+            summary_plot(out / "prior_summary.png", self.prior_summary,
+                         f"{self.settings.get('prior', 'prior')}: {kind} per frame")
         return result
 
 
@@ -159,6 +166,25 @@ def known_start(seq: Sequence, n_known: int, init: np.ndarray | None = None) -> 
     if seq.initial_poses is not None:
         return seq.initial_poses[-n_known:], 0
     raise InputError("no ground truth and no initial pose: give initial poses (--init)", seq.root)
+
+
+def check_frames(seq: Sequence, n_frames: int | None, n_known: int, init: np.ndarray | None = None
+                 ) -> tuple[int, np.ndarray, int]:
+    """The frames a run tracks, checked: ``(T, known, n0)``, the run's length (``n_frames``, default the whole
+    sequence) and the known start (:func:`known_start`). A length outside the sequence, a ``known_frames`` that is
+    not a positive integer, or known frames that leave nothing to track are an :class:`InputError`."""
+    if isinstance(n_known, bool) or not isinstance(n_known, (int, np.integer)) or n_known < 1:
+        raise InputError(f"known frames must be an integer of at least 1, got {n_known!r}")
+    T = seq.n_frames if n_frames is None else n_frames
+    if isinstance(T, bool) or not isinstance(T, (int, np.integer)) or T < 1:
+        raise InputError(f"frames must be an integer of at least 1, got {n_frames!r}", seq.root)
+    if T > seq.n_frames:
+        raise InputError(f"frames {T} is past the end of the sequence ({seq.n_frames} frames)", seq.root)
+    known, n0 = known_start(seq, n_known, init)
+    if n0 >= T:
+        raise InputError(f"known frames {n_known} leave nothing to track: the run has {T} frame(s) and {n0} of them "
+                         "would be known", seq.root)
+    return int(T), known, n0
 
 
 def check_views(views: Iterable[int] | None, n_views: int, source=None) -> list[int]:
@@ -212,12 +238,7 @@ def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, conf
     from tracker.app.threads import configured_threads
     from tracker.engine.recording import Recording
 
-    T = seq.n_frames if n_frames is None else int(n_frames)
-    if not 1 <= T <= seq.n_frames:
-        raise InputError(f"frames {n_frames} is outside 1..{seq.n_frames} (the sequence's length)", seq.root)
-    known, n0 = known_start(seq, n_known, init)
-    if n0 >= T:
-        raise InputError(f"nothing to track: {n0} known frame(s) and only {T} frame(s) requested", seq.root)
+    T, known, n0 = check_frames(seq, n_frames, n_known, init)
     gt = seq.groundtruth
     # The result needs the estimates and each frame's wall time (seconds_per_frame) whatever else is recorded.
     if isinstance(record, Mapping):

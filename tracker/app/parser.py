@@ -1,0 +1,348 @@
+"""The command line's arguments: the parser of ``python -m tracker`` (the contract: README, "Commands").
+
+Each command's own flags are declared here; the flags of the priors and likelihoods come from the registries,
+for the prior (and likelihood) a command line names: ``track --prior crbm --help`` shows the CRBM's options
+and no other prior's, and ``track --help`` lists the priors with one line each. A flag of another plugin than
+the one named is refused in one line (:func:`parse_arguments`).
+"""
+from __future__ import annotations
+
+import argparse
+import textwrap
+from typing import Sequence
+
+import numpy as np
+
+from data_tools.checks import MAX_FPS, MAX_IMAGE_SIDE, MAX_MM_PER_UNIT, MAX_VIEWS, MIN_FPS, MIN_MM_PER_UNIT
+from tracker.app.api import (
+    TRACK_ANNEALING_LAYERS, available_likelihoods, available_priors, likelihood_entry, prior_entry,
+)
+from tracker.core.errors import InputError
+from tracker.engine.registry import Option
+from tracker.engine.resampling import SCHEMES
+
+
+def _number(kind: type, minimum: float, strict: bool, maximum: float | None = None, strict_max: bool = False):
+    """An argparse type: ``kind`` (int or float), finite, above (``strict``) or at least ``minimum``, and below
+    (``strict_max``) or at most ``maximum`` when given; the message gives the range."""
+    noun = "an integer" if kind is int else "a number"
+    bound = f"greater than {minimum:g}" if strict else f"at least {minimum:g}"
+    if maximum is not None:
+        bound += f" and {'less than' if strict_max else 'at most'} {maximum if kind is int else format(maximum, 'g')}"
+
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {noun}, got {text!r}") from None
+        if (kind is float and not np.isfinite(value)) or value < minimum or (strict and value == minimum) \
+                or (maximum is not None and (value > maximum or (strict_max and value == maximum))):
+            raise argparse.ArgumentTypeError(f"must be {bound}, got {text}")
+        return value
+
+    return parse
+
+
+_positive_float = _number(float, 0.0, strict=True)
+_non_negative_float = _number(float, 0.0, strict=False)
+_positive_int = _number(int, 1, strict=False)
+_non_negative_int = _number(int, 0, strict=False)
+#: Plausible ranges of the command-line values that size arrays or scale arithmetic (the API checks its own).
+_seed = _number(int, 0, strict=False, maximum=2 ** 63 - 1)
+_fps = _number(float, MIN_FPS, strict=False, maximum=MAX_FPS)
+_length_unit = _number(float, MIN_MM_PER_UNIT, strict=False, maximum=MAX_MM_PER_UNIT)
+_image_side = _number(int, 1, strict=False, maximum=MAX_IMAGE_SIDE)
+_views = _number(int, 1, strict=False, maximum=MAX_VIEWS)
+#: Particles and annealing layers: far beyond any run (Taylor 2009 uses 200-1000 particles; Deutscher & Reid
+#: 10 layers), and a million particles already take gigabytes per frame.
+_particles = _number(int, 1, strict=False, maximum=1_000_000)
+_layers = _number(int, 1, strict=False, maximum=100)
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with exit status 2 and a one-line message for usage errors."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
+    """The parser; the prior and likelihood that ``argv`` names (``--prior``, ``--likelihood``) bring their own
+    flags to ``train`` and ``track``."""
+    from tracker import __version__
+
+    p = _Parser(prog="python -m tracker",
+                description="3D human pose tracking with learned dynamical priors.")
+    p.add_argument("--version", action="version", version=f"pose-tracker {__version__}")
+    p.add_argument("--plugin", action="append", default=[], metavar="MODULE_OR_FILE",
+                   help="import a module (or .py file) that registers priors or likelihoods; repeatable")
+    p.add_argument("--threads", type=_positive_int, default=None,
+                   help="threads for numpy/BLAS, OpenCV and torch (default: the cores available to the process)")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    plugin_flag = argparse.ArgumentParser(add_help=False)  # --plugin is read before parsing; accepted anywhere
+    plugin_flag.add_argument("--plugin", action="append", default=argparse.SUPPRESS, metavar="MODULE_OR_FILE",
+                             help=argparse.SUPPRESS)
+    sub.required = True
+
+    c = sub.add_parser("convert", parents=[plugin_flag], help="convert a mocap clip (AMC+ASF or BVH) to body-model poses and markers",
+                       description="Retarget a mocap clip to the 15-cone body model and write CLIP.npz with "
+                                   "poses, markers (ground truth), model_markers, fps and the body shape.")
+    c.add_argument("--mocap", required=True, help="motion file: .amc (CMU ASF/AMC) or .bvh")
+    c.add_argument("--skeleton", help="ASF skeleton for an .amc file (default: <subject>.asf beside it)")
+    c.add_argument("--fps", type=_fps, default=60.0, help="output frame rate in Hz (default 60)")
+    c.add_argument("--length-unit", type=_length_unit, default=None, metavar="MM",
+                   help="BVH only: millimetres per file unit (default: inferred from the skeleton's height)")
+    c.add_argument("--out", required=True, help="output .npz")
+
+    s = sub.add_parser("synth", parents=[plugin_flag], help="render a mocap clip into a synthetic multi-view sequence",
+                       description="Retarget a mocap clip, render it into a calibrated rig over a cluttered room "
+                                   "and write the sequence folder (cameras.json, images/, background/, "
+                                   "groundtruth.npz, meta.json).")
+    s.add_argument("--mocap", required=True, help="motion file: .amc (CMU ASF/AMC) or .bvh")
+    s.add_argument("--skeleton", help="ASF skeleton for an .amc file (default: <subject>.asf beside it)")
+    s.add_argument("--out", required=True, help="output sequence folder")
+    s.add_argument("--views", type=_views, default=4, help="number of cameras (default 4)")
+    s.add_argument("--fps", type=_fps, default=60.0, help="frame rate in Hz (default 60)")
+    s.add_argument("--start", type=_non_negative_int, default=0, help="first frame, at the output rate (default 0)")
+    s.add_argument("--frames", type=_positive_int, default=None, help="number of frames (default: to the end)")
+    s.add_argument("--seed", type=_seed, default=0,
+                   help="random seed: scene, clothing, widths, noise (default 0)")
+    s.add_argument("--width", type=_image_side, default=640, help="image width in pixels (default 640)")
+    s.add_argument("--height", type=_image_side, default=480, help="image height in pixels (default 480)")
+    s.add_argument("--noise", type=_number(float, 0.0, strict=False, maximum=255.0), default=2.0,
+                   help="sensor noise std in grey levels of 255 (default 2)")
+    s.add_argument("--lighting-change", type=_number(float, -0.9, strict=True, maximum=2.0, strict_max=True),
+                   default=0.0, metavar="FRACTION",
+                   help="brightness drifts from 1 to 1+FRACTION over the sequence (default 0)")
+    s.add_argument("--occluder", action="store_true", help="put a pillar between camera 0 and the person")
+    s.add_argument("--missing-camera", type=_non_negative_int, default=None, metavar="INDEX",
+                   help="this camera delivers only black frames")
+    s.add_argument("--turn", type=_number(float, -360.0, strict=False, maximum=360.0), default=0.0,
+                   metavar="DEGREES", help="turn the whole clip about the vertical axis, so the person moves in "
+                                           "another direction through the rig (default 0)")
+    s.add_argument("--length-unit", type=_length_unit, default=None, metavar="MM",
+                   help="BVH only: millimetres per file unit (default: inferred)")
+    s.add_argument("--overwrite", action="store_true", help="replace a non-empty output folder")
+    s.add_argument("--then", metavar="FILE", help="a second clip the person changes to (e.g. a run after a walk): "
+                                                 "cross-faded into at --switch-at")
+    s.add_argument("--then-skeleton", metavar="ASF", help="ASF skeleton of --then (default: <subject>.asf beside it)")
+    s.add_argument("--switch-at", type=_positive_int, default=None, metavar="FRAME",
+                   help="with --then: the frame (output rate, before --start) where the second clip has taken over")
+    s.add_argument("--fade", type=_positive_int, default=12, metavar="FRAMES",
+                   help="with --then: frames of the cross-fade before --switch-at (default 12)")
+
+    w = sub.add_parser("show", parents=[plugin_flag], help="draw the projected body model over every view of a sequence frame",
+                       description="Draw the projected cones (ground truth, the initial pose, or --poses) over "
+                                   "every camera view in one grid image, or a whole sequence as a video.")
+    w.add_argument("sequence", metavar="DIR", help="sequence folder (own layout or PARSEC bodytrack)")
+    w.add_argument("--frame", type=_non_negative_int, default=0, help="frame to draw (default 0)")
+    w.add_argument("--poses", help="estimates.npz (poses T x D) to draw instead of the ground truth")
+    w.add_argument("--out", help="output image (.png)")
+    w.add_argument("--video", help="also write every frame to this video (.mp4)")
+
+    r = sub.add_parser("train", parents=[plugin_flag], help="train a learned motion prior on mocap clips",
+                       description="Retarget the clips (any subjects, each with its own skeleton) to the 15-cone "
+                                   "model at --fps, convert them to the invariant representation and train the "
+                                   "prior; the model file keeps its normalisation statistics and the data settings "
+                                   "it was trained with.")
+    trainable = [n for n in available_priors() if prior_entry(n).train is not None]
+    r.formatter_class = argparse.RawDescriptionHelpFormatter
+    r.usage = "%(prog)s --prior NAME --mocap FILE [FILE ...] --out MODEL [options]"
+    r.description = _wrapped(r.description)
+    if _chosen(argv, "--prior") not in trainable:
+        r.description += "\n\n" + _catalogue("learned priors", trainable, "train")
+    r.add_argument("--prior", required=True, choices=trainable, metavar="NAME", help="which prior to train")
+    r.add_argument("--mocap", required=True, nargs="+", metavar="FILE", help="training clips (.amc or .bvh)")
+    r.add_argument("--skeleton", nargs="+", metavar="ASF",
+                   help="ASF skeleton(s): one for all .amc clips or one per clip (default: <subject>.asf beside each)")
+    r.add_argument("--fps", type=_fps, default=60.0, help="frame rate of the training data (default 60)")
+    r.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
+    r.add_argument("--resume", action="store_true",
+                   help="continue an interrupted training from OUT.checkpoint (same arguments as before)")
+    r.add_argument("--out", required=True, help="output model file (.pt)")
+    _check_clashes(r, {f"prior {n}": prior_entry(n).train_options for n in trainable})
+    chosen = _chosen(argv, "--prior")
+    if chosen in trainable:
+        _plugin_group(r, f"training options of the {chosen} prior", prior_entry(chosen).train_options)
+
+    t = sub.add_parser("track", parents=[plugin_flag], help="track a person through a sequence with a particle filter",
+                       description="Track a sequence (our layout or PARSEC bodytrack) with an SIR particle filter "
+                                   "and an image likelihood; writes OUTDIR/result.json and OUTDIR/estimates.npz.")
+    t.add_argument("sequence", metavar="DIR", nargs="?", help="sequence folder")
+    t.add_argument("--prior", choices=available_priors(), metavar="NAME",
+                   help="motion prior (required; the list above)")
+    t.add_argument("--model", nargs="+", metavar="MODEL",
+                   help="trained prior model(s); for crbm several orders (e.g. 1 and 3) grow the history")
+    t.add_argument("--likelihood", default="edge-silhouette", choices=available_likelihoods(), metavar="NAME",
+                   help="image likelihood (default edge-silhouette)")
+    t.add_argument("--particles", type=_particles, default=1000, help="number of particles (default 1000)")
+    t.add_argument("--views", default=None, help="comma-separated camera indices (default: all)")
+    t.add_argument("--frames", type=_positive_int, default=None,
+                   help="track frames 0..N-1 (default: the whole sequence)")
+    t.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
+    t.add_argument("--annealing-layers", type=_layers, default=TRACK_ANNEALING_LAYERS,
+                   help=f"annealed layers per frame (default {TRACK_ANNEALING_LAYERS}; 1 is plain SIR)")
+    t.add_argument("--resampling", default="systematic", choices=list(SCHEMES),
+                   help="resampling scheme (default systematic)")
+    t.add_argument("--init", help="POSES.npz whose 'poses' are the known first frames (default: ground truth, or "
+                                  "the bodytrack InitialPose.txt)")
+    t.add_argument("--known-frames", type=_positive_int, default=2,
+                   help="known frames the filter starts from (default 2, as in Taylor 2009)")
+    t.add_argument("--train-mocap", nargs="+", default=None, metavar="FILE",
+                   help="mocap clips whose frame-to-frame changes set the random-walk scale (default: the shipped "
+                        "subject-7 walks 07_01 and 07_02); bodytrack folders use PoseParameters.txt")
+    t.add_argument("--device", default="cpu", metavar="DEVICE",
+                   help="where particles are scored: cpu (default: the numpy path) or cuda, cuda:N (the GPU path: "
+                        "the likelihood's kinematics, projection and image lookups, and the CRBM family's sampling)")
+    t.add_argument("--out", help="output folder (required)")
+    t.add_argument("--video", help="also write an overlay video of the estimates (.mp4)")
+    t.add_argument("--checkpoint-every", type=_non_negative_int, default=25, metavar="K",
+                   help="save the filter's state to OUTDIR/checkpoint.npz every K frames (default 25; 0: only "
+                        "on Ctrl-C); removed when the run completes")
+    t.add_argument("--resume", metavar="OUTDIR",
+                   help="continue an interrupted run from OUTDIR/checkpoint.npz with its original settings "
+                        "(give no other arguments)")
+    priors = {f"prior {n}": prior_entry(n).options for n in available_priors()}
+    likelihoods = {f"likelihood {n}": likelihood_entry(n).options for n in available_likelihoods()}
+    shared = {o.name for opts in priors.values() for o in opts} & {o.name for opts in likelihoods.values() for o in opts}
+    if shared:
+        raise InputError(f"a prior and a likelihood both declare the option(s) {', '.join(sorted(shared))}; "
+                         "rename one of them")
+    _check_clashes(t, {**priors, **likelihoods})
+    t.formatter_class = argparse.RawDescriptionHelpFormatter
+    t.usage = "%(prog)s DIR --prior NAME [--model MODEL ...] --out OUTDIR [options]\n       %(prog)s --resume OUTDIR"
+    prior = _chosen(argv, "--prior")
+    t.description = _wrapped(t.description)
+    if prior not in available_priors():  # the catalogue; a named prior's help names no other prior
+        t.description += ("\n\n" + _catalogue("priors", available_priors(), "track") + "\n\n"
+                          + _catalogue("likelihoods", available_likelihoods(), "track", "--likelihood"))
+    else:
+        _plugin_group(t, f"options of the {prior} prior", prior_entry(prior).options)
+    likelihood = _chosen(argv, "--likelihood") or "edge-silhouette"
+    if likelihood in available_likelihoods():
+        _plugin_group(t, f"options of the {likelihood} likelihood", likelihood_entry(likelihood).options)
+
+    e = sub.add_parser("compare", parents=[plugin_flag], help="run an experiment: priors x sequences x settings x seeds, with tables",
+                       description="Run every configuration of an experiment file (TOML; see "
+                                   "tracker/app/experiment.py and benchmarks/experiments/) in parallel, skipping "
+                                   "runs finished before, and write table.md, table.csv and per_frame.png.")
+    e.add_argument("experiment", metavar="EXPERIMENT", help="experiment file (.toml)")
+    e.add_argument("--out", required=True, help="output folder (runs, cached sequences and models, tables)")
+    e.add_argument("--jobs", type=_positive_int, default=1, help="parallel runs (default 1)")
+    e.add_argument("--backend", default="joblib", choices=["joblib", "dask", "ray"],
+                   help="joblib (this machine, default), dask or ray (a local cluster, or --address)")
+    e.add_argument("--address", default=None, help="scheduler address of an existing Dask or Ray cluster")
+
+    d = sub.add_parser("demo", parents=[plugin_flag], help="render, track and score a shipped walk (the built-in default job)",
+                       description="Render 1.5 s of the shipped CMU walk 07_02 into 4 cameras, train a CRBM on "
+                                   "the other shipped walk, track with the zero-velocity and the CRBM prior (1000 "
+                                   "particles), print both errors and write the error-per-frame plot and an "
+                                   "overlay video.")
+    d.add_argument("--out", default="demo_output", help="output folder (default ./demo_output)")
+    d.add_argument("--frames", type=_number(int, 4, strict=False), default=90,
+                   help="frames to render and track (default 90: 1.5 s)")
+    return p
+
+
+def _option_type(option: Option):
+    """The argparse type of a plugin option: the conversion only (ranges are checked per plugin)."""
+    def parse(text: str):
+        try:
+            return option.parse(text, option.flag)
+        except InputError as exc:
+            raise argparse.ArgumentTypeError(exc.reason) from None
+    return parse if option.type is not str else str
+
+
+def _wrapped(text: str) -> str:
+    return textwrap.fill(text, 79)
+
+
+def _catalogue(kind: str, names: Sequence[str], command: str, flag: str = "--prior") -> str:
+    """One line per registered plugin, and how to see one's own options."""
+    summaries = {n: (prior_entry(n) if flag == "--prior" else likelihood_entry(n)).summary for n in names}
+    width = max(len(n) for n in names) + 2
+    lines = [f"{kind} ({command} {flag} NAME --help shows one's own options):"]
+    for name, summary in summaries.items():
+        body = textwrap.wrap(summary or "", 79 - width - 2) or [""]
+        lines.append(f"  {name:<{width}}{body[0]}")
+        lines += [" " * (width + 2) + more for more in body[1:]]
+    return "\n".join(lines)
+
+
+def _chosen(argv: Sequence[str], flag: str) -> str | None:
+    """The value ``argv`` gives ``flag`` (``--prior crbm`` or ``--prior=crbm``), or None."""
+    argv = list(argv)
+    for i, a in enumerate(argv):
+        if a == flag and i + 1 < len(argv):
+            return argv[i + 1]
+        if a.startswith(flag + "="):
+            return a.split("=", 1)[1]
+    return None
+
+
+def _flags(option: Option) -> list[str]:
+    return [option.flag] + (["--no-" + option.flag[2:]] if option.type is bool else [])
+
+
+def _check_clashes(parser: argparse.ArgumentParser, declared: dict[str, tuple[Option, ...]]) -> None:
+    """Refuse a plugin option whose flag the command already has."""
+    taken = set(parser._option_string_actions)  # the command's own flags
+    for options in declared.values():
+        for o in options:
+            if o.flag in taken:
+                raise InputError(f"plugin option {o.flag} clashes with a flag of the {parser.prog.split()[-1]} "
+                                 "command; rename the option")
+
+
+def _plugin_group(parser: argparse.ArgumentParser, title: str, options: Sequence[Option]) -> None:
+    """The options of one plugin as a group of flags (default None: "not given"; the plugin applies its own)."""
+    group = parser.add_argument_group(title)
+    for o in options:
+        if o.type is bool:  # --flag and --no-flag: a setting that is on by default can be turned off
+            group.add_argument(o.flag, dest=o.name, action=argparse.BooleanOptionalAction, default=None,
+                               help=o.described())
+        else:
+            group.add_argument(o.flag, dest=o.name, type=_option_type(o), default=None, metavar=o.name.upper(),
+                               help=o.described())
+
+
+def given_options(args: argparse.Namespace, declared: Sequence[Option]) -> dict:
+    """The options of one plugin set on the command line (or in a resumed run's saved arguments)."""
+    return {o.name: getattr(args, o.name) for o in declared if getattr(args, o.name, None) is not None}
+
+
+def _refuse_foreign_flags(argv: Sequence[str]) -> None:
+    """A flag of a prior or likelihood that the command line does not name is refused in one line."""
+    if not argv or argv[0] not in ("train", "track"):
+        return
+    command = argv[0]
+    prior, likelihood = _chosen(argv, "--prior"), _chosen(argv, "--likelihood") or "edge-silhouette"
+    owners: dict[str, list[str]] = {}
+    for name in available_priors():
+        entry = prior_entry(name)
+        for o in (entry.train_options if command == "train" else entry.options):
+            for flag in _flags(o):
+                owners.setdefault(flag, []).append(f"prior {name}")
+    if command == "track":
+        for name in available_likelihoods():
+            for o in likelihood_entry(name).options:
+                for flag in _flags(o):
+                    owners.setdefault(flag, []).append(f"likelihood {name}")
+    mine = {f"prior {prior}", f"likelihood {likelihood}"}
+    for token in argv[1:]:
+        flag = token.split("=", 1)[0]
+        if flag in owners and not mine & set(owners[flag]):
+            if prior is None:
+                raise InputError(f"{flag} is an option of {', '.join(owners[flag])}: name the prior with --prior")
+            raise InputError(f"{flag} does not apply to prior {prior}"
+                             + ("" if command == "train" else f" or likelihood {likelihood}"))
+
+
+def parse_arguments(argv: Sequence[str]) -> argparse.Namespace:
+    """The parsed command line (plugins already imported); usage errors exit with status 2 and one line."""
+    argv = list(argv)
+    command = next((i for i, a in enumerate(argv) if a in ("train", "track")), None)
+    if command is not None:
+        _refuse_foreign_flags(argv[command:])
+    return build_parser(argv).parse_args(argv)
