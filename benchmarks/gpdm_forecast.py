@@ -24,6 +24,7 @@ sys.path.insert(0, str(REPO))
 
 from data_tools.asf_amc import asf_amc_clip  # noqa: E402
 from data_tools.retarget import retarget  # noqa: E402
+from priors.gpdm_predict import prepare  # noqa: E402
 from priors.gpdm_model import GPDMConfig  # noqa: E402
 from priors.gpdm_training import train_gpdm
 from tracker.core.body import DOF_NAMES  # noqa: E402
@@ -46,7 +47,7 @@ def main() -> None:
         t0 = time.perf_counter()
         m = train_gpdm(Y[:TRAIN], [TRAIN], GPDMConfig(dynamics=dyn, iterations=300))
         secs = time.perf_counter() - t0
-        p = m.prepare()
+        p = prepare(m)
         models[dyn] = p
         cur = p.project(torch.tensor(Y[starts]))
         truth = torch.tensor(Y[starts + AHEAD])

@@ -37,6 +37,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from data_tools.load import load_training_clips  # noqa: E402
+from priors.gpdm_predict import prepare  # noqa: E402
 from priors.parts import HeightOffset  # noqa: E402
 from priors.gpdm_model import SPARSE_METHODS, GPDMConfig  # noqa: E402
 from priors.gpdm import GPDMPrior
@@ -53,7 +54,7 @@ AHEAD, PARTICLES = 8, 1000
 
 def forecast(model, Y_test: np.ndarray, joints: list[int], joint_std: np.ndarray) -> dict:
     """8-frame-ahead mean-prediction errors from every start of the normalised test features."""
-    p = model.prepare()
+    p = prepare(model)
     starts = np.arange(len(Y_test) - AHEAD)
     x = p.project(torch.tensor(Y_test[starts]))
     with torch.no_grad():

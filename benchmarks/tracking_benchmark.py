@@ -84,7 +84,7 @@ def crbm_tracking(tmp: Path) -> None:
     seq = read_sequence(tmp / "walk")
     for steps, layers in ((30, 1), (GIBBS_STEPS, 1), (GIBBS_STEPS, TRACK_ANNEALING_LAYERS)):
         runs = [track(seq, "crbm", models=[tmp / "crbm3.pt"], particles=1000, seed=seed, annealing_layers=layers,
-                      prior_options={"gibbs_steps": steps}) for seed in range(3)]
+                      gibbs_steps=steps) for seed in range(3)]
         per_frame = np.median([r.seconds_per_frame for r in runs])
         wait = np.median([np.median(r.records["load_seconds"] + r.records["observe_seconds"]) for r in runs])
         filt = np.median([np.median(r.records["filter_seconds"]) for r in runs])

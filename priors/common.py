@@ -3,9 +3,10 @@
 and the torch generator each sample draws from. The per-particle parts of the priors are :mod:`priors.parts`."""
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, ClassVar, Sequence
+from typing import TYPE_CHECKING, Callable, ClassVar, Sequence
 
 import numpy as np
 
@@ -114,6 +115,21 @@ def check_model_fits(kind: str, trained: tuple[str, Sequence[str], float], body_
         problems.append(f"{fps:g} fps (trained at {t_fps:g} fps; velocities are per frame)")
     if problems:
         raise InputError(f"{kind} model does not fit this sequence: " + "; ".join(problems), source)
+
+
+def loaded(item, load: Callable, model_type: type, kind: str, **load_args):
+    """A prior's model given as a file (read by ``load``) or as the trained ``model_type`` object that ``train``
+    returns; anything else is an :class:`InputError`."""
+    if isinstance(item, model_type):
+        return item
+    if isinstance(item, (str, os.PathLike)):
+        return load(item, **load_args)
+    raise InputError(f"a {kind} model is a model file or a trained {kind} model, got {type(item).__name__}")
+
+
+def source_of(item) -> Path | None:
+    """The file a model came from, for messages (None for a model given in memory)."""
+    return Path(item) if isinstance(item, (str, os.PathLike)) else None
 
 
 def gibbs_steps_option(default: int) -> Option:

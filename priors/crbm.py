@@ -14,7 +14,7 @@ from typing import Sequence
 import numpy as np
 import torch
 
-from priors.common import gibbs_steps_option
+from priors.common import gibbs_steps_option, loaded, source_of
 from priors.conditional import ConditionalPrior
 from priors.crbm_file import load_crbm
 from priors.crbm_model import CRBM, CRBMModel
@@ -138,9 +138,9 @@ PACE_OPTIONS = tuple(replace(o, default=None, default_note=f"{o.default:g}") for
 def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> CRBMPrior | EnsemblePrior:
     """The CRBM prior of ``model_files``: models of increasing order grow the history; several files all of one
     order (each with the growth models it carries) form an ensemble, each drawing its share of the particles."""
-    models = [load_crbm(m, device=context.device) for m in model_files]
-    for path, m in zip(model_files, models):
-        m.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, path)
+    models = [loaded(m, load_crbm, CRBMModel, "CRBM", device=context.device) for m in model_files]
+    for given, m in zip(model_files, models):
+        m.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, source_of(given))
 
     def prior(of: list[CRBMModel]) -> CRBMPrior:
         parts = learned_parts(options, paced=of[0].pace_label is not None)

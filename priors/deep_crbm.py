@@ -31,7 +31,7 @@ from typing import Callable, ClassVar, Sequence
 import numpy as np
 import torch
 
-from priors.common import gibbs_steps_option, read_model_file, torch_generator, torch_save_atomic
+from priors.common import gibbs_steps_option, loaded, read_model_file, source_of, torch_generator, torch_save_atomic
 from priors.contrastive import ContrastiveConfig, finish_epoch, minibatches, momentum_step, window_index
 from priors.crbm import CRBMPrior, learned_parts
 from priors.crbm_file import model_from_document
@@ -293,6 +293,7 @@ DEEP_TRAIN_OPTIONS = tuple(o for o in CRBM_TRAIN_OPTIONS if o.name not in ("chec
     model_files="one", train=train_deep_crbm_prior, train_options=DEEP_TRAIN_OPTIONS,
     options=(gibbs_steps_option(30), *GroundDiffusion.OPTIONS, *HeightOffset.OPTIONS, *PostureOffset.OPTIONS))
 def build_deep_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> DeepCRBMPrior:
-    model = load_deep_crbm(model_files[0], device=context.device)
-    model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, model_files[0])
+    model = loaded(model_files[0], load_deep_crbm, DeepCRBMModel, "deep CRBM", device=context.device)
+    model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps,
+                           source_of(model_files[0]))
     return DeepCRBMPrior(model, options["gibbs_steps"], device=context.device, **learned_parts(options, paced=False))

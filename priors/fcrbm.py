@@ -16,7 +16,7 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
-from priors.common import gibbs_steps_option
+from priors.common import gibbs_steps_option, loaded, source_of
 from priors.conditional import ConditionalPrior
 from priors.crbm_training import CRBM_TRAIN_OPTIONS, growth_orders, parse_history_noise
 from priors.fcrbm_model import (
@@ -285,8 +285,9 @@ FCRBM_TRAIN_OPTIONS = (
                     f"to 1/T when the labels are weighed (default {STYLE_TEMPERATURE:g})", minimum=1.0,
                     maximum=1e6)))
 def build_fcrbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> FCRBMPrior:
-    model = load_fcrbm(model_files[0], device=context.device)
-    model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, model_files[0])
+    model = loaded(model_files[0], load_fcrbm, FCRBMModel, "FCRBM", device=context.device)
+    model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps,
+                           source_of(model_files[0]))
     return FCRBMPrior([model], options["gibbs_steps"], device=context.device,
                       ground=GroundDiffusion(options["root_noise"]), style_switch=options["style_switch"],
                       style=options["style"], style_inference=options["style_inference"],

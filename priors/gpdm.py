@@ -9,13 +9,13 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
-from priors.common import read_model_file, torch_save_atomic
+from priors.common import loaded, read_model_file, source_of, torch_save_atomic
 from priors.gpdm_model import (
     AUTO_INDUCING, CHECKPOINT_FORMAT, DYNAMICS, EXACT_MAX_FRAMES, GPDM, MAX_LATENT_NOISE, GPDMConfig,
 )
+from priors.gpdm_predict import prepare
 from priors.gpdm_training import (
-    GPDMCheckpoint, GPDMPriorModel, gpdm_document, gpdm_from_document, load_gpdm_prior,
-    train_gpdm_prior,
+    GPDMCheckpoint, GPDMPriorModel, gpdm_document, gpdm_from_document, load_gpdm_prior, train_gpdm_prior,
 )
 from priors.parts import GroundDiffusion, HeightOffset, shift_height
 from tracker.core.errors import InputError
@@ -57,7 +57,7 @@ class GPDMPrior(MotionPrior):
         if self.height is not None:
             self.summary_names, self.summary_kind = (HeightOffset.SUMMARY,), "quantity"
         self.model = model
-        self.predictor = model.gpdm.prepare()
+        self.predictor = prepare(model.gpdm)
         self.sampler = self.predictor.sampler(dtype)
         self.latent_order = model.gpdm.config.order
         self.noise_scale = float(noise_scale)
@@ -194,12 +194,13 @@ GPDM_TRAIN_OPTIONS = (
              replace(HeightOffset.OPTIONS[0], default=HEIGHT_SPREAD),
              HeightOffset.OPTIONS[1]))
 def build_gpdm(context: PriorContext, model_files: Sequence[Path], options: dict) -> GPDMPrior:
-    model = load_gpdm_prior(model_files[0])
-    model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, model_files[0])
+    model = loaded(model_files[0], load_gpdm_prior, GPDMPriorModel, "GPDM")
+    model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps,
+                           source_of(model_files[0]))
     try:
         return GPDMPrior(model, options["latent_noise"], ground=GroundDiffusion(options["root_noise"]),
                          height=HeightOffset(options["height_spread"], options["height_drift"]))
     except InputError as exc:  # a kernel matrix of the file's hyperparameters that is not positive definite
         if exc.path is not None:
             raise
-        raise InputError(f"GPDM model file: {exc.reason}", model_files[0]) from None
+        raise InputError(f"GPDM model: {exc.reason}", source_of(model_files[0])) from None

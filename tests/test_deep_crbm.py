@@ -133,7 +133,7 @@ def test_train_and_track_through_the_api_and_the_cli(walk_32_frames, tmp_path, c
     assert "second layer order 2" in model.summary()
     model.save(tmp_path / "d.pt")
     res = tracker.track(walk_32_frames, "deep-crbm", models=[tmp_path / "d.pt"], particles=40, frames=6, seed=0,
-                        prior_options={"gibbs_steps": 4})
+                        gibbs_steps=4)
     assert res.prior_per_frame == [{"first": 2, "last": 2, "model": "crbm order 1"},
                                    {"first": 3, "last": 5, "model": "deep crbm order 1+2"}]
     assert main(["train", "--prior", "deep-crbm", "--mocap", *map(str, files), "--skeleton", str(asf), "--order",

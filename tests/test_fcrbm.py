@@ -252,9 +252,9 @@ def test_train_and_track_through_the_api(s2, walk_32_frames, tmp_path):
     assert [g.order for g in model.growth] == [1] and "labels walk, run" in model.summary()
     model.save(tmp_path / "f.pt")
     res = tracker.track(walk_32_frames, "fcrbm", models=[tmp_path / "f.pt"], particles=60, frames=6, seed=0,
-                        prior_options={"gibbs_steps": 5})
+                        gibbs_steps=5)
     again = tracker.track(walk_32_frames, "fcrbm", models=[tmp_path / "f.pt"], particles=60, frames=6, seed=0,
-                          prior_options={"gibbs_steps": 5})
+                          gibbs_steps=5)
     assert np.array_equal(res.poses, again.poses)
     out = res.save(tmp_path / "run")
     summary = json.loads((tmp_path / "run" / "result.json").read_text())["prior_summary"]

@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 import torch
 
+from priors.gpdm_predict import prepare
 from priors.parts import GroundDiffusion, HeightOffset
 
 from priors.gpdm_model import GPDM, GPDMConfig
@@ -57,7 +58,7 @@ def test_objective_decreases_during_training(trained):
 
 
 def test_mean_prediction_stays_on_a_stable_cycle(trained):
-    p = trained.prepare()
+    p = prepare(trained)
     X = trained.X.detach()
     traj = p.simulate(X[:1], 500)
     lo, hi = X.min(0).values, X.max(0).values
@@ -76,7 +77,7 @@ def test_save_load_round_trip(trained, tmp_path):
     save_gpdm(tmp_path / "g.pt", trained, {"fps": 60.0})
     loaded, extra = load_gpdm(tmp_path / "g.pt")
     assert extra == {"fps": 60.0}
-    a, b = trained.prepare(), loaded.prepare()
+    a, b = prepare(trained), prepare(loaded)
     x = trained.X.detach()[10:15]
     assert torch.allclose(a.predict_pose(x)[0], b.predict_pose(x)[0])
     assert torch.allclose(a.simulate(x[:1], 20), b.simulate(x[:1], 20))
@@ -225,7 +226,7 @@ def test_sparse_prediction_with_every_frame_inducing_matches_exact(trained):
         sparse.log_alpha.copy_(trained.log_alpha)
         sparse.log_beta.copy_(trained.log_beta)
     sparse.W = trained.W.clone()
-    a, b = trained.prepare(), sparse.prepare()
+    a, b = prepare(trained), prepare(sparse)
     x = trained.X.detach()[::7] + 0.05
     for (m1, v1), (m2, v2) in ((a.predict_latent(x), b.predict_latent(x)), (a.predict_pose(x), b.predict_pose(x))):
         assert torch.allclose(m1, m2, rtol=1e-3, atol=1e-3 * float(m1.abs().max()))
@@ -241,7 +242,7 @@ def test_sparse_model_round_trips_and_old_files_load_exact(two_walks, tmp_path):
     loaded, _ = load_gpdm(tmp_path / "s.pt")
     assert loaded.config.inducing == 40 and torch.equal(loaded.active, m.active)
     x = m.X.detach()[::11]
-    p, q = m.prepare(), loaded.prepare()
+    p, q = prepare(m), prepare(loaded)
     assert torch.equal(p.predict_pose(x)[0], q.predict_pose(x)[0]) and torch.equal(p.simulate(x[:1], 10),
                                                                                        q.simulate(x[:1], 10))
     with torch.no_grad():
@@ -294,7 +295,7 @@ def test_prior_step_batched_equals_looped_and_is_seeded(which, dtype, gpdm_prior
 
 def test_float32_step_agrees_with_float64_prediction(gpdm_prior_model, sparse_prior_model):
     for model in (gpdm_prior_model, sparse_prior_model):
-        p = model.gpdm.prepare()
+        p = prepare(model.gpdm)
         inputs = model.gpdm.X.detach()[::3] + 0.05 * torch.randn(1, 3, generator=torch.Generator().manual_seed(0))
         noise = torch.randn(inputs.shape, generator=torch.Generator().manual_seed(1), dtype=torch.float64)
         x32, pose32 = p.sampler(torch.float32).step(inputs, noise, 1.0)
