@@ -133,6 +133,27 @@ def choose_beta(log_lik: np.ndarray, survival_rate: float, iterations: int = 40)
     return float(np.exp(0.5 * (lo + hi)))
 
 
+@dataclass
+class Proposal:
+    """One frame's proposal: poses ``x`` ``P x D`` drawn by the prior from the histories ``P x N x D``, the
+    prior's next state, and the mixture's components (None: plain SIR)."""
+
+    x: np.ndarray
+    history: np.ndarray
+    prior_state: PriorState
+    mix: Mixture | None
+
+
+@dataclass
+class Weighed(Proposal):
+    """A proposal weighed by the frame (annealed, recovered, mixed): the log-weights and the normalised weights
+    ``(P,)``, and whether no particle explained the frame (the filter re-diffused)."""
+
+    weights: LogWeights = None
+    normalised: np.ndarray = None
+    recovered: bool = False
+
+
 class ParticleFilter:
     """SIR over poses with the prior's order as the augmented-state length."""
 
@@ -171,16 +192,37 @@ class ParticleFilter:
         ``prepared`` is the frame's likelihood already prepared (by a :class:`Prefetcher`); ``load_seconds`` is
         the time spent waiting for the frame (seconds, recorded as its ``load`` time).
         """
-        cfg = self.config
         t0 = time.perf_counter()
         frame_lik = self.likelihood.prepare(frame) if prepared is None else prepared
         t1 = time.perf_counter()
         label = self.prior.label_for(state.available)
+        proposal = self._propose(state)
+        weighed = self._weigh(state, proposal, frame_lik)
+        W = weighed.normalised
+        mean, best, ess = W @ weighed.x, weighed.x[int(np.argmax(W))], effective_sample_size(W)
+        summary = self.prior.summarize(weighed.prior_state, W)
+        new_state, resampled = self._resample(state, weighed, mean)
+        t2 = time.perf_counter()
+        step = FrameStep(index=state.tracked, frame=frame.index, particles=weighed.x, weights=weighed.weights,
+                         mean=mean, best=best, ess=ess, resampled=resampled, recovered=weighed.recovered,
+                         seconds={"load": load_seconds, "observe": 0.0 if prepared is not None else t1 - t0,
+                                  "filter": t2 - t1}, prior_label=label, prior_summary=summary)
+        return new_state, step
+
+    def _propose(self, state: FilterState) -> "Proposal":
+        """Every particle's next pose from the prior, given its own history and state."""
         mix = self._mixture(state.prior_state)
         x, prior_state = self.prior.sample(state.history, state.available, state.prior_state, self.rng)
-        history = state.history
-        ll = evidence = frame_lik(x)  # the components are judged on the prior's own samples, before annealing
-        if cfg.annealing_layers > 1:  # ll becomes the last layer's tempered log-likelihood
+        return Proposal(x, state.history, prior_state, mix)
+
+    def _weigh(self, state: FilterState, proposal: "Proposal", frame_lik: FrameLikelihood) -> "Weighed":
+        """The proposal weighed by the frame: the likelihood of the prior's samples (the mixture's components
+        are judged on these), sharpened through the annealing layers when configured, re-diffused around the
+        last estimate when no particle explains the frame, and within a mixture's components times the
+        components' weights."""
+        x, history, prior_state, mix = proposal.x, proposal.history, proposal.prior_state, proposal.mix
+        ll = evidence = frame_lik(x)
+        if self.config.annealing_layers > 1:  # ll becomes the last layer's tempered log-likelihood
             x, history, prior_state, annealed = self._anneal(x, history, prior_state, ll, frame_lik, mix)
             ll = annealed.log_w
         weights = state.weights.add(ll)  # carried weights: uniform after an annealed frame, unless a mixture's
@@ -188,25 +230,30 @@ class ParticleFilter:
         carried_in = state.weights
         if recovered:
             x, history, weights = self._recover(state, frame_lik)
-            prior_state = self.prior.restart(state.prior_state, state.recent_estimates, cfg.n_particles, self.rng)
+            prior_state = self.prior.restart(state.prior_state, state.recent_estimates, self.config.n_particles,
+                                             self.rng)
             mix = self._mixture(prior_state)
             if mix is not None:  # the components start afresh, each with an equal weight
                 carried_in, ll = mix.start_weights(), weights.log_w
                 evidence = ll
-        if mix is not None:  # mixture tracking: weights within components, times the components' weights
-            W = mixture_weights(carried_in, ll, mix, evidence)
-            if not W.any():  # only the recovery's all-minus-infinity frame gets here: its particles, unweighted
-                W = np.full(len(W), 1.0 / len(W))
-            weights = LogWeights(np.log(W, out=np.full(len(W), -np.inf), where=W > 0))
-        else:
-            W = weights.normalised
-        mean = W @ x
-        best = x[int(np.argmax(W))]
-        ess = effective_sample_size(W)
-        summary = self.prior.summarize(prior_state, W)
-        history = np.concatenate([history[:, 1:], x[:, None]], axis=1)
+        if mix is None:
+            return Weighed(x, history, prior_state, mix, weights, weights.normalised, recovered)
+        W = mixture_weights(carried_in, ll, mix, evidence)  # within components, times the components' weights
+        if not W.any():  # only the recovery's all-minus-infinity frame gets here: its particles, unweighted
+            W = np.full(len(W), 1.0 / len(W))
+        weights = LogWeights(np.log(W, out=np.full(len(W), -np.inf), where=W > 0))
+        return Weighed(x, history, prior_state, mix, weights, W, recovered)
+
+    def _resample(self, state: FilterState, weighed: "Weighed", mean: np.ndarray) -> tuple[FilterState, bool]:
+        """The state the next frame starts from: the histories moved on by the new poses, resampled when due
+        (every annealed frame and every mixture frame, else when the effective sample size falls below the
+        threshold), the prior's state reindexed with them; and whether it resampled."""
+        cfg, W, mix = self.config, weighed.normalised, weighed.mix
+        history = np.concatenate([weighed.history[:, 1:], weighed.x[:, None]], axis=1)
+        prior_state = weighed.prior_state
         recent = np.concatenate([state.recent_estimates[1:], mean[None]])
-        resampled = cfg.annealing_layers > 1 or mix is not None or ess < cfg.ess_threshold * cfg.n_particles
+        resampled = cfg.annealing_layers > 1 or mix is not None or \
+            effective_sample_size(W) < cfg.ess_threshold * cfg.n_particles
         if mix is not None:  # every frame, each component redrawn from all particles (the IMM mixing step)
             idx, carried = resample_components(W, mix, self.rng, self.resample)
             history = history[idx]
@@ -217,16 +264,9 @@ class ParticleFilter:
             prior_state = self.prior.reindex(prior_state, idx)
             carried = LogWeights.uniform(cfg.n_particles)
         else:
-            carried = weights.renormalised()
-        t2 = time.perf_counter()
-        new_state = FilterState(history, prior_state, carried, recent, min(state.available + 1, self.prior.order),
-                                state.tracked + 1)
-        step = FrameStep(index=state.tracked, frame=frame.index, particles=x, weights=weights, mean=mean, best=best,
-                         ess=ess, resampled=bool(resampled), recovered=recovered,
-                         seconds={"load": load_seconds, "observe": 0.0 if prepared is not None else t1 - t0,
-                                  "filter": t2 - t1}, prior_label=label,
-                         prior_summary=summary)
-        return new_state, step
+            carried = weighed.weights.renormalised()
+        available = min(state.available + 1, self.prior.order)
+        return FilterState(history, prior_state, carried, recent, available, state.tracked + 1), bool(resampled)
 
     def _anneal(self, x: np.ndarray, history: np.ndarray, prior_state: PriorState, ll: np.ndarray,
                 frame_lik: FrameLikelihood, mix: Mixture | None = None
