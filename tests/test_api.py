@@ -49,7 +49,7 @@ def test_registries_list_builtins_and_plugins():
 
 def test_prior_defined_outside_the_package_tracks_through_api_and_cli(walk_32_frames, tmp_path):
     seq = walk_32_frames
-    res = tracker.track(seq, "test-drift", prior_options={"drift_mm": 1.0}, particles=100, frames=6, seed=2)
+    res = tracker.track(seq, "test-drift", drift_mm=1.0, particles=100, frames=6, seed=2)
     assert res.settings["prior"] == "test-drift" and res.settings["prior_settings"] == {"step_mm": 1.0}
     assert len(res.errors) == 4 and res.mean_error < 100
     res.save(tmp_path / "api")
@@ -218,3 +218,21 @@ def test_seconds_per_frame_is_measured_whatever_is_recorded(synthetic_walk, rand
         result = tracker.track(synthetic_walk.root, "zero-velocity", particles=50, frames=4, seed=0, annealing_layers=1,
                                step_std=random_walk_std, record=record)
         assert result.seconds_per_frame > 0 and result.to_dict()["seconds_per_frame"] > 0
+
+
+def test_track_takes_the_model_train_returns_and_the_options_of_prior_and_likelihood(synthetic_walk, tmp_path):
+    """The model object and its file track to the same numbers; options go to the plugin that declares them."""
+    skeleton, walks = tracker.sample_walks()
+    model = tracker.train("crbm", walks[:1], skeletons=[skeleton], order=1, epochs=2, hidden=10, seed=0)
+    model.save(tmp_path / "m.pt")
+    settings = dict(particles=40, frames=4, seed=1, annealing_layers=1, gibbs_steps=2, sharpness=30.0)
+    from_object = tracker.track(synthetic_walk.root, "crbm", models=[model], **settings)
+    from_file = tracker.track(synthetic_walk.root, "crbm", models=[tmp_path / "m.pt"], **settings)
+    assert np.array_equal(from_object.poses, from_file.poses)
+    assert from_object.settings["prior_models"] == ["CRBMModel (in memory)"]
+    assert from_object.settings["prior_settings"]["gibbs_steps"] == 2
+    assert from_object.settings["likelihood_settings"]["sharpness"] == 30.0
+    with pytest.raises(tracker.InputError, match="takes no option 'order'.*prior crbm: gibbs_steps"):
+        tracker.track(synthetic_walk.root, "crbm", models=[model], order=3)
+    with pytest.raises(tracker.InputError, match="a CRBM model is a model file or a trained CRBM model"):
+        tracker.track(synthetic_walk.root, "crbm", models=[42])

@@ -3,8 +3,10 @@
 The public API (``import tracker``)::
 
     tracker.load_sequence, tracker.load_clip, tracker.synthesize    data
+    tracker.sample_walks()                                          the shipped CMU walks (skeleton, clips)
     tracker.build_prior, tracker.build_likelihood, tracker.train    models
     tracker.track -> TrackingResult (.save writes result.json)     tracking
+    tracker.show(seq, frame=0, poses=..., out="f.png", video=...)   the body model drawn over the views
     tracker.compare(experiment.toml, out, jobs=2)                  experiments (tables, plots)
     tracker.set_threads(n)                                         threads for BLAS, OpenCV, torch
     tracker.marker_error, tracker.sequence_error, tracker.summarize_runs
@@ -41,10 +43,10 @@ _EXPORTS = {
     "load_sequence": "tracker.app.api", "load_clip": "tracker.app.api", "synthesize": "tracker.app.api",
     "build_prior": "tracker.app.api", "build_likelihood": "tracker.app.api", "train": "tracker.app.api",
     "track": "tracker.app.api", "available_priors": "tracker.app.api", "available_likelihoods": "tracker.app.api",
-    "random_walk_scale": "tracker.app.api",
+    "random_walk_scale": "tracker.app.api", "show": "tracker.app.api",
     "TrackingResult": "tracker.app.tracking", "compare": "tracker.app.compare",
     "load_experiment": "tracker.app.experiment", "set_threads": "tracker.app.threads",
-    "SynthConfig": "data_tools.synth",
+    "SynthConfig": "data_tools.synth", "sample_walks": "data_tools.samples",
     "marker_error": "tracker.core.metrics", "sequence_error": "tracker.core.metrics",
     "summarize_runs": "tracker.core.metrics",
     "register_prior": "tracker.engine.registry", "register_likelihood": "tracker.engine.registry",

@@ -17,6 +17,7 @@ global random state.
 """
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence as Seq
 
@@ -143,19 +144,71 @@ def random_walk_scale(seq: Sequence, train_mocap: Iterable[str | Path] | None = 
     return step_rms(clips)
 
 
+def show(sequence: Sequence | str | Path, *, frame: int = 0, poses: str | Path | np.ndarray | None = None,
+         out: str | Path | None = None, video: str | Path | None = None,
+         progress: Callable | None = None) -> list[str]:
+    """Draw the projected body model over every view of a sequence frame: the ground truth, or ``poses`` (an
+    ``estimates.npz`` or a ``T x D`` array, drawn over the ground truth where there is one), or a bodytrack
+    folder's initial pose. Writes the grid of views of ``frame`` to ``out`` (.png) and, with ``video`` (.mp4),
+    every frame; returns one line per file written."""
+    import cv2
+
+    from data_tools.estimates import read_poses_file
+    from data_tools.files import atomic_path
+    from tracker.app.visualize import overlay_grid, write_video
+
+    seq = sequence if isinstance(sequence, Sequence) else load_sequence(sequence)
+    name, source = None, seq.root
+    if isinstance(poses, (str, Path)):
+        name, source, poses = Path(poses).stem, poses, read_poses_file(poses, "poses", seq.model)
+    elif poses is not None:
+        name, poses = "estimate", np.asarray(poses, float)
+    drawn = poses
+    if drawn is None:
+        drawn = seq.groundtruth.poses if seq.groundtruth is not None else seq.initial_poses
+    if drawn is None:
+        raise InputError("the sequence has no ground truth or initial pose; give poses", seq.root)
+    views = list(range(seq.n_views))
+    seq.check_frame(frame)
+    if frame >= len(drawn):
+        raise InputError(f"no pose for frame {frame}: {len(drawn)} pose(s) available", source)
+    truth = seq.groundtruth.poses if poses is not None and seq.groundtruth is not None else None
+
+    def picture(k: int) -> np.ndarray:
+        if poses is not None:  # the estimate over the ground truth, where the sequence has one
+            gt = truth[k] if truth is not None and k < len(truth) else None
+            return overlay_grid(seq, drawn[k], k, views, f"frame {k}", 2, truth=gt, estimate_name=name)
+        return overlay_grid(seq, drawn[k], k, views, f"frame {k}")
+
+    written = []
+    if out is not None:
+        out = Path(out)
+        with atomic_path(out) as tmp:
+            if not cv2.imwrite(str(tmp), cv2.cvtColor(picture(frame), cv2.COLOR_RGB2BGR)):
+                raise InputError("cannot write image", out)
+        written.append(f"frame {frame}, {seq.n_views} views -> {out}")
+    if video is not None:
+        n = min(seq.n_frames, len(drawn))
+        frames = range(n) if progress is None else progress(range(n))
+        write_video(Path(video), (picture(k) for k in frames), seq.fps or 25.0)
+        written.append(f"{n} frames -> {video}")
+    return written
+
+
 # -- building -------------------------------------------------------------------------------------------------
 
-def build_prior(name: str, sequence: Sequence, models: Seq[str | Path] = (), *,
+def build_prior(name: str, sequence: Sequence, models: Seq[str | Path | Any] = (), *,
                 train_mocap: Iterable[str | Path] | None = None, step_std: np.ndarray | None = None,
                 device: str = "cpu", **options) -> MotionPrior:
-    """The registered prior ``name`` for ``sequence``, from its model files (learned priors) and options.
+    """The registered prior ``name`` for ``sequence``, from its models (learned priors: model files, or the
+    models :func:`train` returns) and options.
 
     Random-walk priors take their scale from ``step_std`` ``(D,)`` if given, else from ``train_mocap``
     clips (default: the shipped walks) or the bodytrack folder (:func:`random_walk_scale`). Learned priors
     with a torch path sample on ``device`` (``"cpu"``, ``"cuda"``, ``"cuda:N"``).
     """
     entry = prior_entry(name)
-    models = [Path(m) for m in models]
+    models = [Path(m) if isinstance(m, (str, os.PathLike)) else m for m in models]
     if entry.model_files == "none" and models:
         raise InputError(f"prior {name} takes no model files")
     if entry.model_files != "none" and not models:
@@ -227,6 +280,30 @@ def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
 
 # -- tracking -------------------------------------------------------------------------------------------------
 
+def split_options(prior: str | MotionPrior, likelihood: str | Likelihood, options: Mapping[str, Any]
+                  ) -> tuple[dict, dict]:
+    """``options`` split between the prior and the likelihood given by name, each option going to the one that
+    declares it; an option neither declares (or one for a ready object) is an :class:`InputError` naming both
+    lists."""
+    declared = {}
+    for kind, plugin, entry in (("prior", prior, prior_entry), ("likelihood", likelihood, likelihood_entry)):
+        declared[kind] = {o.name for o in entry(plugin).options} if isinstance(plugin, str) else set()
+    out: dict[str, dict] = {"prior": {}, "likelihood": {}}
+    for name, value in options.items():
+        kind = next((k for k in ("prior", "likelihood") if name in declared[k]), None)
+        if kind is None:
+            lists = "; ".join(f"{k} {p if isinstance(p, str) else 'object'}: {', '.join(sorted(declared[k])) or 'none'}"
+                              for k, p in (("prior", prior), ("likelihood", likelihood)))
+            raise InputError(f"track takes no option {name!r} (the options of {lists})")
+        out[kind][name] = value
+    return out["prior"], out["likelihood"]
+
+
+def model_name(model: str | Path | Any) -> str:
+    """How ``result.json`` names a prior's model: its file, or the kind of a model given in memory."""
+    return str(model) if isinstance(model, (str, os.PathLike)) else f"{type(model).__name__} (in memory)"
+
+
 #: Annealing layers per frame that :func:`track` (and the command line, and experiment files that leave
 #: ``annealing_layers`` unset) uses when none are asked for: 3 won rounds 17 and 17b of
 #: ``docs/unseen_people.md`` for the zero-velocity baseline and the paced CRBM on people the priors were not
@@ -236,19 +313,21 @@ TRACK_ANNEALING_LAYERS = 3
 
 
 def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velocity", *,
-          models: Seq[str | Path] = (), prior_options: Mapping[str, Any] | None = None,
-          likelihood: str | Likelihood = "edge-silhouette", likelihood_options: Mapping[str, Any] | None = None,
+          models: Seq[str | Path | Any] = (), likelihood: str | Likelihood = "edge-silhouette",
           particles: int = 1000, views: Iterable[int] | None = None, frames: int | None = None,
           seed: SeedLike = 0, annealing_layers: int = TRACK_ANNEALING_LAYERS, resampling: str = "systematic",
           known_frames: int = 2, init: np.ndarray | None = None, train_mocap: Iterable[str | Path] | None = None,
           step_std: np.ndarray | None = None, device: str = "cpu",
           record: Iterable[str] | Mapping[str, Callable[[FrameStep], Any]] = DEFAULT_RECORD,
           on_frame: Callable[[FrameStep, float | None], None] | None = None,
-          checkpoint: str | Path | None = None, checkpoint_every: int = 0, resume: bool = False) -> TrackingResult:
+          checkpoint: str | Path | None = None, checkpoint_every: int = 0, resume: bool = False,
+          **options) -> TrackingResult:
     """Track a person through ``sequence`` with a particle filter and return a :class:`TrackingResult`.
 
-    ``prior`` and ``likelihood`` are registered names (built from ``models`` and the option dicts) or ready
-    objects. The filter tracks frames ``known_frames .. frames-1`` (default: to the end) from the ground truth's
+    ``prior`` and ``likelihood`` are registered names or ready objects. A prior given by name is built from
+    ``models`` (model files, or the models :func:`train` returns) and a likelihood by name; ``options`` are
+    their options, each going to the one that declares it (``track(seq, "crbm", models=[model],
+    gibbs_steps=10, sharpness=40)``; ``python -m tracker track --prior crbm --help`` lists them). The filter tracks frames ``known_frames .. frames-1`` (default: to the end) from the ground truth's
     first poses (or ``init``, or a bodytrack ``InitialPose.txt``) with ``particles`` particles in ``views``
     (default all), ``annealing_layers`` layers per frame (default :data:`TRACK_ANNEALING_LAYERS`, 3, the setting
     that won on unseen people in ``docs/unseen_people.md``; 1 is plain SIR). Random-walk priors take their scale
@@ -266,15 +345,16 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     check_frames(seq, frames, known_frames, init)  # before anything is built or loaded
     config = FilterConfig(n_particles=particles, resampling=resampling, annealing_layers=annealing_layers).check()
     rng = make_rng(seed)
+    prior_options, likelihood_options = split_options(prior, likelihood, options)
     if isinstance(prior, str):
         prior_obj = build_prior(prior, seq, models, train_mocap=train_mocap, step_std=step_std, device=device,
-                                **dict(prior_options or {}))
+                                **prior_options)
     else:
-        if models or prior_options:
-            raise InputError("models and prior_options apply to a prior given by name, not to a prior object")
+        if models:
+            raise InputError("models apply to a prior given by name, not to a prior object")
         prior_obj = prior
     if isinstance(likelihood, str):
-        lik_obj = build_likelihood(likelihood, seq, views, device=device, **dict(likelihood_options or {}))
+        lik_obj = build_likelihood(likelihood, seq, views, device=device, **likelihood_options)
     else:
         lik_obj = likelihood
     settings = {
@@ -282,7 +362,7 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
         "particles": config.n_particles, "views": views, "seed": seed_description(seed),
         "sequence": str(seq.root), "model": seq.model.name,
         "annealing_layers": config.annealing_layers, "resampling": config.resampling,
-        "prior_settings": prior_obj.settings(), "prior_models": [str(m) for m in models],
+        "prior_settings": prior_obj.settings(), "prior_models": [model_name(m) for m in models],
         "likelihood": likelihood if isinstance(likelihood, str) else lik_obj.name,
         "likelihood_settings": lik_obj.settings(), "device": str(torch_device(device)),
     }

@@ -78,12 +78,9 @@ def cmd_synth(args: argparse.Namespace) -> int:
 
 
 def cmd_show(args: argparse.Namespace) -> int:
-    import cv2
     from tqdm import tqdm
 
-    from data_tools.sequence import read_sequence
-    from data_tools.estimates import read_poses_file
-    from tracker.app.visualize import overlay_grid, write_video
+    from tracker.app.api import show
 
     if not args.out and not args.video:
         raise InputError("nothing to write: give --out FILE.png and/or --video FILE.mp4")
@@ -91,39 +88,10 @@ def cmd_show(args: argparse.Namespace) -> int:
         check_output_file(args.out, "--out", (".png",))
     if args.video:
         check_output_file(args.video, "--video", (".mp4",))
-    seq = read_sequence(args.sequence)
-    if args.poses:
-        poses = read_poses_file(args.poses, "poses", seq.model)
-    elif seq.groundtruth is not None:
-        poses = seq.groundtruth.poses
-    elif seq.initial_poses is not None:
-        poses = seq.initial_poses
-    else:
-        raise InputError("the sequence has no ground truth or initial pose; give --poses", seq.root)
-    views = list(range(seq.n_views))
-    seq.check_frame(args.frame)
-    if args.frame >= len(poses):
-        raise InputError(f"no pose for frame {args.frame}: {len(poses)} pose(s) available", args.poses or seq.root)
-    truth = seq.groundtruth.poses if args.poses and seq.groundtruth is not None else None
-    name = Path(args.poses).stem if args.poses else None
-
-    def picture(k: int) -> np.ndarray:
-        if args.poses:  # the estimate over the ground truth, where the sequence has one
-            gt = truth[k] if truth is not None and k < len(truth) else None
-            return overlay_grid(seq, poses[k], k, views, f"frame {k}", 2, truth=gt, estimate_name=name)
-        return overlay_grid(seq, poses[k], k, views, f"frame {k}")
-
-    if args.out:
-        out = Path(args.out)
-        with atomic_path(out) as tmp:
-            if not cv2.imwrite(str(tmp), cv2.cvtColor(picture(args.frame), cv2.COLOR_RGB2BGR)):
-                raise InputError("cannot write image", out)
-        print(f"frame {args.frame}, {seq.n_views} views -> {out}")
-    if args.video:
-        n = min(seq.n_frames, len(poses))
-        write_video(Path(args.video), (picture(k) for k in tqdm(range(n), desc="video", unit="frame")),
-                    seq.fps or 25.0)
-        print(f"{n} frames -> {args.video}")
+    written = show(args.sequence, frame=args.frame, poses=args.poses, out=args.out, video=args.video,
+                   progress=lambda it: tqdm(it, desc="video", unit="frame"))
+    for line in written:
+        print(line)
     return 0
 
 
@@ -262,9 +230,9 @@ def cmd_track(args: argparse.Namespace) -> int:
             bars[0].set_postfix(error_mm=f"{err:.0f}", mean_mm=f"{np.mean(errors):.0f}")
 
     try:
-        run = track(seq, args.prior, models=args.model or (),
-                    prior_options=given_options(args, prior_entry(args.prior).options), likelihood=args.likelihood,
-                    likelihood_options=given_options(args, likelihood_entry(args.likelihood).options),
+        run = track(seq, args.prior, models=args.model or (), likelihood=args.likelihood,
+                    **given_options(args, prior_entry(args.prior).options),
+                    **given_options(args, likelihood_entry(args.likelihood).options),
                     particles=args.particles, views=views, frames=args.frames, seed=args.seed,
                     annealing_layers=args.annealing_layers, resampling=args.resampling,
                     known_frames=args.known_frames, init=init, train_mocap=args.train_mocap, device=args.device,

@@ -169,8 +169,8 @@ def execute_run(spec: RunSpec) -> dict:
 
             seed = run_seed(spec.seed_entropy, spec.seed_index)
             seq = load_sequence(spec.sequence_path)
-            run = track(seq, spec.prior, models=spec.models, prior_options=spec.prior_options,
-                        likelihood=spec.likelihood, likelihood_options=spec.likelihood_options,
+            run = track(seq, spec.prior, models=spec.models, likelihood=spec.likelihood, **spec.prior_options,
+                        **spec.likelihood_options,
                         particles=spec.particles, views=spec.views, frames=spec.frames, seed=seed,
                         annealing_layers=spec.annealing_layers, resampling=spec.resampling,
                         known_frames=spec.known_frames,
