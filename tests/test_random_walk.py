@@ -1,5 +1,6 @@
-"""The random-walk priors' ``isotropic_ground``: one ground noise in every direction, so a baseline whose scale
-came from clips that all walk along one axis does not follow a person along that axis only."""
+"""The random-walk priors (priors/random_walk.py); ``isotropic_ground`` gives the root one ground noise in every
+direction, so a baseline whose scale came from clips that all walk along one axis does not follow a person along
+that axis only."""
 import numpy as np
 import pytest
 
