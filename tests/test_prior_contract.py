@@ -252,3 +252,29 @@ def test_a_learned_prior_grows_its_history_from_one_known_frame(priors, walk_07_
             assert np.all(np.isfinite(new)), (label, available)
             history = np.concatenate([history[:, 1:], new[:, None]], axis=1)
         assert labels[0] != labels[-1], label
+
+
+def test_model_files_of_0_13_sample_as_they_did(walk_07_01):
+    """A paced CRBM-3 and a GPDM saved by pose-tracker 0.13.0 (tests/data) load, and at their defaults draw, from
+    the same seed, the poses 0.13.0 drew (``samples_v0.13.npy``: 4 steps of 8 particles from 07_01's first
+    frames; the defaults' numbers did not change when the priors became a model plus parts)."""
+    from tracker.app.api import build_prior
+
+    data = Path(__file__).parent / "data"
+    expected = np.load(data / "samples_v0.13.npy")
+
+    class _Seq:
+        model, fps, root = walk_07_01.model, 60.0, Path("v0.13")
+
+    for k, (name, file) in enumerate((("crbm", "crbm3_paced_v0.13.pt"), ("gpdm", "gpdm_v0.13.pt"))):
+        prior = build_prior(name, _Seq(), [data / file])
+        rng = np.random.default_rng(5)
+        known = walk_07_01.poses[:3]
+        state = prior.start(known, 8, rng)
+        history = np.repeat(known[None, -prior.order:], 8, axis=0)
+        for step in range(4):
+            poses, state = prior.sample(history, prior.order, state, rng)
+            history = np.concatenate([history[:, 1:], poses[:, None]], axis=1)
+            assert np.allclose(poses, expected[k, step], rtol=0, atol=1e-6), (name, step)
+            idx = np.arange(8) // 2 * 2  # resampling: the even particles twice (the posture offset moves)
+            history, state = history[idx], prior.reindex(state, idx)
