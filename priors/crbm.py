@@ -58,9 +58,6 @@ class CRBMPrior(ConditionalPrior):
                  height: HeightOffset | None = None, posture: PostureOffset | None = None):
         grown = GrowingModels(models, "CRBM")
         first = grown.first
-        for m in grown.models[1:]:
-            if m.dof_names != first.dof_names or abs(m.fps - first.fps) > 1e-6 or m.body_model != first.body_model:
-                raise InputError("CRBM models for one prior must share body model, pose layout and frame rate")
         if isinstance(gibbs_steps, bool) or not isinstance(gibbs_steps, (int, np.integer)) or gibbs_steps < 1:
             raise InputError(f"Gibbs steps must be an integer of at least 1, got {gibbs_steps!r}")
         if mode not in ("gibbs", "free-energy"):

@@ -26,7 +26,7 @@ def model_from_document(doc: dict, path: Path, device: str) -> CRBMModel:
         # tracker predicts heights above the floor) and a training augmentation (nothing in sampling).
         if config.pop("standing_height", False):
             raise InputError("CRBM model file learned root heights above standing, which this version does not "
-                             "track; retrain it without --standing-height", path)
+                             "track; retrain it with this version", path)
         config.pop("posture_offset", None)
         unknown = sorted(set(config) - set(CRBMConfig.__dataclass_fields__))
         if unknown:

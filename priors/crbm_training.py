@@ -322,7 +322,8 @@ CRBM_TRAIN_OPTIONS = (
     Option("history_noise", str, "auto",
            "std of the noise added to the history in training (normalised units), or 'auto' (default)"),
     Option("sparsity", float, None, "target mean activation of the hidden units (default: no sparsity term)"),
-    Option("checkpoint_every", int, None, "also save the model every this many epochs", minimum=1),
+    Option("checkpoint_every", int, None, "also save the training state every this many epochs, for train --resume",
+           minimum=1, default_note="never"),
     Option("grow_from", str, "1", "lower orders trained alongside and saved in the same file, which grow the "
                                   "history from the known frames (Taylor 2009, Sec. 6.4); 'none' to skip (default 1)"),
     Option("pace_input", bool, None, "condition the model on each frame's pace (log ground speed averaged over one "

@@ -1,6 +1,6 @@
 """Two-layer CRBM motion prior: a Conditional Deep Belief Network (Taylor 2009, Sec. 4.3), in torch.
 
-Training is greedy. The first layer is the CRBM of :mod:`priors.crbm` (order ``N``, Gaussian visible units on the
+Training is greedy. The first layer is the CRBM of :mod:`priors.crbm_model` (order ``N``, Gaussian visible units on the
 normalised invariant features, ``H1`` binary hidden units), trained as ``train --prior crbm`` trains it (with the
 lower orders it grows from). Its hidden probabilities while driven by the training data (a mean-field up-pass,
 one ``H1`` vector per frame that has ``N`` frames of history) are the "fully observed" data of the second layer:

@@ -1,6 +1,6 @@
 """An ensemble of priors of one kind and order: each particle is drawn by one member, for the whole run.
 
-A learned prior's tracking error depends much on its training seed (issue 13: the same CRBM trained with five
+A learned prior's tracking error depends much on its training seed (the same CRBM trained with five
 seeds gave 0.46-0.77 of zero-velocity's error on the tuning folds with 4 views, 0.83-1.92 with one;
 docs/unseen_people.md). Given several models, the particle set is split between them: particle ``i`` starts
 with member ``i mod M`` and keeps it, so resampling shifts particles toward the members whose predictions

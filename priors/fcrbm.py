@@ -43,7 +43,7 @@ def generate(model: FCRBMModel, start: np.ndarray, styles: np.ndarray, rng: np.r
              gibbs_steps: int = 30) -> np.ndarray:
     """Poses ``T x D`` generated after the known poses ``start`` ``n0 x D`` (``n0 >= model.order``) with the
     label rows ``styles`` ``T x P`` clamped frame by frame (one-hot for a fixed style, blends for mixtures and
-    transitions); no ground-plane or heading diffusion."""
+    transitions); no ground-plane diffusion."""
     styles = np.asarray(styles, float)
     if styles.ndim != 2 or styles.shape[1] != len(model.labels):
         raise InputError(f"styles must be T x {len(model.labels)} (one column per label), got {styles.shape}")
@@ -111,11 +111,6 @@ class FCRBMPrior(ConditionalPrior):
                  style_inference: str = "mixture", style_temperature: float = STYLE_TEMPERATURE):
         grown = GrowingModels(models, "FCRBM")
         first = grown.first
-        for m in grown.models[1:]:
-            if (m.dof_names, m.body_model, m.labels) != (first.dof_names, first.body_model, first.labels) \
-                    or abs(m.fps - first.fps) > 1e-6:
-                raise InputError("FCRBM models for one prior must share body model, pose layout, frame rate and "
-                                 "labels")
         checks = {"Gibbs steps": (gibbs_steps, gibbs_steps >= 1),
                   "style switch": (style_switch, 0 <= style_switch <= 1),
                   "style inference": (style_inference, style_inference in STYLE_INFERENCE),

@@ -70,7 +70,7 @@ LABEL_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$")
 GROUPED_STYLES_MAX = 16
 #: How the FCRBM prior infers an unknown style: ``"mixture"`` keeps a fixed share of the particles on every label
 #: and moves weight between them (mixture tracking, :mod:`tracker.engine.mixture`); ``"particles"`` lets every
-#: particle carry and switch its own label, the posterior being the weighted histogram (before session 8).
+#: particle carry and switch its own label, the posterior being the weighted histogram.
 STYLE_INFERENCE = ("mixture", "particles")
 #: Temperature of the labels' evidence in mixture inference (the likelihood to the power ``1 / T`` when the
 #: labels are weighed against each other). Chosen on a tuning fold (``docs/fcrbm.md``, "Mixture tracking").
@@ -215,12 +215,12 @@ class FCRBM:
               init: torch.Tensor | None = None, grouped: bool | None = None) -> torch.Tensor:
         """Next frames ``B x K`` by alternating Gibbs sampling with the labels ``y`` ``B x P`` clamped, from ``init``
         (default: the last history frame): binary hidden samples, expected visible values, hidden probabilities
-        on the final step (as :meth:`priors.crbm.CRBM.gibbs`).
+        on the final step (as :meth:`priors.crbm_model.CRBM.gibbs`).
 
         Rows with the same label vector share the effective weights ``Wv diag(s) Wh^T`` ``K x H``; with at most
         :data:`GROUPED_STYLES_MAX` distinct rows (``grouped=None``) sampling runs on those matrices, rows sorted
         by style, else on the factored form. Both draw the same random numbers (one ``B x H`` array of uniform
-        integers per step, :func:`priors.crbm.uniform16`, its rows taken in the order of the rows sorted by style)
+        integers per step, :func:`priors.crbm_model.uniform16`, its rows taken in the order of the rows sorted by style)
         and agree to rounding. Sampling writes into its arrays in place (``out=``), so parameters must not require
         gradients (training uses the explicit CD statistics of :meth:`free_energy_gradients`).
         """
@@ -449,8 +449,3 @@ def train_fcrbm(clips: Sequence[np.ndarray], clip_labels: Sequence[str], config:
         finish_epoch(model.reconstruction_errors, err_sum, count, epoch, "FCRBM", progress)
     model.training_seconds = time.perf_counter() - t0
     return model
-
-
-# ---------------------------------------------------------------------------
-# Generation with fixed, blended or changing styles
-# ---------------------------------------------------------------------------

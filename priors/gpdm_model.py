@@ -69,8 +69,8 @@ EXACT_MAX_FRAMES = 500
 AUTO_INDUCING = 200
 #: Fewest inducing frames a sparse model may have.
 MIN_INDUCING = 10
-#: Largest latent noise (multiples of the predictive standard deviation) and ground-plane diffusion (mm per frame)
-#: of the tracking prior: far beyond any useful setting, and larger values throw particles kilometres away.
+#: Largest latent noise (multiples of the predictive standard deviation) of the tracking prior: far beyond any
+#: useful setting, and larger values throw particles kilometres away.
 MAX_LATENT_NOISE = 100.0
 #: Jitter added to the inducing kernel matrix ``K_uu``, relative to its mean diagonal.
 JITTER = 1e-6

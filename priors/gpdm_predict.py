@@ -62,7 +62,7 @@ class _Head:
 @dataclass
 class GPDMPredictor:
     """Everything prediction needs, as plain tensors (no autograd), with the factors of both GPs computed once
-    (:meth:`GPDM.prepare`); a sparse model predicts through its inducing points only."""
+    (:func:`prepare`); a sparse model predicts through its inducing points only."""
 
     config: GPDMConfig
     X: torch.Tensor

@@ -22,7 +22,7 @@ from tracker.core.representation import FeatureNormaliser, clip_features, step_r
 
 @dataclass
 class GPDMCheckpoint:
-    """A training checkpoint read back (:func:`read_training_checkpoint`): the model as it was after
+    """A training checkpoint read back (:func:`priors.gpdm.read_training_checkpoint`): the model as it was after
     ``state['done']`` iterations, the L-BFGS optimiser's whole state, and the file it came from."""
 
     model: GPDM
@@ -222,7 +222,7 @@ def _config_from(settings, path: Path | None) -> GPDMConfig:
 
 
 # ---------------------------------------------------------------------------
-# As a motion prior: training on pose clips, model files with their data settings, the tracking prior
+# As a motion prior's model: trained on pose clips, with the data settings its file keeps
 # ---------------------------------------------------------------------------
 
 @dataclass
@@ -285,6 +285,3 @@ def load_gpdm_prior(path: str | Path) -> GPDMPriorModel:
     seconds = extra.get("training_seconds", 0.0)
     gpdm.training_seconds = float(seconds) if isinstance(seconds, (int, float)) else 0.0
     return GPDMPriorModel(gpdm, norm, fps, body_model, dof_names, sources, step)
-
-
-#: Default ``height_spread`` (mm) of the GPDM prior: each particle's own root-height offset, Gaussian with this std

@@ -88,7 +88,13 @@ class GroundDiffusion:
     def apply(self, poses: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """``poses`` ``P x D`` with the noise added to the root's ground position, in place."""
         if self.std_mm > 0:
-            poses[:, :2] += self.std_mm * rng.standard_normal((len(poses), 2))
+            self.apply_with(poses, rng.standard_normal((len(poses), 2)))
+        return poses
+
+    def apply_with(self, poses: np.ndarray, noise: np.ndarray) -> np.ndarray:
+        """``poses`` ``P x D`` moved by standard normal ``noise`` ``P x 2`` drawn beforehand, in place."""
+        if self.std_mm > 0:
+            poses[:, :2] += self.std_mm * noise
         return poses
 
     def settings(self) -> dict:
@@ -269,6 +275,12 @@ class GrowingModels(Generic[M]):
                 by_order.setdefault(g.order, g)
         self.kind = kind
         self.models: list[M] = [by_order[o] for o in sorted(by_order)]
+        first = self.models[0]
+        for m in self.models[1:]:  # labels: a style-gated model's
+            if (m.dof_names, m.body_model, getattr(m, "labels", None)) != \
+                    (first.dof_names, first.body_model, getattr(first, "labels", None)) or abs(m.fps - first.fps) > 1e-6:
+                raise InputError(f"{kind} models for one prior must share body model, pose layout, frame rate"
+                                 f"{' and labels' if hasattr(first, 'labels') else ''}")
 
     @property
     def order(self) -> int:
@@ -285,7 +297,9 @@ class GrowingModels(Generic[M]):
         """The highest-order model whose history is all real poses."""
         usable = [m for m in self.models if m.order <= available]
         if not usable:
+            hint = " (train embeds one; or pass --model crbm1.pt crbmN.pt)" if self.kind == "CRBM" else \
+                " (train embeds one)"
             raise InputError(f"the {self.kind} of order {self.models[0].order} needs {self.models[0].order} known "
                              f"frame(s), {available} given: give more known frames or a lower-order model to "
-                             "grow from (train embeds one; or pass --model crbm1.pt crbmN.pt)")
+                             f"grow from{hint}")
         return usable[-1]

@@ -244,7 +244,7 @@ def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
 
     Each AMC pairs with its own skeleton (``skeletons``: one for all or one per file; default
     ``<subject>.asf`` beside it). ``options`` are the prior's training options (see
-    ``python -m tracker train --help``). Returns the trained model;
+    ``python -m tracker train --prior NAME --help``). Returns the trained model;
     ``model.save(path)`` writes its file.
     With ``checkpoint`` (a file path) and the prior's ``checkpoint_every`` option, training state is saved as
     it goes; ``resume=True`` continues from it to the model an uninterrupted run gives.
@@ -305,8 +305,8 @@ def model_name(model: str | Path | Any) -> str:
 
 
 #: Annealing layers per frame that :func:`track` (and the command line, and experiment files that leave
-#: ``annealing_layers`` unset) uses when none are asked for: 3 won rounds 17 and 17b of
-#: ``docs/unseen_people.md`` for the zero-velocity baseline and the paced CRBM on people the priors were not
+#: ``annealing_layers`` unset) uses when none are asked for: 3 won in ``docs/unseen_people.md`` ("the annealed
+#: filter") for the zero-velocity baseline and the paced CRBM on people the priors were not
 #: trained on, and the FCRBM's tuning fold with its style inferred by mixture tracking (``docs/fcrbm.md``).
 #: The engine's own :class:`~tracker.engine.filter.FilterConfig` default stays plain SIR.
 TRACK_ANNEALING_LAYERS = 3

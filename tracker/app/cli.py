@@ -1,4 +1,4 @@
-"""Command line: ``python -m tracker <command>`` (the contract: DESIGN.md "Command line", README).
+"""Command line: ``python -m tracker <command>`` (the contract: README, "Commands").
 
 The command line only parses arguments (:mod:`tracker.app.parser`) and calls the public API
 (:mod:`tracker.app.api`). Every bad input ends with a one-line reason on stderr and exit status 2.

@@ -170,9 +170,10 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                                    "and an image likelihood; writes OUTDIR/result.json and OUTDIR/estimates.npz.")
     t.add_argument("sequence", metavar="DIR", nargs="?", help="sequence folder")
     t.add_argument("--prior", choices=available_priors(), metavar="NAME",
-                   help="motion prior (required; the list above)")
+                   help="motion prior (required; python -m tracker track --help lists them)")
     t.add_argument("--model", nargs="+", metavar="MODEL",
-                   help="trained prior model(s); for crbm several orders (e.g. 1 and 3) grow the history")
+                   help="a learned prior's model file(s) (a CRBM takes several: orders that grow the history, or an "
+                        "ensemble of one order)")
     t.add_argument("--likelihood", default="edge-silhouette", choices=available_likelihoods(), metavar="NAME",
                    help="image likelihood (default edge-silhouette)")
     t.add_argument("--particles", type=_particles, default=1000, help="number of particles (default 1000)")
@@ -193,7 +194,7 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                         "subject-7 walks 07_01 and 07_02); bodytrack folders use PoseParameters.txt")
     t.add_argument("--device", default="cpu", metavar="DEVICE",
                    help="where particles are scored: cpu (default: the numpy path) or cuda, cuda:N (the GPU path: "
-                        "the likelihood's kinematics, projection and image lookups, and the CRBM family's sampling)")
+                        "the likelihood's kinematics, projection and image lookups, and a learned prior's torch sampling)")
     t.add_argument("--out", help="output folder (required)")
     t.add_argument("--video", help="also write an overlay video of the estimates (.mp4)")
     t.add_argument("--checkpoint-every", type=_non_negative_int, default=25, metavar="K",

@@ -2,8 +2,8 @@
 
 :func:`track` is the one implementation behind ``tracker.track`` and
 ``python -m tracker track``; :class:`TrackingResult` holds everything a run
-produced and writes ``result.json`` and ``estimates.npz`` (DESIGN.md
-"Command line"), so Python and the command line write the same files.
+produced and writes ``result.json`` and ``estimates.npz`` (README, "Commands"),
+so Python and the command line write the same files.
 """
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Sequential importance resampling with an N-order augmented state, optionally annealed: the engine.
 
-Each frame (Taylor 2009, Sec. 6.3; DESIGN.md "Particle filter"):
+Each frame (Taylor 2009, Sec. 6.3):
 
 1. every particle draws its next pose from the prior given its own last N
    poses (and the prior's own per-particle state);

@@ -1,4 +1,4 @@
-"""The likelihood interface the particle filter relies on (DESIGN.md "Likelihoods").
+"""The likelihood interface the particle filter relies on (docs/architecture.md).
 
 A likelihood turns one frame's raw observations (:class:`Frame`: an image per
 view, with foreground masks or background plates where the source has them)

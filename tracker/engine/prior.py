@@ -1,4 +1,4 @@
-"""The motion-prior interface the particle filter relies on (DESIGN.md "Particle filter").
+"""The motion-prior interface the particle filter relies on (docs/architecture.md).
 
 A prior of order ``N`` samples the next pose of every particle from that
 particle's own last ``N`` poses (the augmented state of Isard & Blake), plus
