@@ -149,6 +149,17 @@ def torch_generator(rng: np.random.Generator, device) -> torch.Generator:
 MAX_MODEL_FPS = 1e5
 
 
+def checked_model_data(doc: dict, n_features: int, kind: str, source=None
+                       ) -> tuple[FeatureNormaliser, float, str, list[str], list[str], np.ndarray]:
+    """A learned prior file's normaliser (which must keep the model's ``n_features`` visible units) and its data
+    settings (:func:`checked_data_settings`): ``(normaliser, fps, body_model, dof_names, sources,
+    pose_step_rms)``."""
+    normaliser = normaliser_from_tensors(doc["normaliser"], source)
+    if normaliser.n_kept != n_features:
+        raise InputError(f"model has {n_features} visible units but its normaliser keeps {normaliser.n_kept}", source)
+    return (normaliser, *checked_data_settings(doc, kind, source))
+
+
 def checked_data_settings(d: dict, kind: str, source=None) -> tuple[float, str, list[str], list[str], np.ndarray]:
     """A learned prior file's data settings ``(fps, body_model, dof_names, sources, pose_step_rms)``, checked:
     fps a number in (0, :data:`MAX_MODEL_FPS`], names text, the per-dof step RMS finite, non-negative, one per

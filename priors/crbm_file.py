@@ -6,7 +6,7 @@ from pathlib import Path
 
 import torch
 
-from priors.common import check_weights, checked_data_settings, normaliser_from_tensors, read_model_file
+from priors.common import check_weights, checked_model_data, read_model_file
 from priors.crbm_model import CRBM, FORMAT, INPUT_SETTINGS, CRBMConfig, CRBMModel
 from tracker.core.errors import InputError
 
@@ -49,10 +49,7 @@ def model_from_document(doc: dict, path: Path, device: str) -> CRBMModel:
                       f"{' and a pace input' if C else ''}", path)
         crbm = CRBM(K, H, N, device=device, n_context=C)
         crbm.load_state_dict(params)
-        normaliser = normaliser_from_tensors(doc["normaliser"], path)
-        if normaliser.n_kept != K:
-            raise InputError(f"model has {K} visible units but its normaliser keeps {normaliser.n_kept}", path)
-        fps, body_model, dof_names, sources, step = checked_data_settings(doc, "CRBM", path)
+        normaliser, fps, body_model, dof_names, sources, step = checked_model_data(doc, K, "CRBM", path)
         growth = [model_from_document(g, path, device) for g in doc.get("growth", [])]
         for key, what in INPUT_SETTINGS.items():
             if any(getattr(g.config, key) != getattr(cfg, key) for g in growth):

@@ -51,7 +51,7 @@ import numpy as np
 import torch
 
 from priors.common import (
-    TrainedModel, check_weights, checked_data_settings, normaliser_from_tensors, read_model_file, torch_generator,
+    TrainedModel, check_weights, checked_model_data, read_model_file, torch_generator,
 )
 from priors.contrastive import (
     ContrastiveConfig, balanced_starts, finish_epoch, minibatches, momentum_step, window_index,
@@ -359,10 +359,7 @@ def _from_document(doc: dict, path: Path, device: str) -> FCRBMModel:
         check_weights(params, net.shapes(), "FCRBM weight", f"order {cfg.order} with {K} visible, {H} hidden units, "
                       f"{F} factors, {L} features and {len(labels)} labels", path)
         net.load_state_dict(params)
-        normaliser = normaliser_from_tensors(doc["normaliser"], path)
-        if normaliser.n_kept != K:
-            raise InputError(f"model has {K} visible units but its normaliser keeps {normaliser.n_kept}", path)
-        fps, body_model, dof_names, sources, step = checked_data_settings(doc, "FCRBM", path)
+        normaliser, fps, body_model, dof_names, sources, step = checked_model_data(doc, K, "FCRBM", path)
         growth = [_from_document(g, path, device) for g in doc.get("growth", [])]
         if any(g.labels != labels for g in growth):
             raise InputError("FCRBM model file's growth models have other labels", path)
