@@ -327,7 +327,9 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     ``prior`` and ``likelihood`` are registered names or ready objects. A prior given by name is built from
     ``models`` (model files, or the models :func:`train` returns) and a likelihood by name; ``options`` are
     their options, each going to the one that declares it (``track(seq, "crbm", models=[model],
-    gibbs_steps=10, sharpness=40)``; ``python -m tracker track --prior crbm --help`` lists them). The filter tracks frames ``known_frames .. frames-1`` (default: to the end) from the ground truth's
+    gibbs_steps=10, sharpness=40)``; ``python -m tracker track --prior crbm --help`` lists them); every declared
+    option, given or default, is recorded in ``result.json`` (``prior_options``, ``likelihood_options``) and in
+    the checkpoint's fingerprint. The filter tracks frames ``known_frames .. frames-1`` (default: to the end) from the ground truth's
     first poses (or ``init``, or a bodytrack ``InitialPose.txt``) with ``particles`` particles in ``views``
     (default all), ``annealing_layers`` layers per frame (default :data:`TRACK_ANNEALING_LAYERS`, 3, the setting
     that won on unseen people in ``docs/unseen_people.md``; 1 is plain SIR). Random-walk priors take their scale
@@ -346,6 +348,11 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     config = FilterConfig(n_particles=particles, resampling=resampling, annealing_layers=annealing_layers).check()
     rng = make_rng(seed)
     prior_options, likelihood_options = split_options(prior, likelihood, options)
+    if isinstance(prior, str):  # every declared option, checked, with its default: recorded in result.json
+        prior_options = resolve_options(f"prior {prior}", prior_entry(prior).options, prior_options)
+    if isinstance(likelihood, str):
+        likelihood_options = resolve_options(f"likelihood {likelihood}", likelihood_entry(likelihood).options,
+                                             likelihood_options)
     if isinstance(prior, str):
         prior_obj = build_prior(prior, seq, models, train_mocap=train_mocap, step_std=step_std, device=device,
                                 **prior_options)
@@ -362,9 +369,11 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
         "particles": config.n_particles, "views": views, "seed": seed_description(seed),
         "sequence": str(seq.root), "model": seq.model.name,
         "annealing_layers": config.annealing_layers, "resampling": config.resampling,
-        "prior_settings": prior_obj.settings(), "prior_models": [model_name(m) for m in models],
+        "prior_options": prior_options, "prior_settings": prior_obj.settings(),
+        "prior_models": [model_name(m) for m in models],
         "likelihood": likelihood if isinstance(likelihood, str) else lik_obj.name,
-        "likelihood_settings": lik_obj.settings(), "device": str(torch_device(device)),
+        "likelihood_options": likelihood_options, "likelihood_settings": lik_obj.settings(),
+        "device": str(torch_device(device)),
     }
     try:
         result = run_tracking(seq, prior_obj, lik_obj, config, rng, views, frames, known_frames, init, record,
