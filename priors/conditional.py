@@ -46,7 +46,7 @@ class ConditionalPrior(MotionPrior):
         self.models = models
         self.device = torch.device(device)
         self.ground = ground
-        self.pace = (pace or PaceInput()) if paced else None
+        self.pace = None if not paced else PaceInput() if pace is None else pace
         self.height = height if height is not None and height.active else None
         self.posture = posture if posture is not None and posture.gain > 0 else None
         self.order = models.order

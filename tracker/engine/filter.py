@@ -201,7 +201,7 @@ class ParticleFilter:
         W = weighed.normalised
         mean, best, ess = W @ weighed.x, weighed.x[int(np.argmax(W))], effective_sample_size(W)
         summary = self.prior.summarize(weighed.prior_state, W)
-        new_state, resampled = self._resample(state, weighed, mean)
+        new_state, resampled = self._resample(state, weighed, mean, ess)
         t2 = time.perf_counter()
         step = FrameStep(index=state.tracked, frame=frame.index, particles=weighed.x, weights=weighed.weights,
                          mean=mean, best=best, ess=ess, resampled=resampled, recovered=weighed.recovered,
@@ -244,7 +244,8 @@ class ParticleFilter:
         weights = LogWeights(np.log(W, out=np.full(len(W), -np.inf), where=W > 0))
         return Weighed(x, history, prior_state, mix, weights, W, recovered)
 
-    def _resample(self, state: FilterState, weighed: "Weighed", mean: np.ndarray) -> tuple[FilterState, bool]:
+    def _resample(self, state: FilterState, weighed: "Weighed", mean: np.ndarray, ess: float
+                  ) -> tuple[FilterState, bool]:
         """The state the next frame starts from: the histories moved on by the new poses, resampled when due
         (every annealed frame and every mixture frame, else when the effective sample size falls below the
         threshold), the prior's state reindexed with them; and whether it resampled."""
@@ -252,8 +253,7 @@ class ParticleFilter:
         history = np.concatenate([weighed.history[:, 1:], weighed.x[:, None]], axis=1)
         prior_state = weighed.prior_state
         recent = np.concatenate([state.recent_estimates[1:], mean[None]])
-        resampled = cfg.annealing_layers > 1 or mix is not None or \
-            effective_sample_size(W) < cfg.ess_threshold * cfg.n_particles
+        resampled = cfg.annealing_layers > 1 or mix is not None or ess < cfg.ess_threshold * cfg.n_particles
         if mix is not None:  # every frame, each component redrawn from all particles (the IMM mixing step)
             idx, carried = resample_components(W, mix, self.rng, self.resample)
             history = history[idx]
