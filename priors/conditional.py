@@ -104,6 +104,13 @@ class ConditionalPrior(MotionPrior):
         new = self.start(recent, n_particles, rng)
         return new if self.posture is None else self.posture.restart(state, new, n_particles)
 
+    def adopt(self, state: PriorState, history: np.ndarray, available: int,
+              rng: np.random.Generator) -> PriorState:
+        """The state of particles arriving from another motion model: the step out of each one's own newest pose;
+        the pace, height and posture offsets those positions held (slow quantities of the person, not of one
+        pose)."""
+        return {**state, "step": pending_step(history[:, history.shape[1] - min(available, 2):])}
+
     def sample(self, history: np.ndarray, available: int, state: PriorState,
                rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
         model = self.model_for(available)

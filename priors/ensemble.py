@@ -14,18 +14,7 @@ from typing import Sequence
 import numpy as np
 
 from tracker.core.errors import InputError
-from tracker.engine.prior import MotionPrior, PriorState, reindex_state
-
-
-def _scatter(full: PriorState, idx: np.ndarray, part: PriorState) -> PriorState:
-    """``full`` (a member's state for all particles) with rows ``idx`` replaced by ``part``."""
-    if part is None:
-        return None
-    if isinstance(full, dict):
-        return {k: _scatter(full[k], idx, part[k]) for k in full}
-    out = np.array(full, copy=True)
-    out[idx] = part
-    return out
+from tracker.engine.prior import MotionPrior, PriorState, reindex_state, scatter_state
 
 
 class EnsemblePrior(MotionPrior):
@@ -70,7 +59,7 @@ class EnsemblePrior(MotionPrior):
         for k, m, idx in self._shares(state):
             own = state[f"member_{k}"]
             poses[idx], part = m.sample(history[idx], available, reindex_state(own, idx), rng)
-            new[f"member_{k}"] = _scatter(own, idx, part)
+            new[f"member_{k}"] = scatter_state(own, idx, part)
         return poses, new
 
     def diffusion_std(self) -> np.ndarray:

@@ -67,18 +67,32 @@ class GPDMPrior(MotionPrior):
         return {"latent_noise": self.noise_scale, **self.ground.settings(),
                 **(HeightOffset() if self.height is None else self.height).settings()}
 
+    def latent_history(self, poses: np.ndarray) -> np.ndarray:
+        """The latent state ``P x (o d)`` (newest first, ``o`` the latent order) of pose sequences ``P x n x D``
+        (oldest first): the projections of their last ``o`` poses' features, the earliest pose repeated when
+        ``n < o``."""
+        o, P = self.latent_order, len(poses)
+        recent = poses[:, -o:] if poses.shape[1] >= o else \
+            np.concatenate([np.repeat(poses[:, :1], o - poses.shape[1], axis=1), poses], axis=1)
+        feats = poses_to_invariant(np.concatenate([recent[:, :1], recent], axis=1))[:, 1:]  # P x o x K
+        flat = self.model.normaliser.transform(feats.reshape(P * o, -1))
+        latent = self.predictor.project(torch.tensor(flat)).numpy().reshape(P, o, -1)
+        return latent[:, ::-1].reshape(P, -1)
+
     def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
         known = np.atleast_2d(np.asarray(known, float))
-        o = self.latent_order
-        recent = known[-o:] if len(known) >= o else np.repeat(known[:1], o, axis=0)
-        recent_feats = poses_to_invariant(np.concatenate([recent[:1], recent]))[1:]
-        latent = self.predictor.project(torch.tensor(self.model.normaliser.transform(recent_feats)))
-        history = torch.cat([latent[-1 - k] for k in range(o)]).numpy()  # newest first
-        state = {"latent": np.repeat(history[None], n_particles, axis=0),
+        state = {"latent": np.repeat(self.latent_history(known[None]), n_particles, axis=0),
                  "step": np.repeat(pending_step(known)[None], n_particles, axis=0)}
         if self.height is not None:
             state.update(self.height.start(n_particles, rng))
         return state
+
+    def adopt(self, state: PriorState, history: np.ndarray, available: int,
+              rng: np.random.Generator) -> PriorState:
+        """The state of particles arriving from another motion model: the latent coordinates and the step of
+        their own recent poses; the height offsets those positions held."""
+        real = history[:, history.shape[1] - available:]
+        return {**state, "latent": self.latent_history(real), "step": pending_step(real[:, -2:])}
 
     def draw(self, n_particles: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
         """Every random number of one step, drawn in one batch: standard normal ``latent`` (``P x d``),

@@ -97,8 +97,13 @@ BUILT = {
     "gpdm": [("gpdm", ["gpdm"], {}), ("gpdm", ["gpdm"], {"height_drift": 2.0})],
     "fcrbm": [("fcrbm", ["fcrbm"], {}), ("fcrbm", ["fcrbm"], {"style_inference": "particles"})],
     "deep-crbm": [("deep-crbm", ["deep-crbm"], {"height_spread": 20.0})],
+    "mixture": [("mixture", ["crbm-paced"], {}), ("mixture", ["crbm", "gpdm"], {"components": "crbm,gpdm"}),
+                ("mixture", ["fcrbm", "deep-crbm"], {"components": "fcrbm,deep-crbm"}),
+                ("mixture", [], {"components": "zero-velocity,constant-velocity", "switch": 0.2})],
     "test-damped-walk": [("test-damped-walk", [], {})],
 }
+#: Priors without lower orders to grow their history through.
+RANDOM_WALKS = ("zero-velocity", "constant-velocity", "test-damped-walk")
 
 
 def configurations(models, plugin_prior, walk_07_01):
@@ -174,7 +179,7 @@ def shared_frames(prior) -> int:
     """Frames to roll out before a batch check: 2, or 0 for a prior with a posture offset. That offset is one for
     the whole particle set (it integrates the posterior's mean posture correction, :class:`priors.parts.
     PostureOffset`), the one part that sees the other particles by design; before its first move it sees none."""
-    members = getattr(prior, "members", [prior])
+    members = getattr(prior, "members", None) or getattr(prior, "components", None) or [prior]
     return 0 if any(getattr(m, "posture", None) is not None for m in members) else 2
 
 
@@ -192,9 +197,9 @@ def test_a_batch_samples_each_particle_as_it_would_alone(priors, walk_07_01):
 
 def groups(state) -> np.ndarray | None:
     """The component each particle belongs to where a prior keeps components apart (an ensemble's member, an
-    FCRBM's style label): resampling within a component leaves every component's random numbers where they were."""
+    FCRBM's style label, a mixture's motion model): resampling within a component leaves every component's random numbers where they were."""
     if isinstance(state, dict):
-        for key in ("member", "style"):
+        for key in ("member", "style", "component"):
             if key in state:
                 return np.asarray(state[key])
     return None
@@ -239,7 +244,8 @@ def test_a_learned_prior_grows_its_history_from_one_known_frame(priors, walk_07_
     """From one known pose the history grows through the lower orders the model files carry (Taylor 2009,
     Sec. 6.4): every step draws finite poses and says which model drew them."""
     for label, prior in priors:
-        if prior.order < 2 or prior.name in ("zero-velocity", "constant-velocity", "test-damped-walk"):
+        parts = getattr(prior, "components", [prior])
+        if prior.order < 2 or all(p.name in RANDOM_WALKS for p in parts):
             continue  # a random walk has no lower orders: it samples from whatever history it has
         rng = np.random.default_rng(8)
         known = walk_07_01.poses[:1]

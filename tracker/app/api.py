@@ -211,7 +211,7 @@ def build_prior(name: str, sequence: Sequence, models: Seq[str | Path | Any] = (
     models = [Path(m) if isinstance(m, (str, os.PathLike)) else m for m in models]
     if entry.model_files == "none" and models:
         raise InputError(f"prior {name} takes no model files")
-    if entry.model_files != "none" and not models:
+    if entry.model_files in ("one", "several") and not models:
         raise InputError(f"prior {name} needs a model file (train one with: python -m tracker train --prior {name})")
     if entry.model_files == "one" and len(models) > 1:
         raise InputError(f"prior {name} takes one model file, got {len(models)}")

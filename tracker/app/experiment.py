@@ -356,7 +356,7 @@ def load_experiment(path: str | Path) -> Experiment:
             trains.append(TrainSpec(mocap, skels, dict(t.get("options", {})), w.int_(t.get("seed", 0), te, 0)))
         if spec.model_files == "none" and (models or trains):
             raise w.error(entry, f"prior {p['name']} takes no model files")
-        if spec.model_files != "none" and not (models or trains):
+        if spec.model_files in ("one", "several") and not (models or trains):
             raise w.error(entry, f"prior {p['name']} needs models = [...] or train = [...]")
         if spec.model_files == "one" and len(models) + len(trains) != 1:
             raise w.error(entry, f"prior {p['name']} takes exactly one model")

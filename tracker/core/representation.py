@@ -234,13 +234,13 @@ def next_poses(previous: np.ndarray, previous_features: np.ndarray, features: np
 
 
 def pending_step(known: np.ndarray) -> np.ndarray:
-    """The root step ``(3,)`` (:data:`STEP_FEATURES`) that leads out of the last of the known poses ``n x D``:
-    the step between the last two (zero with one known pose). Learned priors carry it per particle, because
-    the newest frame's step is chosen by the sample that follows it."""
+    """The root step ``(..., 3)`` (:data:`STEP_FEATURES`) that leads out of the last of the known poses
+    ``(..., n, D)``: the step between the last two (zero with one known pose). Learned priors carry it per
+    particle, because the newest frame's step is chosen by the sample that follows it."""
     known = np.atleast_2d(np.asarray(known, float))
-    if len(known) < 2:
-        return np.zeros(len(STEP_FEATURES))
-    return poses_to_invariant(known[-2:])[-1, list(STEP_FEATURES)]
+    if known.shape[-2] < 2:
+        return np.zeros(known.shape[:-2] + (len(STEP_FEATURES),))
+    return poses_to_invariant(known[..., -2:, :])[..., -1, list(STEP_FEATURES)]
 
 
 #: Ground speed (mm/frame) added before taking the log of a pace, so a standing person's pace stays finite.

@@ -33,6 +33,18 @@ def reindex_state(state: PriorState, idx: np.ndarray) -> PriorState:
     return state[idx]
 
 
+def scatter_state(full: PriorState, rows: np.ndarray, part: PriorState) -> PriorState:
+    """Per-particle state ``full`` with rows ``rows`` replaced by ``part`` (the state of those particles alone,
+    e.g. after a member of a composite prior sampled them); ``None`` stays ``None``."""
+    if part is None or full is None:
+        return full if part is None else part
+    if isinstance(full, dict):
+        return {k: scatter_state(full[k], rows, part[k]) for k in full}
+    out = np.array(full, copy=True)
+    out[rows] = part
+    return out
+
+
 class MotionPrior(ABC):
     """Samples ``p(x_t | x_{t-N} .. x_{t-1})`` for a batch of particles.
 
@@ -86,6 +98,16 @@ class MotionPrior(ABC):
     def relabel(self, state: PriorState, component: np.ndarray) -> PriorState:
         """The per-particle ``state`` after mixture resampling drew particles across components: the particle at
         position ``i`` now belongs to ``component[i]`` (``(P,)``). Only priors with a :meth:`mixture` need it."""
+        return state
+
+    def adopt(self, state: PriorState, history: np.ndarray, available: int,
+              rng: np.random.Generator) -> PriorState:
+        """This prior's state for particles that arrive from another motion model of a mixture
+        (:mod:`priors.mixture`): ``history`` ``P x N x D`` their last poses (``N`` at least this prior's order,
+        ``available`` of them real), ``state`` the rows this prior held at the positions they take. By default
+        ``state`` unchanged, which is right for a prior whose state does not describe the newest pose (none, or
+        a slow quantity such as a pace or a height offset); a prior that carries something derived from the
+        particle's own poses (the step out of its newest pose, latent coordinates) derives it from ``history``."""
         return state
 
     @abstractmethod

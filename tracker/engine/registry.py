@@ -179,7 +179,7 @@ class PriorEntry:
     build: Callable[[PriorContext, Sequence[Path], dict], Any]
     summary: str = ""
     options: tuple[Option, ...] = ()
-    model_files: str = "none"  # "none", "one" or "several"
+    model_files: str = "none"  # "none", "one", "several" or "any" (the builder checks the count)
     train: Callable[..., Any] | None = None
     train_options: tuple[Option, ...] = ()
     resumable: bool = False
@@ -234,13 +234,14 @@ def register_prior(name: str, *, summary: str = "", options: Sequence[Option] = 
                    resumable: bool = False):
     """Decorator registering ``build(context, model_files, options) -> MotionPrior`` under ``name``.
 
-    ``model_files`` says whether the prior takes none, ``"one"`` or ``"several"`` model files; ``train``
+    ``model_files`` says whether the prior takes none, ``"one"`` or ``"several"`` model files, or ``"any"``
+    number that its builder checks (a mixture: one per learned component); ``train``
     (learned priors) is ``train(data: TrainingData, options, rng, progress, checkpoint) -> model`` with
     ``model.save(path)`` and ``model.summary()``, configured by ``train_options``; a ``resumable`` one also
     takes ``resume=True`` to continue from ``checkpoint``.
     """
-    if model_files not in ("none", "one", "several"):
-        raise ValueError(f"model_files must be 'none', 'one' or 'several', got {model_files!r}")
+    if model_files not in ("none", "one", "several", "any"):
+        raise ValueError(f"model_files must be 'none', 'one', 'several' or 'any', got {model_files!r}")
 
     def decorate(build):
         PRIORS.add(PriorEntry(name, build, summary, tuple(options), model_files, train, tuple(train_options),

@@ -1,0 +1,245 @@
+"""A mixture of motion models, weighed by their evidence: a learned prior that falls back on another.
+
+A learned prior is only as good as its training motion: on motion it never saw it pulls every particle toward
+what it knows, and no single particle can escape. The mixture gives each of several priors (for example a
+learned prior and zero-velocity, or a walk-trained and an all-activity model) a fixed share of the particles.
+The filter keeps the shares apart and weighs each by its evidence, the mean likelihood of its own samples
+tempered by ``temperature`` (mixture tracking, :mod:`tracker.engine.mixture`); every frame each share is redrawn
+from all particles, those of the other components with probability ``switch`` (the IMM mixing step), so a
+component that loses its weight follows the winner's particles and takes over again when its motion returns.
+A model that keeps components of its own (an FCRBM inferring its style label) takes part with each of its labels
+as a component. The estimate is the mixture's posterior mean; the per-frame summary is the posterior over the
+components.
+
+A particle that switches component brings its own history; the new component derives the state it keeps per
+particle from it (:meth:`~tracker.engine.prior.MotionPrior.adopt`: the step out of the newest pose, GPDM latent
+coordinates) on the next frame, and keeps the slow quantities (a pace, a height offset) its share had.
+
+State: ``component`` ``(P,)`` (fixed per particle position: contiguous blocks of equal size), ``arrived``
+``(P,)`` (the particles that switched component and have not been drawn from since), and ``model_k`` the state
+of component ``k``, one row per particle of which the rows of its own positions are in use.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from tracker.core.errors import InputError
+from tracker.engine.mixture import Mixture, switching
+from tracker.engine.prior import MotionPrior, PriorState, reindex_state, scatter_state
+from tracker.engine.registry import PRIORS, Option, PriorContext, register_prior, resolve_options
+
+#: Probability per frame that a particle is redrawn from another component's particles.
+SWITCH = 0.05
+#: The likelihood is raised to ``1 / TEMPERATURE`` when the components are weighed (as the FCRBM's styles are).
+TEMPERATURE = 10.0
+
+
+class MixturePrior(MotionPrior):
+    """Motion models each drawing a fixed share of the particles, weighed by their evidence (module docstring).
+
+    ``components``: the priors; ``labels``: their names in the summary (default: their names, numbered where
+    one repeats); ``switch`` in [0, 1): the probability per frame that a particle is redrawn from another
+    component; ``temperature`` >= 1: the evidence's temperature.
+    """
+
+    summary_kind = "posterior"
+
+    def __init__(self, components: Sequence[MotionPrior], labels: Sequence[str] | None = None, *,
+                 switch: float = SWITCH, temperature: float = TEMPERATURE):
+        components = list(components)
+        if len(components) < 2:
+            raise InputError(f"a mixture needs at least two motion models, got {len(components)}")
+        if not 0.0 <= switch < 1.0:
+            raise InputError(f"the mixture's switching probability must lie in [0, 1), got {switch}")
+        if not temperature >= 1.0:
+            raise InputError(f"the mixture's evidence temperature must be at least 1, got {temperature}")
+        self.components = components
+        self.switch, self.temperature = float(switch), float(temperature)
+        self.labels = tuple(labels) if labels is not None else numbered([c.name for c in components])
+        if len(self.labels) != len(components) or len(set(self.labels)) != len(components):
+            raise InputError(f"a mixture needs one distinct label per component, got {list(self.labels)}")
+        self.summary_names = tuple(n for label, c in zip(self.labels, components) for n in
+                                   ([f"{label} {s}" for s in c.summary_names] if self._labelled(c) else [label]))
+        self.order = max(c.order for c in components)
+        self.name = "mixture of " + " + ".join(self.labels)
+
+    # -- the layout of the particles ----------------------------------------------------------------------------
+
+    def _layout(self, n_particles: int) -> np.ndarray:
+        """Each position's component ``(P,)``: contiguous blocks of (nearly) equal size."""
+        C = len(self.components)
+        if n_particles < C:
+            raise InputError(f"a mixture of {C} motion models needs at least {C} particles, got {n_particles}")
+        return np.arange(n_particles) * C // n_particles
+
+    # -- the interface ------------------------------------------------------------------------------------------
+
+    def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
+        state: dict = {"component": self._layout(n_particles), "arrived": np.zeros(n_particles, bool)}
+        for c, prior in enumerate(self.components):
+            state[f"model_{c}"] = prior.start(known, n_particles, rng)
+        return state
+
+    def restart(self, state: PriorState, recent: np.ndarray, n_particles: int,
+                rng: np.random.Generator) -> PriorState:
+        new: dict = {"component": state["component"], "arrived": np.zeros(n_particles, bool)}
+        for c, prior in enumerate(self.components):
+            new[f"model_{c}"] = prior.restart(state[f"model_{c}"], recent, n_particles, rng)
+        return new
+
+    def sample(self, history: np.ndarray, available: int, state: PriorState,
+               rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
+        component, arrived = state["component"], state["arrived"]
+        poses = np.empty((history.shape[0], history.shape[2]))
+        new: dict = {"component": component, "arrived": np.zeros(len(component), bool)}
+        for c, prior in enumerate(self.components):
+            m = np.flatnonzero(component == c)
+            own = reindex_state(state[f"model_{c}"], m)
+            moved = np.flatnonzero(arrived[m])
+            if len(moved):
+                part = prior.adopt(reindex_state(own, moved), history[m[moved]], available, rng)
+                own = scatter_state(own, moved, part)
+            h = history[m, history.shape[1] - prior.order:]
+            poses[m], drawn = prior.sample(h, min(available, prior.order), own, rng)
+            new[f"model_{c}"] = scatter_state(state[f"model_{c}"], m, drawn)
+        return poses, new
+
+    def reindex(self, state: PriorState, idx: np.ndarray) -> PriorState:
+        """After resampling picked particles ``idx``: a position whose new particle came from its own component
+        takes that particle's rows; one whose particle came from another component keeps the rows its component
+        had there and is marked ``arrived`` (:meth:`sample` derives its pose-dependent state then)."""
+        component = state["component"]
+        crossed = component[idx] != component
+        rows = np.where(crossed, np.arange(len(idx)), idx)
+        new: dict = {"component": component, "arrived": np.where(crossed, True, state["arrived"][idx])}
+        for c, prior in enumerate(self.components):
+            new[f"model_{c}"] = prior.reindex(state[f"model_{c}"], rows)
+        return new
+
+    def mixture(self, state: PriorState) -> Mixture:
+        """The filter's components: one per motion model, or, for a model that keeps components of its own (an
+        FCRBM's style labels), one per model and label, the labels switching among themselves as the model
+        says. Between models a particle switches with probability ``switch``, to each label of the other model
+        alike."""
+        outer = state["component"]
+        inner = [p.mixture(state[f"model_{c}"]) for c, p in enumerate(self.components)]
+        sizes = [1 if m is None else m.n_components for m in inner]
+        start = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+        flat = start[outer]
+        C = len(self.components)
+        transition = np.zeros((sum(sizes), sum(sizes)))
+        for a in range(C):
+            if inner[a] is not None:
+                own = outer == a
+                flat[own] += inner[a].component[own]
+            for b in range(C):
+                block = (1.0 - self.switch) * (np.ones((1, 1)) if inner[a] is None else inner[a].transition) \
+                    if a == b else np.full((sizes[a], sizes[b]), self.switch / (C - 1) / sizes[b])
+                transition[start[a]:start[a] + sizes[a], start[b]:start[b] + sizes[b]] = block
+        return Mixture(flat, transition, self.temperature)
+
+    def relabel(self, state: PriorState, component: np.ndarray) -> PriorState:
+        """A model that keeps components of its own learns its particles' new labels from the filter's components
+        ``component`` ``(P,)`` (:meth:`mixture`'s numbering)."""
+        outer, new = state["component"], dict(state)
+        first = 0
+        for c, prior in enumerate(self.components):
+            inner = prior.mixture(state[f"model_{c}"])
+            if inner is not None:
+                labels = np.where(outer == c, component - first, inner.component)
+                new[f"model_{c}"] = prior.relabel(state[f"model_{c}"], labels)
+            first += 1 if inner is None else inner.n_components
+        return new
+
+    def diffusion_std(self) -> np.ndarray:
+        """The root-mean-square of the components' one-step scales ``(D,)``."""
+        return np.sqrt(np.mean([np.square(c.diffusion_std()) for c in self.components], axis=0))
+
+    def summarize(self, state: PriorState, weights: np.ndarray) -> np.ndarray:
+        """The posterior over :attr:`summary_names` under the normalised ``weights`` ``(P,)``: each model's
+        particles' weights summed, split over its labels for a model whose summary is a posterior over labels."""
+        out = []
+        for c, prior in enumerate(self.components):
+            m = np.flatnonzero(state["component"] == c)
+            total = float(weights[m].sum())
+            if not self._labelled(prior):
+                out.append([total])
+                continue
+            split = np.asarray(prior.summarize(reindex_state(state[f"model_{c}"], m), weights[m]), float)
+            out.append(split / split.sum() * total if split.sum() > 0 else np.full(len(split), total / len(split)))
+        values = np.concatenate(out)
+        return values / values.sum() if values.sum() > 0 else np.full(len(values), 1.0 / len(values))
+
+    @staticmethod
+    def _labelled(prior: MotionPrior) -> bool:
+        """Whether ``prior``'s per-frame summary is a posterior over labels (an FCRBM's styles)."""
+        return prior.summary_kind == "posterior" and bool(prior.summary_names)
+
+    def settings(self) -> dict:
+        return {"components": list(self.labels), "switch": self.switch, "evidence_temperature": self.temperature,
+                "component_settings": {n: c.settings() for n, c in zip(self.labels, self.components)}}
+
+    def label_for(self, available: int) -> str:
+        return " + ".join(c.label_for(min(available, c.order)) for c in self.components)
+
+
+def numbered(names: Sequence[str]) -> tuple[str, ...]:
+    """``names`` with a repeated name numbered from its second occurrence on (``crbm``, ``crbm 2``)."""
+    out, seen = [], {}
+    for n in names:
+        seen[n] = seen.get(n, 0) + 1
+        out.append(n if seen[n] == 1 else f"{n} {seen[n]}")
+    return tuple(out)
+
+
+# ---------------------------------------------------------------------------
+# Registration
+# ---------------------------------------------------------------------------
+
+def check_components(value: str, owner: str) -> None:
+    names = [n.strip() for n in value.split(",")]
+    if len(names) < 2 or not all(names):
+        raise InputError(f"{owner}: components must name two or more priors, comma-separated "
+                         f"(e.g. crbm,zero-velocity), got {value!r}")
+    if "mixture" in names:
+        raise InputError(f"{owner}: a mixture cannot be a component of a mixture")
+
+
+MIXTURE_OPTIONS = (
+    Option("components", str, "crbm,zero-velocity",
+           "the motion models mixed, comma-separated; each learned one takes the next model file, in order",
+           check=check_components),
+    Option("switch", float, SWITCH, "probability per frame that a particle is redrawn from another component's "
+           "particles", minimum=0.0, maximum=0.5),
+    Option("evidence_temperature", float, TEMPERATURE, "the likelihood is raised to 1/T when the components are "
+           "weighed against each other", minimum=1.0, maximum=1000.0),
+)
+
+
+@register_prior("mixture", summary="several motion models, each drawing a share of the particles, weighed by "
+                                   "their evidence (a learned prior that falls back on zero-velocity)",
+                options=MIXTURE_OPTIONS, model_files="any")
+def build_mixture(context: PriorContext, model_files: Sequence[Path], options: dict) -> MixturePrior:
+    """The mixture of ``options["components"]`` at their default options, the learned ones taking one of
+    ``model_files`` each, in order."""
+    names = [n.strip() for n in options["components"].split(",")]
+    entries = [PRIORS.get(n) for n in names]
+    needed = sum(e.model_files != "none" for e in entries)
+    if needed != len(model_files):
+        learned = [e.name for e in entries if e.model_files != "none"]
+        raise InputError(f"the mixture of {', '.join(names)} takes one model file for each learned component "
+                         f"({', '.join(learned) or 'none'}): {needed}, got {len(model_files)}")
+    files = iter(model_files)
+    components, labels = [], []
+    for e in entries:
+        given = [next(files)] if e.model_files != "none" else []
+        components.append(e.build(context, given, resolve_options(f"prior {e.name}", e.options, {})))
+        labels.append(e.name)
+    if len(set(labels)) < len(labels):  # two models of one prior: told apart by their files
+        stems = iter(Path(f).stem for f in model_files)
+        labels = [f"{e.name} ({next(stems)})" if e.model_files != "none" else e.name for e in entries]
+    return MixturePrior(components, numbered(labels), switch=options["switch"],
+                        temperature=options["evidence_temperature"])
