@@ -196,3 +196,25 @@ def test_a_model_with_components_of_its_own_takes_part_with_each_of_them():
     truth = trajectory([(20, 10.0)])
     posterior, _ = track(truth, MixturePrior([Drift(0.0, name="still"), Styled(0.0, name="styled")]))
     assert np.all(posterior[4:, 2] > 0.85), posterior  # the fast label of the styled model explains the frames
+
+
+def test_a_gpdm_takes_an_arriving_particle_at_the_latent_point_of_its_own_poses(mocap_dir, walk_07_01):
+    """What GPDMPrior.adopt gives each arriving particle is what starting from that particle's poses gives."""
+    import tracker
+    from tracker.app.api import build_prior
+
+    model = tracker.train("gpdm", [mocap_dir / "07" / "07_01.amc"], iterations=3, seed=0)
+
+    class _Seq:
+        model, fps, root = walk_07_01.model, 60.0, Path("mixture")
+
+    gpdm = build_prior("gpdm", _Seq(), [model])
+    poses, rng = walk_07_01.poses, np.random.default_rng(0)
+    history = np.stack([poses[0:3], poses[20:23], poses[40:43]])  # three particles, three poses each
+    state = gpdm.start(poses[:2], 3, rng)
+    adopted = gpdm.adopt(state, history, 3, rng)
+    for i in range(3):
+        alone = gpdm.start(history[i], 1, rng)
+        assert np.allclose(adopted["latent"][i], alone["latent"][0], atol=1e-4), i
+        assert np.allclose(adopted["step"][i], alone["step"][0])
+    assert np.array_equal(adopted["height_offset"], state["height_offset"])  # a slow quantity stays

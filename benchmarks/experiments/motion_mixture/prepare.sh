@@ -8,18 +8,20 @@ set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 M="$(cd "$here/../../../../shared/mocap/cmu" && pwd)"
 mkdir -p "$here/sequences" "$here/models"
-render() {  # name clip start frames
-  [ -d "$here/sequences/$1" ] || python -m tracker --threads 1 synth --mocap "$2" --start "$3" --frames "$4" \
-      --out "$here/sequences/$1"
+render() {  # name clip start frames [synth options]
+  local name="$1" clip="$2" start="$3" frames="$4"; shift 4
+  [ -d "$here/sequences/$name" ] || python -m tracker --threads 1 synth --mocap "$clip" --start "$start" \
+      --frames "$frames" "$@" --out "$here/sequences/$name"
 }
 render walk_02 "$M/02/02_01.amc" 0 150
+render walk_02_turned "$M/02/02_01.amc" 0 150 --turn 90
 render punch_02 "$M/02/02_05.amc" 200 150
 render kick_10 "$M/bvh/10_01.bvh" 100 150
 render walk_16 "$M/16/16_15.amc" 0 150
 render run_16 "$M/16/16_35.amc" 0 80
 render whole_49 "$M/49/49_18.amc" 100 150
 render kick_11 "$M/bvh/11_01.bvh" 100 150
-render startwalk_131 "$M/bvh/131_01.bvh" 0 150
+render startwalk_131 "$M/bvh/131_01.bvh" 90 150
 render walk_91 "$M/91/91_straight_walk.amc" 0 150
 render sadwalk_91 "$M/91/91_sad_walk.amc" 200 150
 
@@ -44,3 +46,13 @@ done
 for fold in A C; do  # the report folds' walk-trained CRBM with a second training seed
   eval "train crbm_walks_${fold}_seed1 1 \$walks_$fold"
 done
+
+# An FCRBM per fold on every activity, one style label per clip (in the order of all_<fold>)
+fcrbm() {  # name labels clips...
+  local name="$1" labels="$2"; shift 2
+  [ -f "$here/models/$name.pt" ] || python -m tracker --threads 1 train --prior fcrbm --labels "$labels" \
+      --mocap "$@" --out "$here/models/$name.pt"
+}
+eval "fcrbm fcrbm_all_B walk,walk,walk,walk,walk,walk,run,run,run,run,run,run,run,whole,kick,walk \$all_B"
+eval "fcrbm fcrbm_all_A walk,walk,walk,walk,walk,walk,walk,run,punch,run,run,run,run,run,kick,kick \$all_A"
+eval "fcrbm fcrbm_all_C walk,walk,walk,walk,walk,walk,walk,run,punch,run,run,run,run,run,run,run,whole,kick,kick,walk \$all_C"
