@@ -1,4 +1,4 @@
-"""Summarise the leave-one-subject-out folds (issue 13's targets) from the folders `compare` wrote.
+"""Each prior's marker error as a ratio to the baseline's, over the folders `compare` wrote (one or more folds).
 
     python benchmarks/loso_summary.py RESULTS/leave_out_02 RESULTS/leave_out_07 ... [--baseline zero-velocity]
 
