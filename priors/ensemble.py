@@ -62,6 +62,16 @@ class EnsemblePrior(MotionPrior):
             new[f"member_{k}"] = scatter_state(own, idx, part)
         return poses, new
 
+    def adopt(self, state: PriorState, history: np.ndarray, available: int,
+              rng: np.random.Generator) -> PriorState:
+        """Each member derives the state of its own arriving particles from their histories."""
+        new = dict(state)
+        for k, m, idx in self._shares(state):
+            own = state[f"member_{k}"]
+            new[f"member_{k}"] = scatter_state(own, idx, m.adopt(reindex_state(own, idx), history[idx], available,
+                                                                 rng))
+        return new
+
     def diffusion_std(self) -> np.ndarray:
         return np.mean([m.diffusion_std() for m in self.members], axis=0)
 

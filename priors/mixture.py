@@ -1,14 +1,18 @@
 """A mixture of motion models, weighed by their evidence: a learned prior that falls back on another.
 
+(This module is the prior; the filter's mechanism of components kept apart is :mod:`tracker.engine.mixture`.)
+
 A learned prior is only as good as its training motion: on motion it never saw it pulls every particle toward
 what it knows, and no single particle can escape. The mixture gives each of several priors (for example a
 learned prior and zero-velocity, or a walk-trained and an all-activity model) a fixed share of the particles.
 The filter keeps the shares apart and weighs each by its evidence, the mean likelihood of its own samples
 tempered by ``temperature`` (mixture tracking, :mod:`tracker.engine.mixture`); every frame each share is redrawn
-from all particles, those of the other components with probability ``switch`` (the IMM mixing step), so a
-component that loses its weight follows the winner's particles and takes over again when its motion returns.
+from all particles, a particle's component changing with probability ``switch`` in the transition of the IMM
+mixing step, so a component that loses its weight is refilled from the winner's particles and takes over again
+when its motion returns.
 A model that keeps components of its own (an FCRBM inferring its style label) takes part with each of its labels
-as a component. The estimate is the mixture's posterior mean; the per-frame summary is the posterior over the
+as a component (its labels then switch among themselves as it says, but are weighed with the mixture's
+``temperature``, not its own). The estimate is the mixture's posterior mean; the per-frame summary is the posterior over the
 components.
 
 A particle that switches component brings its own history; the new component derives the state it keeps per
@@ -31,7 +35,7 @@ from tracker.engine.mixture import Mixture, switching
 from tracker.engine.prior import MotionPrior, PriorState, reindex_state, scatter_state
 from tracker.engine.registry import PRIORS, Option, PriorContext, register_prior, resolve_options
 
-#: Probability per frame that a particle is redrawn from another component's particles.
+#: Probability per frame that a particle's component changes, in the IMM mixing step's transition.
 SWITCH = 0.05
 #: The likelihood is raised to ``1 / TEMPERATURE`` when the components are weighed (as the FCRBM's styles are).
 TEMPERATURE = 10.0
@@ -41,8 +45,8 @@ class MixturePrior(MotionPrior):
     """Motion models each drawing a fixed share of the particles, weighed by their evidence (module docstring).
 
     ``components``: the priors; ``labels``: their names in the summary (default: their names, numbered where
-    one repeats); ``switch`` in [0, 1): the probability per frame that a particle is redrawn from another
-    component; ``temperature`` >= 1: the evidence's temperature.
+    one repeats); ``switch`` in [0, 1): the probability per frame that a particle's component changes (the IMM
+    transition); ``temperature`` >= 1: the evidence's temperature.
     """
 
     summary_kind = "posterior"
@@ -85,9 +89,14 @@ class MixturePrior(MotionPrior):
 
     def restart(self, state: PriorState, recent: np.ndarray, n_particles: int,
                 rng: np.random.Generator) -> PriorState:
+        """Every component restarted from ``recent``, each seeing only rows of its own block (a component's rows
+        at the other blocks' positions are never updated: a restart that reads a particle's quantity, such as a
+        posture offset or a clock, must not read those)."""
         new: dict = {"component": state["component"], "arrived": np.zeros(n_particles, bool)}
         for c, prior in enumerate(self.components):
-            new[f"model_{c}"] = prior.restart(state[f"model_{c}"], recent, n_particles, rng)
+            first = np.flatnonzero(state["component"] == c)[0]
+            own = reindex_state(state[f"model_{c}"], np.full(n_particles, first))
+            new[f"model_{c}"] = prior.restart(own, recent, n_particles, rng)
         return new
 
     def sample(self, history: np.ndarray, available: int, state: PriorState,
@@ -133,23 +142,23 @@ class MixturePrior(MotionPrior):
         transition = np.zeros((sum(sizes), sum(sizes)))
         for a in range(C):
             if inner[a] is not None:
-                own = outer == a
-                flat[own] += inner[a].component[own]
+                in_block = outer == a
+                flat[in_block] += inner[a].component[in_block]
             for b in range(C):
                 block = (1.0 - self.switch) * (np.ones((1, 1)) if inner[a] is None else inner[a].transition) \
                     if a == b else np.full((sizes[a], sizes[b]), self.switch / (C - 1) / sizes[b])
                 transition[start[a]:start[a] + sizes[a], start[b]:start[b] + sizes[b]] = block
         return Mixture(flat, transition, self.temperature)
 
-    def relabel(self, state: PriorState, component: np.ndarray) -> PriorState:
+    def relabel(self, state: PriorState, flat: np.ndarray) -> PriorState:
         """A model that keeps components of its own learns its particles' new labels from the filter's components
-        ``component`` ``(P,)`` (:meth:`mixture`'s numbering)."""
+        ``flat`` ``(P,)`` (:meth:`mixture`'s numbering over models and their labels)."""
         outer, new = state["component"], dict(state)
         first = 0
         for c, prior in enumerate(self.components):
             inner = prior.mixture(state[f"model_{c}"])
             if inner is not None:
-                labels = np.where(outer == c, component - first, inner.component)
+                labels = np.where(outer == c, flat - first, inner.component)
                 new[f"model_{c}"] = prior.relabel(state[f"model_{c}"], labels)
             first += 1 if inner is None else inner.n_components
         return new
@@ -210,10 +219,11 @@ def check_components(value: str, owner: str) -> None:
 
 MIXTURE_OPTIONS = (
     Option("components", str, "crbm,zero-velocity",
-           "the motion models mixed, comma-separated; each learned one takes the next model file, in order",
+           "the motion models mixed, comma-separated, each at its default options; each learned one takes the "
+           "next model file, in order (one file each)",
            check=check_components),
-    Option("switch", float, SWITCH, "probability per frame that a particle is redrawn from another component's "
-           "particles", minimum=0.0, maximum=0.5),
+    Option("switch", float, SWITCH, "probability per frame that a particle's component changes (the transition of "
+           "the IMM mixing step)", minimum=0.0, maximum=0.5),
     Option("evidence_temperature", float, TEMPERATURE, "the likelihood is raised to 1/T when the components are "
            "weighed against each other", minimum=1.0, maximum=1000.0),
 )
@@ -238,8 +248,8 @@ def build_mixture(context: PriorContext, model_files: Sequence[Path], options: d
         given = [next(files)] if e.model_files != "none" else []
         components.append(e.build(context, given, resolve_options(f"prior {e.name}", e.options, {})))
         labels.append(e.name)
-    if len(set(labels)) < len(labels):  # two models of one prior: told apart by their files
-        stems = iter(Path(f).stem for f in model_files)
+    if len(set(labels)) < len(labels) and all(isinstance(f, (str, Path)) for f in model_files):
+        stems = iter(Path(f).stem for f in model_files)  # two models of one prior: told apart by their files
         labels = [f"{e.name} ({next(stems)})" if e.model_files != "none" else e.name for e in entries]
     return MixturePrior(components, numbered(labels), switch=options["switch"],
                         temperature=options["evidence_temperature"])

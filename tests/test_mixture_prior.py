@@ -218,3 +218,64 @@ def test_a_gpdm_takes_an_arriving_particle_at_the_latent_point_of_its_own_poses(
         assert np.allclose(adopted["latent"][i], alone["latent"][0], atol=1e-4), i
         assert np.allclose(adopted["step"][i], alone["step"][0])
     assert np.array_equal(adopted["height_offset"], state["height_offset"])  # a slow quantity stays
+
+
+class Counting(Drift):
+    """A drift counting its frames per particle, whose restart carries the count on (as an FCRBM's clock is)."""
+
+    def start(self, known, n_particles, rng):
+        return {"count": np.zeros(n_particles, np.int64)}
+
+    def sample(self, history, available, state, rng):
+        return super().sample(history, available, state, rng)[0], {"count": state["count"] + 1}
+
+    def restart(self, state, recent, n_particles, rng):
+        return {"count": np.full(n_particles, state["count"][0] + 100)}
+
+
+def test_a_restart_after_a_lost_frame_reads_each_component_from_its_own_particles():
+    prior = MixturePrior([Drift(0.0, name="still"), Counting(0.0, name="counting")])
+    rng = np.random.default_rng(0)
+    state = prior.start(np.zeros((1, D)), 6, rng)
+    history = np.zeros((6, 1, D))
+    for _ in range(2):
+        _, state = prior.sample(history, 1, state, rng)
+    assert list(state["model_1"]["count"]) == [0, 0, 0, 2, 2, 2]  # rows of the other block are never updated
+    restarted = prior.restart(state, np.zeros((1, D)), 6, rng)
+    assert np.all(restarted["model_1"]["count"] == 102)
+
+
+def test_two_models_of_one_prior_given_as_objects_are_numbered(mocap_dir, walk_07_01):
+    import tracker
+    from tracker.app.api import build_prior
+
+    model = tracker.train("crbm", [mocap_dir / "07" / "07_01.amc"], order=1, hidden=10, epochs=1, seed=0,
+                          pace_input=False)
+
+    class _Seq:
+        model, fps, root = walk_07_01.model, 60.0, Path("mixture")
+
+    prior = build_prior("mixture", _Seq(), [model, model], components="crbm,crbm")
+    assert prior.summary_names == ("crbm", "crbm 2")
+
+
+def test_an_ensemble_component_adopts_arriving_particles_member_by_member(mocap_dir, walk_07_01):
+    import tracker
+    from priors.ensemble import EnsemblePrior
+    from tracker.app.api import build_prior
+    from tracker.core.representation import pending_step
+
+    model = tracker.train("crbm", [mocap_dir / "07" / "07_01.amc"], order=1, hidden=10, epochs=1, seed=0,
+                          pace_input=False)
+
+    class _Seq:
+        model, fps, root = walk_07_01.model, 60.0, Path("mixture")
+
+    ensemble = EnsemblePrior([build_prior("crbm", _Seq(), [model]) for _ in range(2)])
+    poses, rng = walk_07_01.poses, np.random.default_rng(0)
+    state = ensemble.start(poses[:2], 4, rng)
+    history = np.stack([poses[2 * i:2 * i + 2] for i in range(4)]) + 0.0
+    adopted = ensemble.adopt(state, history, 2, rng)
+    for i in range(4):
+        member = adopted[f"member_{i % 2}"]
+        assert np.allclose(member["step"][i], pending_step(history[i])), i

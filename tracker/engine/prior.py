@@ -36,8 +36,10 @@ def reindex_state(state: PriorState, idx: np.ndarray) -> PriorState:
 def scatter_state(full: PriorState, rows: np.ndarray, part: PriorState) -> PriorState:
     """Per-particle state ``full`` with rows ``rows`` replaced by ``part`` (the state of those particles alone,
     e.g. after a member of a composite prior sampled them); ``None`` stays ``None``."""
-    if part is None or full is None:
-        return full if part is None else part
+    if full is None or part is None:
+        if full is not None or part is not None:
+            raise ValueError("a prior's state has rows for some of its particles and none for the others")
+        return None
     if isinstance(full, dict):
         return {k: scatter_state(full[k], rows, part[k]) for k in full}
     out = np.array(full, copy=True)
