@@ -10,10 +10,32 @@ from typing import Iterator
 from tracker.core.errors import InputError
 
 
+def current_umask() -> int:
+    """The process's file-mode creation mask (read from ``/proc`` where it can be, so no other thread ever sees
+    it changed)."""
+    try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def follow_umask(path: str | Path, directory: bool = False) -> None:
+    """Give ``path`` the mode a plain ``open`` (``0o666``) or ``mkdir`` (``0o777``) would have given it under the
+    umask: temporary files and folders are created private (``0o600``, ``0o700``) whatever the umask."""
+    os.chmod(path, (0o777 if directory else 0o666) & ~current_umask())
+
+
 @contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
     """A temporary path beside ``path`` to write to; renamed onto ``path`` when the block succeeds, removed
-    when it fails (or is interrupted). The suffix is kept, so writers that choose a format by it still do."""
+    when it fails (or is interrupted). The suffix is kept, so writers that choose a format by it still do; the
+    file gets the mode the umask gives new files."""
     path = Path(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -24,6 +46,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     tmp_path = Path(tmp)
     try:
         yield tmp_path
+        follow_umask(tmp_path)
         os.replace(tmp_path, path)
     except BaseException:
         tmp_path.unlink(missing_ok=True)

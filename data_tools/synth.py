@@ -22,7 +22,7 @@ import numpy as np
 from data_tools.checks import MAX_IMAGE_SIDE, real_number
 from data_tools.render import compose, make_room, person_mesh, render_background, render_person
 from data_tools.retarget import RetargetResult
-from data_tools.files import check_output_folder
+from data_tools.files import check_output_folder, follow_umask
 from data_tools.sequence import frame_path, write_groundtruth, write_image, write_sequence_header
 from tracker.core.kinematics import standing_height
 from tracker.core.cameras import CameraRig, default_rig
@@ -176,6 +176,7 @@ def synthesize(result: RetargetResult, out: str | Path, settings: SynthConfig, s
         raise InputError(f"cannot write the output folder ({exc.strerror})", final) from None
     try:
         output = _render(result, tmp, settings, source, rig, keep_masks, progress)
+        follow_umask(tmp, directory=True)
         if final.exists():
             shutil.rmtree(final)
         os.replace(tmp, final)

@@ -78,9 +78,13 @@ def test_track_command_writes_design_outputs(walk_32_frames, tmp_path):
         assert key in res, key
     assert res["views"] == [0, 2] and res["frames"] == 4 and len(res["per_frame_error_mm"]) == 4
     assert res["mean_error_mm"] == pytest.approx(np.mean(res["per_frame_error_mm"]), abs=1e-3)
+    import tracker
+    assert res["version"] == tracker.__version__
     with np.load(out / "estimates.npz") as z:
         assert z["poses"].shape == (6, 40) and z["markers"].shape == (6, 15, 3)
     assert (tmp_path / "o.mp4").stat().st_size > 1000
+    from data_tools.files import current_umask
+    assert (out / "result.json").stat().st_mode & 0o777 == 0o666 & ~current_umask()  # as any new file
 
 
 def test_track_bodytrack_without_ground_truth(bodytrack_dir, tmp_path):

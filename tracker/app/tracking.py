@@ -108,9 +108,12 @@ class TrackingResult:
 
     def to_dict(self) -> dict[str, Any]:
         """The content of ``result.json``."""
+        import tracker
+
         errors = self.errors
         summary = self.prior_summary
         return {
+            "version": tracker.__version__,
             **self.settings,
             "frames": len(self.tracked_frames),
             "mean_error_mm": self.mean_error,

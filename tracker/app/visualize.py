@@ -139,7 +139,7 @@ def overlay_grid(seq, pose: np.ndarray | None, frame: int, views: list[int], tex
                  ) -> np.ndarray:
     """One RGB grid image of frame ``frame`` in the chosen views of ``seq`` (a
     :class:`data_tools.sequence.Sequence`): the model at ``pose`` in left/right/centre colours and, when
-    given, the ground-truth pose ``truth`` as a thin outline beneath it; each view is labelled with its
+    given, the ground-truth pose ``truth`` as a thin outline over it (visible where the two coincide); each view is labelled with its
     camera, and a legend strip under the grid names the colours, ``estimate_name`` and ``text``."""
     rig = seq.rig.subset(views)
     est = None if pose is None else segment_polygons(seq.model, pose, rig)
@@ -147,10 +147,10 @@ def overlay_grid(seq, pose: np.ndarray | None, frame: int, views: list[int], tex
     tiles = []
     for i, v in enumerate(views):
         img = seq.image(frame, v)
-        if gt is not None:
-            img = draw_model(img, seq.model, gt[i], 1, colour=TRUTH_COLOUR)
         if est is not None:
             img = draw_model(img, seq.model, est[i], thickness)
+        if gt is not None:
+            img = draw_model(img, seq.model, gt[i], 1, colour=TRUTH_COLOUR)
         tiles.append(label(img, rig[i].name))
     canvas = grid(tiles)
     strip = legend_strip(canvas.shape[1], estimate_name if est is not None else None, gt is not None, text)
