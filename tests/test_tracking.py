@@ -287,3 +287,11 @@ def test_a_block_that_fails_on_any_thread_stops_the_others_and_is_raised():
         with pytest.raises(RuntimeError, match=f"block {failing}"):
             _share_blocks(score, blocks, threads=3)
         assert len(scored) < len(blocks) - 1  # the others stopped early
+
+
+def test_the_track_progress_bar_counts_the_tracked_frames(walk_32_frames, tmp_path, capsys):
+    assert main(["track", str(walk_32_frames.root), "--prior", "zero-velocity", "--particles", "50",
+                 "--frames", "6", "--out", str(tmp_path / "run")]) == 0
+    err = capsys.readouterr().err
+    assert "4/4" in err and "/6" not in err  # two of the six frames are known, not tracked
+    assert "1/4 [00:00<?, ?frame/s" in err  # no rate from the first frame alone

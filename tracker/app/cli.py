@@ -213,7 +213,7 @@ def cmd_track(args: argparse.Namespace) -> int:
     seq = load_sequence(args.sequence)
     views = _parse_views(args.views, seq.n_views)
     init = read_poses_file(args.init, "initial poses", seq.model) if args.init else None
-    T = check_frames(seq, args.frames, args.known_frames, init)[0]
+    T, _, n_known = check_frames(seq, args.frames, args.known_frames, init)
     if not args.resume:
         saved = {k: v for k, v in vars(args).items() if k not in ("resume", "command", "threads")}
         saved["plugin"] = [str(Path(p).resolve()) if p.endswith(".py") else p for p in args.plugin]
@@ -222,9 +222,10 @@ def cmd_track(args: argparse.Namespace) -> int:
     bars: list = []  # the bar appears with the first tracked frame: a refusal before that stays one line
 
     def on_frame(step, err: float | None) -> None:
-        if not bars:
-            bars.append(tqdm(total=T, desc=f"tracking ({args.prior})", unit="frame"))
-        bars[0].update(1)
+        if not bars:  # counts the tracked frames; its rate starts with the second (the first has no duration)
+            bars.append(tqdm(total=T - n_known, initial=1, desc=f"tracking ({args.prior})", unit="frame"))
+        else:
+            bars[0].update(1)
         if err is not None:
             errors.append(err)
             bars[0].set_postfix(error_mm=f"{err:.0f}", mean_mm=f"{np.mean(errors):.0f}")
@@ -248,7 +249,7 @@ def cmd_track(args: argparse.Namespace) -> int:
         print(f"interrupted{done}: partial result in {out}{again}", file=sys.stderr)
         return 130
     for bar in bars:
-        bar.update(T - bar.n)
+        bar.update(T - n_known - bar.n)
         bar.close()
     result = run.save(out)
     (out / TRACK_ARGS).unlink(missing_ok=True)

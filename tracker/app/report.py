@@ -197,6 +197,7 @@ def _plot(path: Path, lines: dict[str, list[str]], seqs: list[str], by: dict) ->
     stay apart however many there are; the legend sits to the right of the panels."""
     from matplotlib import colormaps
     from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
 
     rows = list(lines)
     priors = list(dict.fromkeys(r.rpartition(", views ")[0] or r for r in rows))
@@ -222,6 +223,7 @@ def _plot(path: Path, lines: dict[str, list[str]], seqs: list[str], by: dict) ->
             ax.fill_between(frames, mean - sd, mean + sd, color=colour, alpha=0.12, linewidth=0)
         ax.set_title(s)
         ax.set_xlabel("frame")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_ylabel("marker error (mm)")
         ax.set_ylim(bottom=0)
         ax.grid(alpha=0.3)

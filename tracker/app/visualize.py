@@ -215,6 +215,7 @@ def error_plot(path, curves: dict[str, tuple[np.ndarray, np.ndarray]], title: st
     Draws on a bare :class:`matplotlib.figure.Figure`, never through pyplot, so the process's matplotlib
     backend (a notebook's inline plots) is left alone."""
     from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
 
     from data_tools.files import atomic_path
 
@@ -223,6 +224,7 @@ def error_plot(path, curves: dict[str, tuple[np.ndarray, np.ndarray]], title: st
     for name, (frames, errs) in curves.items():
         ax.plot(frames, errs, label=f"{name} (mean {np.mean(errs):.0f} mm)")
     ax.set_xlabel("frame")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_ylabel("marker error (mm)")
     ax.set_title(title)
     ax.set_ylim(bottom=0)
@@ -240,6 +242,7 @@ def summary_plot(path, summary: dict, title: str, truth: list[tuple[int, int, st
     one line per quantity, each in its own panel with its own scale (a signed quantity may go below 0). PNG via
     matplotlib (a bare Figure, as :func:`error_plot`)."""
     from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
 
     from data_tools.files import atomic_path
 
@@ -271,6 +274,7 @@ def summary_plot(path, summary: dict, title: str, truth: list[tuple[int, int, st
         ax.set_title(title)
         ax.legend(loc="lower left", fontsize=8)
     ax.set_xlabel("frame")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp)
