@@ -209,9 +209,9 @@ def _decode(data: bytes, grey: bool) -> np.ndarray | None:
     ``cv2.imdecode`` with library messages on stderr suppressed. OpenCV releases
     the GIL while it decodes, so the filter's background thread keeps running
     while the calling thread decodes the next frame; libspng's Python binding
-    (``pyspng``, tried in session 16) decodes a PNG in 20-30% less time alone
+    (``pyspng``, tried and measured) decodes a PNG in 20-30% less time alone
     but holds the GIL, which made annealed CRBM tracking about a tenth slower
-    end to end (docs/tracking.md, "PNG decoding, session 16").
+    end to end (docs/tracking.md, "PNG decoding").
     """
     with _stderr_silenced():
         try:

@@ -1,4 +1,4 @@
-"""Bad input on the command line (issue 15, found by benchmarks/bad_input_corpus.py): one regression case per
+"""Bad input on the command line (found by benchmarks/bad_input_corpus.py): one regression case per
 failure the corpus found, run in-process through ``tracker.app.cli.main``.
 
 Every refusal is exit status 2 with exactly one line on stderr that names the file or flag (and the range a value

@@ -1,4 +1,5 @@
-"""Bad input to the file readers of data_tools: one regression test per class of issue 15 (reader side).
+"""Bad input to the file readers of data_tools: one regression test per class of failure the bad-input corpus
+found (reader side).
 
 Every refusal is one :class:`InputError` naming the file (and line or key) and
 the expected range; harmless variants (byte-order marks, tabs, greyscale, one

@@ -1,4 +1,4 @@
-"""Property-based fuzzing of every file reader of data_tools (issue 15, reader side).
+"""Property-based fuzzing of every file reader of data_tools: any bytes give a result or a one-line refusal.
 
 Each test mutates a small valid file of one family (random byte flips,
 truncation, deleted or repeated spans, replaced tokens; for ``.npz`` also
