@@ -71,7 +71,8 @@ def forecast(model, Y_test: np.ndarray, joints: list[int], joint_std: np.ndarray
 
 def step_ms(model, norm, clips) -> float:
     """Best of 20 calls of ``GPDMPrior.sample`` for 1000 particles, in ms."""
-    prior = GPDMPrior(GPDMPriorModel(model, norm, 60.0, "15-cone", list(DOF_NAMES), [], step_rms(clips)),
+    prior = GPDMPrior(GPDMPriorModel(gpdm=model, normaliser=norm, fps=60.0, body_model="15-cone",
+                                     dof_names=list(DOF_NAMES), sources=[], pose_step_rms=step_rms(clips)),
                       height=HeightOffset(0.0))  # as its published figures ran
     rng = np.random.default_rng(0)
     known = clips[0][:2]

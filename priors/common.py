@@ -36,12 +36,10 @@ def read_model_file(path, fmt: str, kind: str) -> dict:
 
 
 @dataclass(kw_only=True)
-class TrainedModel:
-    """What the CRBM-family model files keep besides their weights and training settings: the feature normaliser,
-    the data they were trained on (frame rate, body model, pose layout, source clips, per-dof RMS frame-to-frame
-    step in mm or rad) and how training went. A subclass names its
-    kind (``KIND``, for messages) and adds its weights, settings and ``to_document()`` (the model file's
-    dictionary, which :meth:`save` writes)."""
+class ModelData:
+    """What every learned prior's model keeps besides its weights: the feature normaliser and the data it was
+    trained on (frame rate, body model, pose layout, source clips, per-dof RMS frame-to-frame step in mm or rad).
+    A subclass names its kind (``KIND``, for messages)."""
 
     normaliser: FeatureNormaliser
     fps: float
@@ -49,10 +47,23 @@ class TrainedModel:
     dof_names: list[str]
     sources: list[str]
     pose_step_rms: np.ndarray
-    reconstruction_errors: list[float] = field(default_factory=list)
-    training_seconds: float = 0.0
 
     KIND: ClassVar[str] = "learned prior"
+
+    def check_compatible(self, body_model: str, dof_names: Sequence[str], fps: float | None,
+                         source: str | Path | None = None) -> None:
+        """Refuse a sequence this model was not trained for, saying what differs."""
+        check_model_fits(self.KIND, (self.body_model, self.dof_names, self.fps), body_model, dof_names, fps, source)
+
+
+@dataclass(kw_only=True)
+class TrainedModel(ModelData):
+    """What the CRBM-family model files keep besides their weights and training settings: :class:`ModelData` and
+    how training went. A subclass adds its weights, settings and ``to_document()`` (the model file's dictionary,
+    which :meth:`save` writes)."""
+
+    reconstruction_errors: list[float] = field(default_factory=list)
+    training_seconds: float = 0.0
 
     def save(self, path: str | Path) -> None:
         """The model file at ``path`` (written atomically: never half-written)."""
@@ -72,11 +83,6 @@ class TrainedModel:
         """How the reconstruction error went over training, for one-line summaries (empty if never trained)."""
         errs = self.reconstruction_errors
         return f"reconstruction error {errs[0]:.4f} (epoch 1) -> {errs[-1]:.4f} (epoch {len(errs)}), " if errs else ""
-
-    def check_compatible(self, body_model: str, dof_names: Sequence[str], fps: float | None,
-                         source: str | Path | None = None) -> None:
-        """Refuse a sequence this model was not trained for, saying what differs."""
-        check_model_fits(self.KIND, (self.body_model, self.dof_names, self.fps), body_model, dof_names, fps, source)
 
 
 def normaliser_to_tensors(n: FeatureNormaliser) -> dict:

@@ -6,18 +6,18 @@ import math
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, ClassVar, Sequence
 
 import numpy as np
 import torch
 
 from priors.common import (
-    check_model_fits, check_weights, checked_data_settings, normaliser_from_tensors, normaliser_to_tensors,
+    ModelData, check_weights, checked_data_settings, normaliser_from_tensors, normaliser_to_tensors,
     read_model_file,
 )
 from priors.gpdm_model import FORMAT, GPDM, GPDMConfig, n_dynamics_params
 from tracker.core.errors import InputError
-from tracker.core.representation import FeatureNormaliser, clip_features, step_rms
+from tracker.core.representation import clip_features, step_rms
 
 
 @dataclass
@@ -225,17 +225,14 @@ def _config_from(settings, path: Path | None) -> GPDMConfig:
 # As a motion prior's model: trained on pose clips, with the data settings its file keeps
 # ---------------------------------------------------------------------------
 
-@dataclass
-class GPDMPriorModel:
-    """A GPDM trained on pose clips, with the normaliser and data settings it was trained with."""
+@dataclass(kw_only=True)
+class GPDMPriorModel(ModelData):
+    """A GPDM trained on pose clips, with the normaliser and data settings it was trained with
+    (:class:`~priors.common.ModelData`)."""
 
     gpdm: GPDM
-    normaliser: FeatureNormaliser
-    fps: float
-    body_model: str
-    dof_names: list[str]
-    sources: list[str]
-    pose_step_rms: np.ndarray
+
+    KIND: ClassVar[str] = "GPDM"
 
     def save(self, path: str | Path) -> None:
         save_gpdm(path, self.gpdm, {
@@ -252,10 +249,6 @@ class GPDMPriorModel:
         size = (f"{len(g.Y)} frames, {len(g.active)} inducing" if g.sparse else f"{len(g.Y)} frames, exact")
         return f"{c.latent_dim}D GPDM ({c.dynamics} dynamics, order {c.order}; {size}): {fit}{g.training_seconds:.1f} s"
 
-    def check_compatible(self, body_model: str, dof_names: Sequence[str], fps: float | None,
-                         source: str | Path | None = None) -> None:
-        check_model_fits("GPDM", (self.body_model, self.dof_names, self.fps), body_model, dof_names, fps, source)
-
 
 def train_gpdm_prior(clips: Sequence[np.ndarray], config: GPDMConfig, fps: float, dof_names: Sequence[str],
                      body_model: str = "15-cone", sources: Sequence[str] = (),
@@ -266,7 +259,8 @@ def train_gpdm_prior(clips: Sequence[np.ndarray], config: GPDMConfig, fps: float
     ``checkpoint`` and ``resume`` as in :func:`train_gpdm`."""
     normed, norm = clip_features(clips, dof_names)
     gpdm = train_gpdm(np.concatenate(normed), [len(f) for f in normed], config, progress, checkpoint, resume)
-    return GPDMPriorModel(gpdm, norm, fps, body_model, list(dof_names), list(sources), step_rms(clips))
+    return GPDMPriorModel(gpdm=gpdm, normaliser=norm, fps=fps, body_model=body_model, dof_names=list(dof_names),
+                          sources=list(sources), pose_step_rms=step_rms(clips))
 
 
 def load_gpdm_prior(path: str | Path) -> GPDMPriorModel:
@@ -284,4 +278,5 @@ def load_gpdm_prior(path: str | Path) -> GPDMPriorModel:
     fps, body_model, dof_names, sources, step = checked_data_settings(extra, "GPDM", path)
     seconds = extra.get("training_seconds", 0.0)
     gpdm.training_seconds = float(seconds) if isinstance(seconds, (int, float)) else 0.0
-    return GPDMPriorModel(gpdm, norm, fps, body_model, dof_names, sources, step)
+    return GPDMPriorModel(gpdm=gpdm, normaliser=norm, fps=fps, body_model=body_model, dof_names=dof_names,
+                          sources=sources, pose_step_rms=step)
