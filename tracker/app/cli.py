@@ -13,7 +13,7 @@ from typing import Sequence
 
 import numpy as np
 
-from data_tools.files import atomic_path, check_output_file, check_output_folder
+from data_tools.files import atomic_path, check_not_inside, check_output_file, check_output_folder
 from tracker.app.api import likelihood_entry, load_sequence, prior_entry, track, train
 from tracker.app.parser import build_parser, given_options, parse_arguments
 from tracker.app.plugins import import_plugin
@@ -34,7 +34,8 @@ def _convert_one(mocap: str | Path, skeleton, fps: float, length_unit, out: Path
 
 
 def cmd_convert(args: argparse.Namespace) -> int:
-    out = check_output_file(args.out, "the output", (".npz",))
+    out = check_output_file(args.out, "the output", (".npz",), new=not args.overwrite)
+    check_not_inside(out, {"mocap file": args.mocap, **({"skeleton": args.skeleton} if args.skeleton else {})})
     clip, result = _convert_one(args.mocap, args.skeleton, args.fps, args.length_unit, out)
     for note in clip.notes:
         print(f"note: {Path(args.mocap).name}: {note}", file=sys.stderr)
@@ -112,7 +113,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from tracker.app.compare import compare
 
     summary = compare(args.experiment, args.out, jobs=args.jobs, backend=args.backend, address=args.address,
-                      threads=args.threads)
+                      threads=args.threads, data_root=args.data_root, overwrite=args.overwrite)
     print(summary["table"])
     print(f"-> {Path(args.out) / 'table.md'}, table.csv, per_frame.png")
     return 0
@@ -143,7 +144,8 @@ def _progress_bar(desc: str):
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-    out = check_output_file(args.out, "the model file")
+    out = check_output_file(args.out, "the model file", new=not args.overwrite)
+    check_not_inside(out, {f"training file {i + 1}": f for i, f in enumerate([*args.mocap, *(args.skeleton or [])])})
     options = given_options(args, prior_entry(args.prior).train_options)
     print(f"training a {args.prior} prior on {len(args.mocap)} clip(s) at {args.fps:g} fps", flush=True)
     checkpoint = out.with_name(out.name + ".checkpoint")
@@ -207,9 +209,12 @@ def cmd_track(args: argparse.Namespace) -> int:
     from tracker.app.visualize import overlay_frames, write_video
 
     args = _track_arguments(args)
-    out = check_output_folder(args.out)  # before any tracking, so a bad output path loses no work
+    # before any tracking, so a bad output path loses no work; --resume continues in its own folder
+    out = check_output_folder(args.out, empty=not (args.overwrite or args.resume))
+    check_not_inside(out, {"sequence folder": args.sequence})
     if args.video:
-        check_output_file(args.video, "--video", (".mp4",))
+        check_output_file(args.video, "--video", (".mp4",), new=not (args.overwrite or args.resume))
+        check_not_inside(args.video, {"sequence folder": args.sequence})
     seq = load_sequence(args.sequence)
     views = _parse_views(args.views, seq.n_views)
     init = read_poses_file(args.init, "initial poses", seq.model) if args.init else None
@@ -243,7 +248,7 @@ def cmd_track(args: argparse.Namespace) -> int:
         for bar in bars:
             bar.close()
         if stop.partial is not None:
-            stop.partial.save(out)
+            stop.partial.save(out, overwrite=True)
         done = "" if stop.partial is None else f" after {len(stop.partial.tracked_frames)} frame(s)"
         again = f"; resume with: python -m tracker track --resume {out}" if stop.checkpoint else ""
         print(f"interrupted{done}: partial result in {out}{again}", file=sys.stderr)
@@ -251,7 +256,7 @@ def cmd_track(args: argparse.Namespace) -> int:
     for bar in bars:
         bar.update(T - n_known - bar.n)
         bar.close()
-    result = run.save(out)
+    result = run.save(out, overwrite=True)
     (out / TRACK_ARGS).unlink(missing_ok=True)
     if run.recovered_frames:
         print(f"warning: no particle explained frame(s) {result['recovered_frames']}; the filter re-diffused "

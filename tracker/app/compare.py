@@ -23,28 +23,17 @@ from typing import Callable, Iterator
 
 import numpy as np
 
-from data_tools.files import atomic_path, write_text_atomic
+from data_tools.files import atomic_path, write_text_atomic, writing
 from tracker.app.experiment import (
     Experiment, RunSpec, config_hash, expand_runs, file_hash, load_experiment, run_seed,
 )
+from tracker.app.fingerprints import CACHE_NAME, sequence_hash
 from tracker.core.errors import InputError
 
 BACKENDS = ("joblib", "dask", "ray")
 
 
 # -- preparing sequences and models ---------------------------------------------------------------------------
-
-def _folder_hash(root: Path) -> str:
-    """Content identity of an existing sequence folder: its small files' bytes and its images' names and sizes."""
-    parts = []
-    for p in sorted(root.rglob("*")):
-        if not p.is_file():
-            continue
-        rel = str(p.relative_to(root))
-        small = p.suffix.lower() in (".json", ".npz", ".txt", ".cal")
-        parts.append([rel, file_hash(p) if small else p.stat().st_size])
-    return config_hash(parts)
-
 
 def prepare_sequences(exp: Experiment, out: Path, version: str, say: Callable[[str], None]
                       ) -> tuple[dict[str, Path], dict[str, str]]:
@@ -54,11 +43,14 @@ def prepare_sequences(exp: Experiment, out: Path, version: str, say: Callable[[s
     paths, hashes = {}, {}
     for s in exp.sequences:
         if s.path is not None:
-            paths[s.name], hashes[s.name] = s.path, _folder_hash(s.path)
+            # every file's bytes, hashed once and cached in OUT by size and modification time
+            paths[s.name], hashes[s.name] = s.path, sequence_hash(s.path, out / CACHE_NAME)
             continue
+        # content, never paths: a moved data root leaves the cache names (and so the run hashes) as they were
+        second = {key: file_hash(Path(s.synth[key])) for key in ("then", "then_skeleton") if key in s.synth}
         ident = {"mocap": file_hash(s.mocap), "skeleton": file_hash(s.skeleton) if s.skeleton else None,
-                 "synth": s.synth, "fps": exp.fps, "version": version,
-                 **({"then": file_hash(Path(s.synth["then"]))} if "then" in s.synth else {})}
+                 "synth": {k: v for k, v in s.synth.items() if k not in second}, "fps": exp.fps,
+                 "version": version, **second}
         h = config_hash(ident)
         folder = out / "sequences" / h
         if not (folder / "meta.json").exists():  # synthesize renders under a temporary name, then renames
@@ -145,11 +137,10 @@ def check_grid(exp: Experiment, sequence_paths: dict[str, Path], models: dict[st
 # -- one run (executed in a worker) ---------------------------------------------------------------------------
 
 def execute_run(spec: RunSpec) -> dict:
-    """Track one run and write its folder ``runs/<key>/`` atomically; returns its summary (``result.json``)."""
-    from tracker.app.api import track
+    """Track one run and write its folder ``runs/<key>/`` atomically; returns its summary (``result.json``). A
+    failed write (no space left, read-only, no permission) is one line naming the run's folder, and leaves the
+    finished runs as they were."""
     from tracker.app.threads import set_threads
-    from tracker.app.api import load_sequence
-    from tracker.core.metrics import marker_error, pck, procrustes_aligned_error
 
     set_threads(spec.threads)
     final = Path(spec.out) / spec.key
@@ -157,45 +148,47 @@ def execute_run(spec: RunSpec) -> dict:
         return json.loads((final / "result.json").read_text())
     tmp = Path(spec.out) / f".{spec.key}.tmp-{os.getpid()}"
     shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
     try:
-        t0 = time.perf_counter()
-        with open(tmp / "run.log", "w", encoding="utf-8") as log:
-            log.write(f"run {spec.key}: {spec.row} on {spec.sequence}, seed index {spec.seed_index}\n")
-
-            def on_frame(step, err):
-                log.write(f"frame {step.frame}: ess {step.ess:.0f}"
-                          + ("" if err is None else f", marker error {err:.1f} mm") + "\n")
-
-            seed = run_seed(spec.seed_entropy, spec.seed_index)
-            seq = load_sequence(spec.sequence_path)
-            run = track(seq, spec.prior, models=spec.models, likelihood=spec.likelihood, **spec.prior_options,
-                        **spec.likelihood_options,
-                        particles=spec.particles, views=spec.views, frames=spec.frames, seed=seed,
-                        annealing_layers=spec.annealing_layers, resampling=spec.resampling,
-                        known_frames=spec.known_frames,
-                        step_std=None if spec.step_std is None else np.array(spec.step_std), on_frame=on_frame)
-            log.write(f"done in {time.perf_counter() - t0:.1f} s\n")
-        result = run.save(tmp)
-        gt = seq.groundtruth
-        if gt is not None:
-            n0, T = run.first_tracked, len(run.poses)
-            est, truth = run.markers[n0:], gt.markers[n0:T]
-            result["per_frame_relative_error_mm"] = [round(float(e), 3)
-                                                     for e in marker_error(est, truth, root_aligned=True)]
-            result["per_frame_pa_mpjpe_mm"] = [round(float(e), 3) for e in procrustes_aligned_error(est, truth)]
-            result["per_frame_pck150"] = [round(float(e), 2) for e in pck(est, truth, 150.0)]
-        result["run"] = spec.as_dict()
-        result["wall_seconds"] = time.perf_counter() - t0
-        write_text_atomic(tmp / "result.json", json.dumps(result, indent=1))
-        try:
-            os.replace(tmp, final)
-        except OSError:  # another worker finished the same run first
-            shutil.rmtree(tmp, ignore_errors=True)
-        return result
+        with writing(final):
+            return _execute_run(spec, final, tmp)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+def _execute_run(spec: RunSpec, final: Path, tmp: Path) -> dict:
+    """:func:`execute_run` in the temporary folder ``tmp``, renamed to ``final`` when complete."""
+    from tracker.app.api import load_sequence, track
+
+    tmp.mkdir(parents=True)
+    t0 = time.perf_counter()
+    with open(tmp / "run.log", "w", encoding="utf-8") as log:
+        log.write(f"run {spec.key}: {spec.row} on {spec.sequence}, seed index {spec.seed_index}\n")
+
+        def on_frame(step, err):
+            log.write(f"frame {step.frame}: ess {step.ess:.0f}"
+                      + ("" if err is None else f", mpjpe_abs {err:.1f} mm") + "\n")
+
+        seed = run_seed(spec.seed_entropy, spec.seed_index)
+        seq = load_sequence(spec.sequence_path)
+        run = track(seq, spec.prior, models=spec.models, likelihood=spec.likelihood, **spec.prior_options,
+                    **spec.likelihood_options,
+                    particles=spec.particles, views=spec.views, frames=spec.frames, seed=seed,
+                    annealing_layers=spec.annealing_layers, resampling=spec.resampling,
+                    known_frames=spec.known_frames,
+                    step_std=None if spec.step_std is None else np.array(spec.step_std), on_frame=on_frame)
+        log.write(f"done in {time.perf_counter() - t0:.1f} s\n")
+    result = run.save(tmp, overwrite=True)  # every metric, as track writes it
+    result["run"] = spec.as_dict()
+    result["wall_seconds"] = time.perf_counter() - t0
+    write_text_atomic(tmp / "result.json", json.dumps(result, indent=1))
+    try:
+        os.replace(tmp, final)
+    except OSError:  # another worker finished the same run first
+        if not (final / "result.json").exists():
+            raise
+        shutil.rmtree(tmp, ignore_errors=True)
+    return result
 
 
 # -- executors --------------------------------------------------------------------------------------------------
@@ -221,6 +214,17 @@ def warm_joblib_workers(jobs: int):
     return thread
 
 
+#: How often Ray runs a run again whose worker process died.
+RAY_RETRIES = 3
+
+
+def lost_worker(exc: BaseException) -> InputError:
+    """The one line for a run whose workers kept dying (killed, out of memory) after the engine's retries."""
+    reason = str(exc).splitlines()[0][:200] if str(exc) else type(exc).__name__
+    return InputError(f"a run's worker died too often ({reason}); finished runs are kept: run the same compare "
+                      "again to run only the missing ones")
+
+
 def run_all(specs: list[RunSpec], jobs: int, backend: str, address: str | None) -> Iterator[dict]:
     """Execute runs with the chosen backend, yielding each summary as it finishes (in any order)."""
     if backend == "joblib":
@@ -236,12 +240,19 @@ def run_all(specs: list[RunSpec], jobs: int, backend: str, address: str | None) 
             from distributed import Client, LocalCluster, as_completed
         except ImportError:
             raise InputError("--backend dask needs the dask extra: pip install '.[dask]'") from None
+        from distributed import KilledWorker
+
         cluster = None if address else LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
                                                     dashboard_address=None)
         client = Client(address or cluster)
         try:
+            # A run whose worker dies is given to another worker by the scheduler, up to its allowed failures
+            # (distributed.scheduler.allowed-failures, 3 by default); then the experiment stops in one line.
             for future in as_completed(client.map(execute_run, specs, pure=False)):
-                yield future.result()
+                try:
+                    yield future.result()
+                except KilledWorker as exc:
+                    raise lost_worker(exc) from None
         finally:
             client.close()
             if cluster is not None:
@@ -255,12 +266,22 @@ def run_all(specs: list[RunSpec], jobs: int, backend: str, address: str | None) 
         if started:
             ray.init(address=address, num_cpus=None if address else jobs, include_dashboard=False,
                      log_to_driver=False, configure_logging=False)
+        from ray.exceptions import RayTaskError, WorkerCrashedError
+
         try:
-            remote = ray.remote(num_cpus=1)(execute_run)
+            # A run whose worker dies is run again by Ray (max_retries; an error the run raises is not retried).
+            remote = ray.remote(num_cpus=1, max_retries=RAY_RETRIES)(execute_run)
             pending = [remote.remote(s) for s in specs]
             while pending:
                 done, pending = ray.wait(pending, num_returns=1)
-                yield ray.get(done[0])
+                try:
+                    yield ray.get(done[0])
+                except RayTaskError as exc:  # a bad input or a failed write: its one line, not Ray's traceback
+                    if isinstance(getattr(exc, "cause", None), InputError):
+                        raise exc.cause from None
+                    raise
+                except WorkerCrashedError as exc:
+                    raise lost_worker(exc) from None
         finally:
             if started:
                 ray.shutdown()
@@ -272,8 +293,16 @@ def run_all(specs: list[RunSpec], jobs: int, backend: str, address: str | None) 
 
 def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str = "joblib",
             address: str | None = None, threads: int | None = None, say: Callable[[str], None] = print,
-            progress: bool = True) -> dict:
-    """Run an experiment (validated whole first), skipping finished runs; write and return its tables."""
+            progress: bool = True, data_root: str | Path | None = None, videos: bool = True,
+            overwrite: bool = False) -> dict:
+    """Run an experiment (validated whole first), skipping finished runs; write and return its tables.
+
+    ``out`` is a new or empty folder, or an earlier compare output (it holds ``experiment.json``), which is
+    continued; another non-empty folder is refused unless ``overwrite``, and a sequence folder of the
+    experiment is never written into.
+
+    ``data_root`` replaces the experiment file's ``data_root`` (see :mod:`tracker.app.experiment`); ``videos=False``
+    leaves the overlay videos out of ``report.html``."""
     import tracker
     from tracker.app.report import write_report
     from tracker.app.threads import share_of_cores
@@ -282,19 +311,22 @@ def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str
         raise InputError(f"--jobs must be at least 1, got {jobs}")
     if backend not in BACKENDS:
         raise InputError(f"unknown backend {backend!r}; choose from {', '.join(BACKENDS)}")
-    exp = load_experiment(experiment)
-    from data_tools.files import check_output_folder
+    exp = load_experiment(experiment, data_root=data_root)
+    from data_tools.files import check_not_inside, check_output_folder
 
-    out = check_output_folder(out)
+    ours = (Path(out) / "experiment.json").is_file()  # an earlier compare output: continued, finished runs kept
+    out = check_output_folder(out, empty=not (overwrite or ours))
+    check_not_inside(out, {f"sequence folder of {s.name!r}": s.path for s in exp.sequences if s.path is not None})
     runs_dir = out / "runs"
-    try:
+    with writing(runs_dir):
         runs_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"cannot create the output folder ({exc.strerror})", out) from None
+    version = tracker.__version__
+    if not ours:  # marks the folder as a compare output from the start, so an interrupted one is continued
+        write_text_atomic(out / "experiment.json", json.dumps({"experiment": str(exp.path), "version": version,
+                                                               "complete": False}, indent=1))
     for stale in runs_dir.glob(".*.tmp-*"):  # left by an interrupted run
         shutil.rmtree(stale, ignore_errors=True)
     warming = warm_joblib_workers(jobs) if backend == "joblib" and jobs > 1 else None
-    version = tracker.__version__
     sequence_paths, sequence_hashes = prepare_sequences(exp, out, version, say)
     models = prepare_models(exp, out, version, say)
     scales = prepare_scales(exp)
@@ -333,14 +365,23 @@ def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str
     meta = {"experiment": str(exp.path), "description": exp.description, "runs": len(unique),
             "ran_now": len(todo), "wall_seconds_now": wall,
             "run_seconds_now": sum(r.get("wall_seconds", 0.0) for r in summaries.values()),
-            "jobs": jobs, "backend": backend, "threads_per_worker": per_worker, "version": version}
+            "jobs": jobs, "backend": backend, "threads_per_worker": per_worker, "version": version,
+            "data_root": None if exp.data_root is None else str(exp.data_root)}
     write_text_atomic(out / "experiment.json", json.dumps(meta, indent=1))
-    return write_report(exp, results, out, meta)
+    summary = write_report(exp, results, out, meta)
+    from tracker.app.report_html import compare_command, write_html_report
+
+    command = compare_command(experiment, out, jobs, backend, address, data_root, videos)
+    summary.update(write_html_report(exp, results, out, summary["tables"], meta, command, videos, say))
+    return summary
 
 
 def _running_means(summaries: dict) -> str:
+    from tracker.app.report import PRIMARY, per_frame_values
+
     by_row: dict[str, list[float]] = {}
     for r in summaries.values():
-        if r.get("mean_error_mm") is not None:
-            by_row.setdefault(r["run"]["row"], []).append(r["mean_error_mm"])
+        values = per_frame_values(r, PRIMARY)
+        if values:
+            by_row.setdefault(r["run"]["row"], []).append(float(np.mean(values)))
     return ", ".join(f"{row}: {np.mean(v):.0f} mm" for row, v in by_row.items())

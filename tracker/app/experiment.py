@@ -1,9 +1,10 @@
 """Experiments: a grid of sequences x priors x view sets x particle counts x annealing layers x likelihood
 variants x seeds, read from a TOML file, validated as a whole before anything runs.
 
-File layout (paths are relative to the experiment file; every key is checked, unknown ones refused)::
+File layout (every key is checked, unknown ones refused)::
 
     description = "Table 6.1 analogue"       # free text, shown in the table
+    data_root = "../../../shared"            # where the data paths below are (relative to this file, or absolute)
     seed = 2009                              # master seed: run k of seed index i uses SeedSequence(seed).spawn(..)[i]
     seeds = 5                                # runs per configuration
     fps = 60                                 # rate of rendered sequences and trained models (default 60)
@@ -18,17 +19,17 @@ File layout (paths are relative to the experiment file; every key is checked, un
 
     [[sequence]]                             # a sequence folder ...
     name = "bodytrack"
-    path = "../../../shared/bodytrack/sequenceB_1"
+    path = "bodytrack/sequenceB_1"
     [[sequence]]                             # ... or a mocap clip the runner renders (and caches)
     name = "subject 16 walk"
-    mocap = "../../../shared/mocap/cmu/16/16_15.amc"
+    mocap = "mocap/cmu/16/16_15.amc"
     start = 0                                # synth options: start, frames, views, seed, noise, ...
     frames = 150
     turn = 90                                # degrees about the vertical: the walk in another direction
     [[sequence]]                             # ... or two clips cross-faded: a change of activity
     name = "subject 2 walk then run"         # (data_tools.transition; switch_at at the experiment's fps)
-    mocap = "../../../shared/mocap/cmu/02/02_01.amc"
-    then = "../../../shared/mocap/cmu/02/02_03.amc"
+    mocap = "mocap/cmu/02/02_01.amc"
+    then = "mocap/cmu/02/02_03.amc"
     switch_at = 120
     fade = 12
 
@@ -54,15 +55,25 @@ File layout (paths are relative to the experiment file; every key is checked, un
     name = "edge-silhouette"
     options = { bidirectional = true }
 
+Paths: the data paths (a sequence's ``path``, ``mocap``, ``skeleton``, ``then`` and ``then_skeleton``, and the
+training clips and skeletons of ``train`` and ``train_mocap``) are relative to the data root when the file
+declares ``data_root``, and relative to the file otherwise; ``models`` are always relative to the file; absolute
+paths stay as they are. ``compare --data-root DIR`` (the ``data_root`` argument of :func:`load_experiment` and
+``tracker.compare``), or else the environment variable ``POSE_TRACKER_DATA_ROOT``, replaces the declared data root,
+so that a file copied elsewhere, or data kept elsewhere, needs no edit; a file that declares no data root is not
+affected by the environment variable, and refuses ``--data-root``.
+
 Each run is identified by a hash of everything that determines its numbers (its settings, the sequence's
 and the model files' content hashes, the package version), so a finished run is never redone and changing
-one setting reruns only the runs it affects.
+one setting reruns only the runs it affects. No path enters the hash, so moving the data root (or the file)
+leaves every finished run valid.
 """
 from __future__ import annotations
 
 import hashlib
 import itertools
 import json
+import os
 import sys
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -77,8 +88,10 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-TOP_KEYS = {"description", "seed", "seeds", "fps", "baseline", "paired", "tracking", "sequence", "prior",
-            "likelihood"}
+TOP_KEYS = {"description", "data_root", "seed", "seeds", "fps", "baseline", "paired", "tracking", "sequence",
+            "prior", "likelihood"}
+#: The environment variable that replaces an experiment file's ``data_root`` (``compare --data-root`` wins over it).
+DATA_ROOT_ENV = "POSE_TRACKER_DATA_ROOT"
 TRACKING_KEYS = {"particles", "views", "annealing_layers", "frames", "known_frames", "resampling"}
 SEQUENCE_KEYS = {"name", "path", "mocap", "skeleton", "then", "then_skeleton", "switch_at", "fade", "start", "frames",
                  "views", "seed", "noise", "width", "height", "lighting_change", "occluder", "missing_camera", "turn"}
@@ -166,6 +179,8 @@ class Experiment:
     sequences: list[SequenceSpec]
     priors: list[PriorSpec]
     likelihoods: list[LikelihoodSpec]
+    #: The folder the data paths were resolved against (None: the file declares no data root).
+    data_root: Path | None = None
 
 
 def run_seed(master_seed: int, index: int) -> np.random.SeedSequence:
@@ -177,8 +192,9 @@ def run_seed(master_seed: int, index: int) -> np.random.SeedSequence:
 class _Where:
     """Builds one-line errors that name the experiment file and the entry."""
 
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, data_root: Path | None = None):
         self.path = path
+        self.data_root = data_root
 
     def error(self, entry: str, message: str) -> InputError:
         return InputError(f"{entry}: {message}" if entry else message, self.path)
@@ -192,11 +208,14 @@ class _Where:
                                     f"{', '.join(sorted(allowed))})")
         return table
 
-    def file(self, value: Any, entry: str, folder: bool = False) -> Path:
+    def file(self, value: Any, entry: str, folder: bool = False, data: bool = True) -> Path:
+        """An existing file (or folder): a data path relative to the data root when there is one, otherwise (and
+        for ``data=False``, the model files) relative to the experiment file."""
         if not isinstance(value, str) or not value:
             raise self.error(entry, f"expected a path, got {value!r}")
         p = Path(value).expanduser()
-        p = p if p.is_absolute() else (self.path.parent / p)
+        base = self.data_root if data and self.data_root is not None else self.path.parent
+        p = p if p.is_absolute() else (base / p)
         if not (p.is_dir() if folder else p.is_file()):
             raise self.error(entry, f"{'folder' if folder else 'file'} not found: {p}")
         return p.resolve()
@@ -238,8 +257,35 @@ def _as_list(value: Any) -> list:
     return list(value) if isinstance(value, list) else [value]
 
 
-def load_experiment(path: str | Path) -> Experiment:
-    """Read and validate an experiment file; every problem is one :class:`InputError` naming the entry."""
+def resolve_data_root(path: Path, declared: Any, given: str | Path | None = None) -> Path | None:
+    """The data root of the experiment file ``path``: ``given`` (``compare --data-root``), else the environment
+    variable :data:`DATA_ROOT_ENV`, else the file's ``data_root`` (``declared``, relative to the file); None when
+    the file declares none. A root that is not a folder is one :class:`InputError` naming the file and the path."""
+    if declared is None:
+        if given is not None:
+            raise InputError(f"--data-root {given} given, but the file declares no data_root (its data paths are "
+                             f"relative to the file)", path)
+        return None
+    if not isinstance(declared, str) or not declared:
+        raise InputError(f"data_root: expected a folder, got {declared!r}", path)
+    env = os.environ.get(DATA_ROOT_ENV) or None
+    if given is not None:
+        root, source = Path(given).expanduser(), "--data-root"
+    elif env is not None:
+        root, source = Path(env).expanduser(), DATA_ROOT_ENV
+    else:
+        root, source = Path(declared).expanduser(), "data_root"
+        root = root if root.is_absolute() else path.parent / root
+    if not root.is_dir():
+        raise InputError(f"data root not found: {root} ({source})", path)
+    return root.resolve()
+
+
+def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Experiment:
+    """Read and validate an experiment file; every problem is one :class:`InputError` naming the entry.
+
+    ``data_root`` replaces the file's ``data_root`` (as does the environment variable ``POSE_TRACKER_DATA_ROOT``
+    when ``data_root`` is None); see the module docstring."""
     from tracker.app.api import TRACK_ANNEALING_LAYERS, likelihood_entry, prior_entry
     from tracker.engine.registry import resolve_options
 
@@ -254,6 +300,7 @@ def load_experiment(path: str | Path) -> Experiment:
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"not valid TOML ({exc})", path) from None
     w.keys(doc, TOP_KEYS, "")
+    w.data_root = resolve_data_root(path, doc.get("data_root"), data_root)
     seed = w.int_(doc.get("seed", 0), "seed", 0)
     seeds = w.int_(doc.get("seeds", 1), "seeds", 1)
     fps = doc.get("fps", 60.0)
@@ -338,7 +385,7 @@ def load_experiment(path: str | Path) -> Experiment:
             resolve_options(f"prior {p['name']}", spec.options, p.get("options", {}))
         except InputError as exc:
             raise w.error(entry, exc.reason) from None
-        models = tuple(w.file(m, entry) for m in _as_list(p.get("models", [])))
+        models = tuple(w.file(m, entry, data=False) for m in _as_list(p.get("models", [])))
         trains = []
         for j, t in enumerate(_as_list(p.get("train", []))):
             te = f"{entry} train {j + 1}"
@@ -389,7 +436,7 @@ def load_experiment(path: str | Path) -> Experiment:
     if paired not in ("baseline", "all"):
         raise w.error("paired", f"expected 'baseline' or 'all', got {paired!r}")
     return Experiment(path, str(doc.get("description", "")), seed, seeds, float(fps), baseline, paired, grid,
-                      sequences, priors, likelihoods)
+                      sequences, priors, likelihoods, w.data_root)
 
 
 # -- runs ------------------------------------------------------------------------------------------------------

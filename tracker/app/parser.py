@@ -1,4 +1,4 @@
-"""The command line's arguments: the parser of ``python -m tracker`` (the contract: README, "Commands").
+"""The command line's arguments: the parser of ``pose-tracker`` (the contract: README, "Commands").
 
 Each command's own flags are declared here; the flags of the priors and likelihoods come from the registries,
 for the prior (and likelihood) a command line names: ``track --prior crbm --help`` shows the CRBM's options
@@ -8,6 +8,7 @@ the one named is refused in one line (:func:`parse_arguments`).
 from __future__ import annotations
 
 import argparse
+import logging
 import textwrap
 from typing import Sequence
 
@@ -17,6 +18,7 @@ from data_tools.checks import MAX_FPS, MAX_IMAGE_SIDE, MAX_MM_PER_UNIT, MAX_VIEW
 from tracker.app.api import (
     TRACK_ANNEALING_LAYERS, available_likelihoods, available_priors, likelihood_entry, prior_entry,
 )
+from tracker.app.console import PROG, error_line
 from tracker.core.errors import InputError
 from tracker.engine.registry import Option
 from tracker.engine.resampling import SCHEMES
@@ -59,11 +61,39 @@ _particles = _number(int, 1, strict=False, maximum=1_000_000)
 _layers = _number(int, 1, strict=False, maximum=100)
 
 
+log = logging.getLogger(__name__)
+
+
 class _Parser(argparse.ArgumentParser):
-    """argparse with exit status 2 and a one-line message for usage errors."""
+    """argparse with exit status 2 and a one-line message for usage errors, in the form of every other refusal
+    (``pose-tracker: error: track: ...``, naming the command whose arguments were wrong)."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(2, f"{self.prog}: error: {message}\n")
+        command = " ".join(self.prog.split()[1:])
+        self.exit(2, error_line(f"{command}: {message}" if command else message) + "\n")
+
+
+class _DeprecatedAlias(argparse.Action):
+    """An old spelling of a flag, kept for one version: it sets the new flag's value and logs a warning."""
+
+    def __init__(self, option_strings, dest, new_flag: str, why: str = "", **kwargs):
+        super().__init__(option_strings, dest, **kwargs)
+        self.new_flag, self.why = new_flag, why
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        command = " ".join(parser.prog.split()[1:])
+        log.warning(f"{command} {option_string} is deprecated and will be removed: use {self.new_flag}"
+                    f"{self.why}")
+        setattr(namespace, self.dest, values)
+
+
+def _verbosity_flags(parser: argparse.ArgumentParser, default) -> None:
+    """``--quiet`` and ``--verbose`` (one or the other), before the command or after it."""
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("-q", "--quiet", action="store_true", default=default,
+                       help="show only warnings and errors: no progress bars or informational lines (results "
+                            "still go to stdout)")
+    group.add_argument("-v", "--verbose", action="store_true", default=default, help="show debug lines too")
 
 
 def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
@@ -71,9 +101,9 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     flags to ``train`` and ``track``."""
     from tracker import __version__
 
-    p = _Parser(prog="python -m tracker",
-                description="3D human pose tracking with learned dynamical priors.")
-    p.add_argument("--version", action="version", version=f"pose-tracker {__version__}")
+    p = _Parser(prog=PROG, description="3D human pose tracking with learned dynamical priors.")
+    p.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    _verbosity_flags(p, False)
     p.add_argument("--plugin", action="append", default=[], metavar="MODULE_OR_FILE",
                    help="import a module (or .py file) that registers priors or likelihoods; repeatable")
     p.add_argument("--threads", type=_positive_int, default=None,
@@ -82,6 +112,7 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     plugin_flag = argparse.ArgumentParser(add_help=False)  # --plugin is read before parsing; accepted anywhere
     plugin_flag.add_argument("--plugin", action="append", default=argparse.SUPPRESS, metavar="MODULE_OR_FILE",
                              help=argparse.SUPPRESS)
+    _verbosity_flags(plugin_flag, argparse.SUPPRESS)  # also after the command: pose-tracker track ... --quiet
     sub.required = True
 
     c = sub.add_parser("convert", parents=[plugin_flag], help="convert a mocap clip (AMC+ASF or BVH) to body-model poses and markers",
@@ -93,6 +124,7 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     c.add_argument("--length-unit", type=_length_unit, default=None, metavar="MM",
                    help="BVH only: millimetres per file unit (default: inferred from the skeleton's height)")
     c.add_argument("--out", required=True, help="output .npz")
+    c.add_argument("--overwrite", action="store_true", help="replace an existing output file")
 
     s = sub.add_parser("synth", parents=[plugin_flag], help="render a mocap clip into a synthetic multi-view sequence",
                        description="Retarget a mocap clip, render it into a calibrated rig over a cluttered room "
@@ -101,7 +133,10 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     s.add_argument("--mocap", required=True, help="motion file: .amc (CMU ASF/AMC) or .bvh")
     s.add_argument("--skeleton", help="ASF skeleton for an .amc file (default: <subject>.asf beside it)")
     s.add_argument("--out", required=True, help="output sequence folder")
-    s.add_argument("--views", type=_views, default=4, help="number of cameras (default 4)")
+    s.add_argument("--cameras", type=_views, default=4, help="number of cameras (default 4)")
+    s.add_argument("--views", dest="cameras", type=_views, action=_DeprecatedAlias, new_flag="--cameras N",
+                   why=" (a number of cameras; track's --views is a list of camera indices)", metavar="N",
+                   help="deprecated spelling of --cameras")
     s.add_argument("--fps", type=_fps, default=60.0, help="frame rate in Hz (default 60)")
     s.add_argument("--start", type=_non_negative_int, default=0, help="first frame, at the output rate (default 0)")
     s.add_argument("--frames", type=_positive_int, default=None, help="number of frames (default: to the end)")
@@ -160,6 +195,7 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     r.add_argument("--resume", action="store_true",
                    help="continue an interrupted training from OUT.checkpoint (same arguments as before)")
     r.add_argument("--out", required=True, help="output model file (.pt)")
+    r.add_argument("--overwrite", action="store_true", help="replace an existing model file")
     _check_clashes(r, {f"prior {n}": prior_entry(n).train_options for n in trainable})
     chosen = _chosen(argv, "--prior")
     if chosen in trainable:
@@ -170,7 +206,7 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                                    "and an image likelihood; writes OUTDIR/result.json and OUTDIR/estimates.npz.")
     t.add_argument("sequence", metavar="DIR", nargs="?", help="sequence folder")
     t.add_argument("--prior", choices=available_priors(), metavar="NAME",
-                   help="motion prior (required; python -m tracker track --help lists them)")
+                   help=f"motion prior (required; {PROG} track --help lists them)")
     t.add_argument("--model", nargs="+", metavar="MODEL",
                    help="a learned prior's model file(s) (a CRBM takes several: orders that grow the history, or an "
                         "ensemble of one order)")
@@ -197,6 +233,8 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                         "the likelihood's kinematics, projection and image lookups, and a learned prior's torch sampling)")
     t.add_argument("--out", help="output folder (required)")
     t.add_argument("--video", help="also write an overlay video of the estimates (.mp4)")
+    t.add_argument("--overwrite", action="store_true",
+                   help="write into a non-empty output folder, replacing the results there")
     t.add_argument("--checkpoint-every", type=_non_negative_int, default=25, metavar="K",
                    help="save the filter's state to OUTDIR/checkpoint.npz every K frames (default 25; 0: only "
                         "on Ctrl-C); removed when the run completes")
@@ -228,18 +266,27 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                                    "tracker/app/experiment.py and benchmarks/experiments/) in parallel, skipping "
                                    "runs finished before, and write table.md, table.csv and per_frame.png.")
     e.add_argument("experiment", metavar="EXPERIMENT", help="experiment file (.toml)")
-    e.add_argument("--out", required=True, help="output folder (runs, cached sequences and models, tables)")
+    e.add_argument("--out", required=True,
+                   help="output folder (runs, cached sequences and models, tables); an earlier compare output "
+                        "is continued (finished runs are skipped)")
+    e.add_argument("--overwrite", action="store_true",
+                   help="write into a non-empty output folder that is not a compare output")
     e.add_argument("--jobs", type=_positive_int, default=1, help="parallel runs (default 1)")
     e.add_argument("--backend", default="joblib", choices=["joblib", "dask", "ray"],
                    help="joblib (this machine, default), dask or ray (a local cluster, or --address)")
     e.add_argument("--address", default=None, help="scheduler address of an existing Dask or Ray cluster")
+    e.add_argument("--data-root", default=None, metavar="DIR",
+                   help="folder the experiment's data paths are relative to, in place of the file's data_root "
+                        "(default: $POSE_TRACKER_DATA_ROOT, else the file's data_root)")
 
     d = sub.add_parser("demo", parents=[plugin_flag], help="render, track and score a shipped walk (the built-in default job)",
                        description="Render 1.5 s of the shipped CMU walk 07_02 into 4 cameras, train a CRBM on "
                                    "the other shipped walk, track with the zero-velocity and the CRBM prior (1000 "
                                    "particles), print both errors and write the error-per-frame plot and an "
                                    "overlay video.")
-    d.add_argument("--out", default="demo_output", help="output folder (default ./demo_output)")
+    d.add_argument("--out", default="demo_output",
+                   help="output folder (default ./demo_output); a second demo replaces the files an earlier one "
+                        "wrote there, and a non-empty folder that holds no demo output is refused")
     d.add_argument("--frames", type=_number(int, 4, strict=False), default=90,
                    help="frames to render and track (default 90: 1.5 s)")
     return p
