@@ -1,10 +1,10 @@
-"""Bad-input corpus of issue 15, by class: generate malformed inputs, run the command line on each, classify.
+"""Bad-input corpus, by class: generate malformed inputs, run the command line on each, classify.
 
 Run by hand (sequentially, one core; a few minutes on the 2-core machine)::
 
     python benchmarks/bad_input_corpus.py [--only CLASS[,CLASS]] [--timeout 60] [--keep DIR] [--verbose]
 
-For every class of malformed input that issue 15 lists (ASF hierarchies that are
+For every class of malformed input listed here (ASF hierarchies that are
 not trees, text that is not UTF-8, byte-order marks, deep JSON, broken ``.npz``
 files, wrong-type ``meta.json`` fields, broken CRBM and GPDM model files, absurd
 finite values, huge-noise options, images whose header claims too many pixels,

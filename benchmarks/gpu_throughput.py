@@ -1,4 +1,4 @@
-"""The GPU path (issue 14): particle-view evaluations per second, whole-frame tracking speed, and the errors of
+"""The GPU path: particle-view evaluations per second, whole-frame tracking speed, and the errors of
 the device path against the CPU path on the same seeds. Run by hand on a machine with a GPU:
 
     python benchmarks/gpu_throughput.py [--device cuda] [--shared ../shared] [--frames 60]

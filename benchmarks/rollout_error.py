@@ -1,4 +1,4 @@
-"""How far CRBM model files' own rollouts stray from a held-out clip, h frames ahead (issue 13's time-warp study).
+"""How far CRBM model files' own rollouts stray from a held-out clip, h frames ahead (used to compare time-warped training clips).
 
     python benchmarks/rollout_error.py CLIP.amc NAME=MODEL.pt [NAME=MODEL.pt ...] [--every 3] [--seed 0]
 

@@ -1,4 +1,4 @@
-"""How often a style-inferring prior's most probable label is the true activity (issue 16's target: 80%), from
+"""How often a style-inferring prior's most probable label is the true activity (the activity-switch target: 80%), from
 the runs an experiment wrote. Run by hand:
 
     python benchmarks/style_match.py RESULTS/activity_switch [--sequence "subject 16 walk then run"]

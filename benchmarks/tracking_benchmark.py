@@ -5,7 +5,7 @@
    frames per second of the whole loop (observations + prior + likelihood + resampling) and likelihood
    evaluations per second (particle-views per second), with a per-stage breakdown.
 2. The same sequence tracked with a CRBM-3 prior, 1000 particles x 4 views: frames per second at 30 Gibbs steps
-   and at the default, with one layer and with track's default annealing (issue 14's target: 20), and the
+   and at the default, with one layer and with track's default annealing (the speed target: 20), and the
    CRBM's sampling time alone at orders 1, 3, 6.
 3. The real PARSEC bodytrack frame with its 10-cone model: 4000 particles x 5 annealing layers,
    milliseconds per frame, against PARSEC's ~100 ms (2 threads, C++).
@@ -70,9 +70,9 @@ def synthetic(tmp: Path) -> None:
 
 
 def crbm_tracking(tmp: Path) -> None:
-    """Issue 14's CRBM target: 15-cone model, 1000 particles x 4 views, synthetic 07_11, CRBM prior (order 3
+    """The CRBM speed target: 15-cone model, 1000 particles x 4 views, synthetic 07_11, CRBM prior (order 3
     grown from 1, trained with train's defaults on 07_01, 07_02, 07_09, 07_10), frames per second of the whole
-    loop (observations included), at 30 Gibbs steps (the default before issue 14) and at the default, with one
+    loop (observations included), at 30 Gibbs steps (the default before 0.4.0) and at the default, with one
     layer (plain SIR, as published) and with track's default annealing layers."""
     from priors.crbm import GIBBS_STEPS
     from tracker import train
