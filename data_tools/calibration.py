@@ -1,4 +1,4 @@
-"""Camera calibration files: our ``cameras.json`` (DESIGN.md "Sequences on disk") and PARSEC bodytrack's
+"""Camera calibration files: our ``cameras.json`` (docs/reference/file_formats.md) and PARSEC bodytrack's
 ``CameraK.cal`` (Bouguet's calibration-toolbox order). The camera model itself is :mod:`tracker.core.cameras`."""
 from __future__ import annotations
 
@@ -55,7 +55,7 @@ def checked_camera(name: Any, width: Any, height: Any, fx: Any, fy: Any, cx: Any
 
 
 def read_cameras_json(path: str | Path) -> CameraRig:
-    """Read ``cameras.json`` (DESIGN.md "Sequences on disk"); every value is checked (:func:`checked_camera`)."""
+    """Read ``cameras.json`` (docs/reference/file_formats.md); every value is checked (:func:`checked_camera`)."""
     path = Path(path)
     doc = read_json(path, "camera file")
     cams = doc.get("cameras") if isinstance(doc, dict) else None

@@ -1,4 +1,4 @@
-"""Converted clips on disk: one ``.npz`` per clip (DESIGN.md "Sequences on disk").
+"""Converted clips on disk: one ``.npz`` per clip (docs/reference/file_formats.md).
 
 Arrays: ``poses`` T x 40 (fitted body-model poses), ``markers`` T x 15 x 3 (the
 mocap's own joints: ground truth, mm), ``model_markers`` T x 15 x 3 (the

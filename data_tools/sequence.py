@@ -1,10 +1,11 @@
 """Multi-view sequences on disk: the project's own layout (reader and writer) and PARSEC bodytrack's (reader).
 
-Own layout (DESIGN.md "Sequences on disk")::
+Own layout (docs/reference/file_formats.md)::
 
     DIR/cameras.json                      the rig (tracker.core.cameras)
     DIR/images/<camera>/000000.png ...    one image per frame and camera
     DIR/background/<camera>.png           background plate, where there is one
+    DIR/masks/<camera>/000000.png ...     foreground masks (non-zero = person), instead of background plates
     DIR/groundtruth.npz                   poses T x D, markers T x 15 x 3 (mm), fps -- when known
     DIR/meta.json                         source, subject, fps, body shape, generator settings
 
@@ -277,11 +278,15 @@ def read_mask(path: Path, width: int, height: int) -> np.ndarray:
 
 
 def write_image(path: Path, image: np.ndarray) -> None:
-    """Write ``H x W`` grey or ``H x W x 3`` RGB uint8 (PNG at compression level 1: fast)."""
+    """Write ``H x W`` grey or ``H x W x 3`` RGB uint8 (PNG at compression level 1: fast). Encoded in memory and
+    written by Python, so a failed write is an :class:`OSError` naming its cause (OpenCV's own writer only
+    returns False)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     data = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_RGB2BGR)
-    if not cv2.imwrite(str(path), data, [cv2.IMWRITE_PNG_COMPRESSION, 1]):
-        raise InputError("cannot write image", path)
+    ok, encoded = cv2.imencode(".png", data, [cv2.IMWRITE_PNG_COMPRESSION, 1])
+    if not ok:
+        raise InputError("cannot encode image", path)
+    Path(path).write_bytes(encoded.tobytes())
 
 
 # ---------------------------------------------------------------------------
@@ -364,6 +369,10 @@ def _read_own(root: Path) -> Sequence:
                                           r"(\d{6})\.png", FRAME_NAME, first))
         bg = root / "background" / f"{cam.name}.png"
         backgrounds.append(bg if bg.exists() else None)
+    mask_paths = None
+    if (root / "masks").is_dir():  # silhouettes of one's own, instead of background plates
+        mask_paths = [_camera_frames(root / "masks" / cam.name, f"mask folder for {cam.name!r}", r"(\d{6})\.png",
+                                     FRAME_NAME, (len(image_paths[0]), rig.names[0])) for cam in rig.cameras]
     gt = None
     if (root / "groundtruth.npz").exists():
         gt = read_groundtruth(root / "groundtruth.npz", model.n_dofs)
@@ -372,7 +381,7 @@ def _read_own(root: Path) -> Sequence:
                              root / "groundtruth.npz")
     fps = gt.fps if gt else meta_fps
     seq = Sequence(root=root, layout=OWN, rig=rig, model=model, image_paths=image_paths,
-                   background_paths=backgrounds, mask_paths=None, groundtruth=gt,
+                   background_paths=backgrounds, mask_paths=mask_paths, groundtruth=gt,
                    initial_poses=None if gt is None else gt.poses, fps=fps, meta=meta)
     for v in range(len(rig)):  # fail early on a wrong-sized or unreadable first frame or plate (kept once read)
         seq.image(0, v)

@@ -31,7 +31,7 @@ from data_tools.synth import SynthConfig, synthesize as render_sequence
 from tracker.app.plugins import load_plugins
 from tracker.app.threads import configured_threads
 from tracker.app.tracking import (
-    TrackingInterrupted, TrackingResult, check_frames, check_views, run_tracking, seed_description,
+    TrackingInterrupted, TrackingResult, check_frames, check_views, records_call, run_tracking, seed_description,
 )
 from tracker.core.arrays import torch_device
 from tracker.core.errors import InputError
@@ -84,7 +84,7 @@ def available_likelihoods() -> list[str]:
 # -- data ---------------------------------------------------------------------------------------------------
 
 def load_sequence(path: str | Path) -> Sequence:
-    """A sequence folder in our layout or PARSEC bodytrack's (DESIGN.md "Sequences on disk")."""
+    """A sequence folder in our layout or PARSEC bodytrack's (docs/reference/file_formats.md)."""
     return read_sequence(path)
 
 
@@ -274,8 +274,11 @@ def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
         if not entry.resumable:
             raise InputError(f"training of prior {prior} cannot be resumed")
         extra["resume"] = True
-    return entry.train(data, resolved, make_rng(seed), progress, None if checkpoint is None else Path(checkpoint),
-                       **extra)
+    from tracker.app.checkpoint import training_checkpoint
+
+    with training_checkpoint(checkpoint, sources, skeletons, resume, bool(resolved.get("checkpoint_every"))):
+        return entry.train(data, resolved, make_rng(seed), progress,
+                           None if checkpoint is None else Path(checkpoint), **extra)
 
 
 # -- tracking -------------------------------------------------------------------------------------------------
@@ -312,6 +315,7 @@ def model_name(model: str | Path | Any) -> str:
 TRACK_ANNEALING_LAYERS = 3
 
 
+@records_call
 def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velocity", *,
           models: Seq[str | Path | Any] = (), likelihood: str | Likelihood = "edge-silhouette",
           particles: int = 1000, views: Iterable[int] | None = None, frames: int | None = None,

@@ -194,7 +194,7 @@ _DEG = np.pi / 180.0
 
 
 def _dof_layout() -> list[tuple[str, float, float]]:
-    """(name, lower, upper) of the 40 pose numbers, in DESIGN.md's block order.
+    """(name, lower, upper) of the 40 pose numbers, in the pose layout's block order (docs/reference/body_model.md).
 
     Limits are axis-aligned boxes. For 1- and 2-dof joints they are clinical
     ranges of motion (AAOS, Kapandji) widened by about 10 degrees. For 3-dof
