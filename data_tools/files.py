@@ -1,6 +1,7 @@
 """Writing output files so that a failure never leaves one half-written."""
 from __future__ import annotations
 
+import errno
 import os
 import tempfile
 from contextlib import contextmanager
@@ -8,6 +9,41 @@ from pathlib import Path
 from typing import Iterator
 
 from tracker.core.errors import InputError
+
+
+#: Why a write failed, by ``errno``: the causes a user can act on (free space, another disk, permissions).
+WRITE_FAILURES = {
+    errno.ENOSPC: "no space left on the device",
+    errno.EDQUOT: "disk quota exceeded",
+    errno.EFBIG: "file too large for the file system",
+    errno.EROFS: "read-only file system",
+    errno.EACCES: "permission denied",
+    errno.EPERM: "permission denied",
+}
+
+
+def is_write_failure(exc: BaseException) -> bool:
+    """Whether ``exc`` is a failed write (no space, read-only, no permission), not a bug or a bad input."""
+    return isinstance(exc, OSError) and exc.errno in WRITE_FAILURES
+
+
+def write_failure(path: str | Path, exc: OSError, kept: str = "") -> InputError:
+    """The one-line error for a write to ``path`` that failed with ``exc`` (``kept`` says what stays usable,
+    e.g. "the previous checkpoint is kept")."""
+    cause = WRITE_FAILURES.get(exc.errno) or exc.strerror or str(exc)
+    return InputError(f"cannot write: {cause}{'; ' + kept if kept else ''}", path)
+
+
+@contextmanager
+def writing(path: str | Path, kept: str = "") -> Iterator[None]:
+    """A block that writes ``path`` (a file or a folder): a failed write in it (no space, read-only, no
+    permission) becomes the one-line :func:`write_failure` naming ``path``; other errors pass unchanged."""
+    try:
+        yield
+    except OSError as exc:
+        if not is_write_failure(exc):
+            raise
+        raise write_failure(path, exc, kept) from None
 
 
 def current_umask() -> int:
@@ -32,25 +68,34 @@ def follow_umask(path: str | Path, directory: bool = False) -> None:
 
 
 @contextmanager
-def atomic_path(path: str | Path) -> Iterator[Path]:
+def atomic_path(path: str | Path, kept: str = "") -> Iterator[Path]:
     """A temporary path beside ``path`` to write to; renamed onto ``path`` when the block succeeds, removed
-    when it fails (or is interrupted). The suffix is kept, so writers that choose a format by it still do; the
-    file gets the mode the umask gives new files."""
+    when it fails (or is interrupted), so the file ``path`` held before stays as it was. The suffix is kept, so
+    writers that choose a format by it still do; the file gets the mode the umask gives new files. A failed
+    write (no space left, a read-only file system, no permission) is a one-line :class:`InputError` naming
+    ``path`` and the cause (:func:`write_failure`; ``kept`` adds what stays usable)."""
     path = Path(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
     except OSError as exc:
-        raise InputError(f"cannot write here ({exc.strerror})", path) from None
+        raise write_failure(path, exc, kept) from None
     os.close(fd)
     tmp_path = Path(tmp)
     try:
-        yield tmp_path
-        follow_umask(tmp_path)
-        os.replace(tmp_path, path)
+        with writing(path, kept):
+            yield tmp_path
+            follow_umask(tmp_path)
+            os.replace(tmp_path, path)
     except BaseException:
         tmp_path.unlink(missing_ok=True)
         raise
+
+
+def write_bytes_atomic(path: str | Path, data: bytes, kept: str = "") -> None:
+    """``path`` holds ``data`` in full or is left as it was (failures as :func:`atomic_path`)."""
+    with atomic_path(path, kept) as tmp:
+        tmp.write_bytes(data)
 
 
 def write_text_atomic(path: str | Path, text: str) -> None:
@@ -81,29 +126,34 @@ def _can_create_in(folder: Path) -> bool:
         return False
 
 
-def check_output_file(path: str | Path, what: str = "the output file", suffixes: tuple[str, ...] = ()) -> Path:
+def check_output_file(path: str | Path, what: str = "the output file", suffixes: tuple[str, ...] = (),
+                      new: bool = False, overwrite_flag: str = "--overwrite") -> Path:
     """``path`` as a place a file can be written: not a folder, under a writable folder, with one of
-    ``suffixes`` (lower case, with the dot) when given."""
+    ``suffixes`` (lower case, with the dot) when given, and (``new``) not an existing non-empty file unless
+    the user says so (``overwrite_flag`` names how, in the refusal)."""
     path = Path(path)
     if suffixes and path.suffix.lower() not in suffixes:
         raise InputError(f"{what} must end in {' or '.join(suffixes)}", path)
     if path.is_dir():
         raise InputError(f"{what} is a folder, not a file", path)
+    if new and path.is_file() and path.stat().st_size > 0:
+        raise InputError(f"{what} exists (pass {overwrite_flag} to replace it)", path)
     _writable_ancestor(path, what)
     return path
 
 
 def check_output_folder(path: str | Path, what: str = "the output folder", empty: bool = False,
-                        replaceable: tuple[str, ...] = ()) -> Path:
+                        replaceable: tuple[str, ...] = (), overwrite_flag: str = "--overwrite") -> Path:
     """``path`` as a folder to write into: not a file, under a writable folder, and (``empty``) without
-    contents. With ``replaceable`` (file names), a non-empty folder may be replaced only if it holds one of
-    them (it is one of ours, e.g. a sequence with its ``cameras.json``), never any other folder."""
+    contents (the refusal names ``overwrite_flag``, how the user says to replace it). With ``replaceable``
+    (file names), a non-empty folder may be replaced only if it holds one of them (it is one of ours, e.g. a
+    sequence with its ``cameras.json``), never any other folder."""
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise InputError(f"{what} is a file, not a folder", path)
     if path.is_dir() and any(path.iterdir()):
         if empty:
-            raise InputError(f"{what} is not empty (pass --overwrite to replace it)", path)
+            raise InputError(f"{what} is not empty (pass {overwrite_flag} to replace it)", path)
         if replaceable and not any((path / name).exists() for name in replaceable):
             raise InputError(f"{what} is not empty and holds no {' or '.join(replaceable)}: refusing to replace "
                              "a folder this program did not write", path)
@@ -113,3 +163,15 @@ def check_output_folder(path: str | Path, what: str = "the output folder", empty
     else:
         _writable_ancestor(path, what)
     return path
+
+
+def check_not_inside(out: str | Path, inputs: dict[str, str | Path]) -> None:
+    """Refuse to write ``out`` (a file or a folder) into an input: ``inputs`` maps what each input is (e.g.
+    "sequence folder", "mocap file") to its path; ``out`` may be neither the input itself nor inside it (an
+    input folder is never written into, whatever ``--overwrite`` says)."""
+    target = Path(out).resolve()
+    for what, given in inputs.items():
+        source = Path(given).resolve()
+        if target == source or source in target.parents:
+            raise InputError(f"the output would be written into the {what} {given}; choose an output outside "
+                             "the inputs", out)

@@ -22,7 +22,7 @@ import numpy as np
 from data_tools.checks import MAX_IMAGE_SIDE, real_number
 from data_tools.render import compose, make_room, person_mesh, render_background, render_person
 from data_tools.retarget import RetargetResult
-from data_tools.files import check_output_folder, follow_umask
+from data_tools.files import check_output_folder, follow_umask, write_failure, writing
 from data_tools.sequence import frame_path, write_groundtruth, write_image, write_sequence_header
 from tracker.core.kinematics import standing_height
 from tracker.core.cameras import CameraRig, default_rig
@@ -173,13 +173,14 @@ def synthesize(result: RetargetResult, out: str | Path, settings: SynthConfig, s
         final.parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".tmp", dir=final.parent))
     except OSError as exc:
-        raise InputError(f"cannot write the output folder ({exc.strerror})", final) from None
+        raise write_failure(final, exc) from None
     try:
-        output = _render(result, tmp, settings, source, rig, keep_masks, progress)
-        follow_umask(tmp, directory=True)
-        if final.exists():
-            shutil.rmtree(final)
-        os.replace(tmp, final)
+        with writing(final, "an earlier sequence there is kept" if final.exists() else ""):
+            output = _render(result, tmp, settings, source, rig, keep_masks, progress)
+            follow_umask(tmp, directory=True)
+            if final.exists():
+                shutil.rmtree(final)
+            os.replace(tmp, final)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -28,7 +28,7 @@ sequence = tracker.synthesize(test_walk, out / "sequence", skeleton=skeleton, fr
 
 # 2. A first-order CRBM trained on the other walk (the generator comes from the seed we pass).
 crbm = tracker.train("crbm", [train_walk], skeletons=[skeleton], order=1, epochs=args.epochs, seed=0)
-crbm.save(out / "crbm1.pt")
+crbm.save(out / "crbm1.pt", overwrite=True)  # the script's own folder: a second run replaces its files
 
 # 3. Track with each prior over a few seeds; each result can be saved as the command line does.
 errors = {}
@@ -36,7 +36,7 @@ for prior, models in [("zero-velocity", []), ("crbm", [out / "crbm1.pt"])]:
     runs = [tracker.track(sequence, prior, models=models, particles=args.particles, seed=seed,
                           train_mocap=[train_walk])
             for seed in range(args.seeds)]
-    runs[0].save(out / prior)  # result.json + estimates.npz
+    runs[0].save(out / prior, overwrite=True)  # result.json + estimates.npz
     errors[prior] = tracker.summarize_runs([r.mean_error for r in runs])
 
 # 4. Compare: mean ± std over seeds of the per-run mean marker error (mm).

@@ -21,17 +21,32 @@ if TYPE_CHECKING:
 def read_model_file(path, fmt: str, kind: str) -> dict:
     """The dictionary of a learned prior's ``torch.save`` file, loaded with ``weights_only=True``; a missing,
     unreadable or foreign file is an :class:`InputError` naming the file."""
+    import zipfile
+
     import torch
 
     path = Path(path)
+    what = kind if "checkpoint" in kind else f"{kind} model"
+    if not path.exists():
+        raise InputError(f"{what} file not found", path)
+    if path.is_dir():
+        raise InputError(f"is a folder, not a {what} file", path)
+    try:
+        archive = zipfile.is_zipfile(path)
+    except OSError as exc:
+        raise InputError(f"cannot read the {what} file ({exc.strerror})", path) from None
+    if not archive:  # torch.save writes zip archives; anything else (text, a truncated file) is not one of ours
+        raise InputError(f"not a {what} file: {what} files are the torch archives that pose-tracker train writes, "
+                         "and this file is not a torch archive", path)
     try:
         doc = torch.load(path, map_location="cpu", weights_only=True)
-    except FileNotFoundError:
-        raise InputError("model file not found", path) from None
-    except Exception as exc:  # torch raises many types for a corrupt or foreign file
-        raise InputError(f"cannot read model file ({type(exc).__name__}: {str(exc)[:120]})", path) from None
+    except Exception as exc:  # torch raises many types for a corrupt or foreign archive
+        raise InputError(f"damaged or foreign {what} file: torch cannot load it ({type(exc).__name__}: "
+                         f"{str(exc).splitlines()[0][:120] if str(exc) else 'no reason given'})", path) from None
     if not isinstance(doc, dict) or doc.get("format") != fmt:
-        raise InputError(f"not a {kind} model file (expected format {fmt!r})", path)
+        found = doc.get("format") if isinstance(doc, dict) else None
+        held = f"it holds {found!r}" if isinstance(found, str) else "it holds no pose-tracker model"
+        raise InputError(f"not a {what} file: {held}, a {what} file has format {fmt!r}", path)
     return doc
 
 
@@ -65,9 +80,10 @@ class TrainedModel(ModelData):
     reconstruction_errors: list[float] = field(default_factory=list)
     training_seconds: float = 0.0
 
-    def save(self, path: str | Path) -> None:
-        """The model file at ``path`` (written atomically: never half-written)."""
-        torch_save_atomic(self.to_document(), Path(path))
+    def save(self, path: str | Path, overwrite: bool = False) -> None:
+        """The model file at ``path`` (written atomically: never half-written); an existing one is refused
+        unless ``overwrite``."""
+        torch_save_atomic(self.to_document(), Path(path), overwrite)
 
     def data_document(self) -> dict:
         """The model file's entries for the fields above (tensors and plain values)."""
@@ -188,15 +204,25 @@ def checked_data_settings(d: dict, kind: str, source=None) -> tuple[float, str, 
     return float(fps), body, list(dofs), list(sources), step.numpy()
 
 
-def torch_save_atomic(doc: dict, path: Path) -> None:
+def torch_save_atomic(doc: dict, path: Path, overwrite: bool = True) -> None:
     """``torch.save(doc, path)`` through a temporary file beside ``path`` and an atomic rename, so ``path`` is
-    never half-written (a training checkpoint interrupted while saving keeps the one before)."""
+    never half-written (a training checkpoint interrupted while saving keeps the one before). The document is
+    serialised in memory first, so a failed write (no space left, read-only, no permission) is the
+    :class:`OSError` naming its cause that Python's own writes raise, not torch's bare ``RuntimeError``.
+    Without ``overwrite`` an existing non-empty ``path`` is refused (a model file the user did not ask to
+    replace)."""
+    import io
+
     import torch
 
+    if not overwrite and path.is_file() and path.stat().st_size > 0:
+        raise InputError("the model file exists (pass overwrite=True to replace it)", path)
+    buffer = io.BytesIO()
+    torch.save(doc, buffer)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp")
     try:
-        torch.save(doc, tmp)
+        tmp.write_bytes(buffer.getbuffer())
         tmp.replace(path)
     finally:
         tmp.unlink(missing_ok=True)

@@ -166,9 +166,10 @@ class DeepCRBMModel:
         return (f"deep CRBM: first layer {self.bottom.summary()}; second layer order {self.top.order}, "
                 f"{self.top.n_hidden} hidden units: {top}{self.training_seconds:.1f} s")
 
-    def save(self, path: str | Path) -> None:
-        """The model file at ``path`` (written atomically: never half-written)."""
-        torch_save_atomic(self.to_document(), Path(path))
+    def save(self, path: str | Path, overwrite: bool = False) -> None:
+        """The model file at ``path`` (written atomically: never half-written); an existing one is refused
+        unless ``overwrite``."""
+        torch_save_atomic(self.to_document(), Path(path), overwrite)
 
     def to_document(self) -> dict:
         return {"format": FORMAT, "bottom": self.bottom.to_document(), "top": self.top.state_dict(),

@@ -13,7 +13,7 @@ import torch
 
 from priors.common import (
     ModelData, check_weights, checked_data_settings, normaliser_from_tensors, normaliser_to_tensors,
-    read_model_file,
+    read_model_file, torch_save_atomic,
 )
 from priors.gpdm_model import FORMAT, GPDM, GPDMConfig, n_dynamics_params
 from tracker.core.errors import InputError
@@ -116,11 +116,11 @@ def gpdm_document(model: GPDM, extra: dict | None = None) -> dict:
             "objective_history": [float(v) for v in model.objective_history], "extra": extra or {}}
 
 
-def save_gpdm(path: str | Path, model: GPDM, extra: dict | None = None) -> None:
+def save_gpdm(path: str | Path, model: GPDM, extra: dict | None = None, overwrite: bool = True) -> None:
     """Write a trained GPDM (latent points, data, scales, hyperparameters, config) and ``extra`` metadata
-    (plain values or tensors) to a ``torch.save`` file loadable with ``weights_only=True``."""
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    torch.save(gpdm_document(model, extra), path)
+    (plain values or tensors) to a ``torch.save`` file loadable with ``weights_only=True``, atomically
+    (:func:`priors.common.torch_save_atomic`; an existing file is refused unless ``overwrite``)."""
+    torch_save_atomic(gpdm_document(model, extra), Path(path), overwrite)
 
 
 def load_gpdm(path: str | Path) -> tuple[GPDM, dict]:
@@ -234,8 +234,9 @@ class GPDMPriorModel(ModelData):
 
     KIND: ClassVar[str] = "GPDM"
 
-    def save(self, path: str | Path) -> None:
-        save_gpdm(path, self.gpdm, {
+    def save(self, path: str | Path, overwrite: bool = False) -> None:
+        """The model file at ``path`` (atomically); an existing one is refused unless ``overwrite``."""
+        save_gpdm(path, self.gpdm, overwrite=overwrite, extra={
             "fps": float(self.fps), "body_model": self.body_model, "dof_names": list(self.dof_names),
             "sources": list(self.sources), "pose_step_rms": torch.tensor(self.pose_step_rms),
             "normaliser": normaliser_to_tensors(self.normaliser),

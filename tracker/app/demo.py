@@ -1,7 +1,10 @@
 """The built-in default job (``python -m tracker demo``): render a shipped walk, train a CRBM on the other,
 track with the zero-velocity prior, the CRBM prior and the mixture of the two, and write the error plot and an
 overlay video of the mixture's estimates -- all
-through the public API, as a user's script would."""
+through the public API, as a user's script would.
+
+The output folder is the demo's own: a second demo replaces the files an earlier one wrote there (so running it
+twice just works), and a non-empty folder that holds no demo output is refused."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -12,10 +15,17 @@ from data_tools.samples import CMU_ATTRIBUTION, sample_walks
 from tracker.app.api import TRACK_ANNEALING_LAYERS, load_clip, synthesize, track, train
 
 
+#: What marks a folder as an earlier demo's output (the first things the demo writes).
+DEMO_FILES = ("sequence", "crbm1.pt")
+
+
 def run_demo(out: Path, frames: int = 90) -> int:
     from tqdm import tqdm
 
+    from data_tools.files import check_output_folder
     from tracker.app.visualize import error_plot, overlay_frames, write_video
+
+    out = check_output_folder(out, replaceable=DEMO_FILES)
 
     asf, walks = sample_walks()
     train_walk, test_walk = walks  # 07_01 trains the priors, 07_02 is rendered and tracked
@@ -25,7 +35,7 @@ def run_demo(out: Path, frames: int = 90) -> int:
     clip = load_clip(train_walk, asf, fps=60.0)
     print(f"2/4 Training a first-order CRBM (150 hidden units, CD-10, 300 epochs) on {train_walk.stem}")
     crbm = train("crbm", [clip], fps=60.0, seed=0, order=1, hidden=150, epochs=300)
-    crbm.save(out / "crbm1.pt")
+    crbm.save(out / "crbm1.pt", overwrite=True)
     print(f"   {crbm.summary()} -> {out / 'crbm1.pt'}")
     print(f"3/4 Tracking with each prior, 1000 particles, {TRACK_ANNEALING_LAYERS} annealing layers (the default), "
           "4 views, seed 0")
@@ -34,7 +44,7 @@ def run_demo(out: Path, frames: int = 90) -> int:
         with tqdm(total=frames - 2, desc=name, unit="frame") as bar:
             runs[name] = track(seq, name, models=models, particles=1000, seed=0, train_mocap=[train_walk],
                                on_frame=lambda step, e: (bar.update(1), bar.set_postfix(error_mm=f"{e:.0f}")))
-        res = runs[name].save(out / f"track_{name}")
+        res = runs[name].save(out / f"track_{name}", overwrite=True)
         print(f"   {name}: mean marker error {res['mean_error_mm']:.1f} ± {res['std_error_mm']:.1f} mm over "
               f"{res['frames']} frames, {runs[name].seconds_per_frame:.3f} s per frame -> {out / f'track_{name}'}")
     print("4/4 Writing the error plot and the overlay video (the mixture's estimates)")

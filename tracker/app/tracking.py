@@ -127,10 +127,17 @@ class TrackingResult:
             **({} if summary is None else {"prior_summary": summary}),
         }
 
-    def save(self, out: str | Path) -> dict[str, Any]:
+    def save(self, out: str | Path, overwrite: bool = False) -> dict[str, Any]:
         """Write ``OUT/result.json`` and ``OUT/estimates.npz`` (each atomically), and for a prior with a per-frame
-        summary (a style posterior, a pace) ``OUT/prior_summary.png``; returns the JSON content."""
-        out = Path(out)
+        summary (a style posterior, a pace) ``OUT/prior_summary.png``; returns the JSON content. A non-empty
+        ``out`` is refused unless ``overwrite`` (then the files of this result replace those there), and so is
+        the sequence's own folder or a folder inside it; a failed write (no space left, read-only, no permission)
+        is one line naming the file and the cause."""
+        from data_tools.files import check_not_inside, check_output_folder
+
+        out = check_output_folder(out, empty=not overwrite, overwrite_flag="overwrite=True")
+        if self.settings.get("sequence"):
+            check_not_inside(out, {"sequence folder": self.settings["sequence"]})
         result = self.to_dict()
         with atomic_path(out / "estimates.npz") as tmp:
             write_estimates(tmp, self.poses, self.markers, self.best_poses)
@@ -258,10 +265,16 @@ def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, conf
     recording = Recording(record)
     fingerprint = {**(fingerprint or {}), "frames": T, "known_frames": n_known}
     state = None
+    inputs = None
+    if resume and (checkpoint is None or not Path(checkpoint).exists()):
+        raise InputError("no checkpoint to resume from", checkpoint)
+    if checkpoint is not None:  # what the run reads, by content: a resume refuses inputs that changed since
+        from tracker.app.checkpoint import input_fingerprint
+        from tracker.app.fingerprints import CACHE_NAME
+
+        inputs = input_fingerprint(seq.root, fingerprint.get("prior_models", ()), Path(checkpoint).parent / CACHE_NAME)
     if resume:
-        if checkpoint is None or not Path(checkpoint).exists():
-            raise InputError("no checkpoint to resume from", checkpoint)
-        state, _ = load_checkpoint(checkpoint, fingerprint, recording, rng)
+        state, _ = load_checkpoint(checkpoint, fingerprint, recording, rng, inputs)
 
     def report(step: FrameStep) -> None:
         if on_frame is not None:
@@ -274,7 +287,7 @@ def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, conf
     def keep(st, rec) -> None:  # the state after a frame, with the generator's state at that moment
         last["state"], last["rng"] = st, rng.bit_generator.state
         if checkpoint is not None and checkpoint_every and st.tracked % checkpoint_every == 0:
-            save_checkpoint(checkpoint, st, rec, last["rng"], fingerprint)
+            save_checkpoint(checkpoint, st, rec, last["rng"], fingerprint, inputs=inputs)
 
     first = n0 + (0 if state is None else state.tracked)
     pf = ParticleFilter(prior, likelihood, config, rng)
@@ -287,7 +300,7 @@ def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, conf
         for name in recording.values:  # drop a frame recorded after the last complete state
             recording.values[name] = recording.values[name][:done]
         if checkpoint is not None and last["state"] is not None:
-            save_checkpoint(checkpoint, last["state"], recording, last["rng"], fingerprint)
+            save_checkpoint(checkpoint, last["state"], recording, last["rng"], fingerprint, inputs=inputs)
         partial = _result(seq, known, n0, recording.result(), gt, T, summary) if done else None
         raise TrackingInterrupted(partial, checkpoint if last["state"] is not None else None) from None
     if checkpoint is not None:
