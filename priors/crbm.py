@@ -31,11 +31,11 @@ from tracker.engine.registry import Option, PriorContext, register_prior
 GIBBS_STEPS = 5
 #: Default height spread (mm) of a CRBM trained with a pace input (one trained on the walks of several people):
 #: each particle's own root-height offset at the start. It won against none on the leave-one-subject-out
-#: protocol's tuning and test folds (docs/unseen_people.md); 50 mm is the spread of the shared subjects' root
+#: protocol's tuning and test folds (docs/methods_report.md); 50 mm is the spread of the shared subjects' root
 #: heights. Without a pace input the default is 0.
 PACED_HEIGHT_SPREAD = 50.0
 #: Default posture gain of a CRBM trained with a pace input: it won against none and against 0.2 and 0.4 on the
-#: tuning and test folds (docs/unseen_people.md). Without a pace input the default is 0.
+#: tuning and test folds (docs/methods_report.md). Without a pace input the default is 0.
 PACED_POSTURE_GAIN = 0.1
 
 

@@ -2,7 +2,7 @@
 
 A learned prior's tracking error depends much on its training seed (the same CRBM trained with five
 seeds gave 0.46-0.77 of zero-velocity's error on the tuning folds with 4 views, 0.83-1.92 with one;
-docs/unseen_people.md). Given several models, the particle set is split between them: particle ``i`` starts
+docs/methods_report.md). Given several models, the particle set is split between them: particle ``i`` starts
 with member ``i mod M`` and keeps it, so resampling shifts particles toward the members whose predictions
 the images support. The members' own per-particle states are kept whole (``P`` rows each) and each member
 samples and updates the rows of its particles, so resampling reindexes everything together.

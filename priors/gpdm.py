@@ -27,7 +27,7 @@ from tracker.engine.registry import Option, PriorContext, TrainingData, register
 #: Default height spread (mm) of the GPDM prior: each particle's own root-height offset, Gaussian with this std at
 #: the start. It won against none on the leave-one-subject-out protocol's tuning folds (mean ratio to the baseline
 #: over both view counts 0.75 against 0.88) and test folds (1.42 against 1.73; with 4 views 0.88 against 1.48;
-#: docs/unseen_people.md); the CRBM's value, not tuned again for the GPDM.
+#: docs/methods_report.md); the CRBM's value, not tuned again for the GPDM.
 HEIGHT_SPREAD = 50.0
 
 

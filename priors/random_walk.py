@@ -99,7 +99,7 @@ def isotropic_ground(std: np.ndarray, dof_names: Sequence[str], source: str | No
     """The per-dof scale ``std`` ``(D,)`` with both ground coordinates of the root set to their RMS,
     ``sqrt((s_x^2 + s_y^2) / 2)`` (mm per frame): the same spread of ground steps in every direction. Scales
     taken from clips that all move along one axis would otherwise let the random walk follow a person along
-    that axis and hardly at all across it (the turned folds of docs/unseen_people.md). A layout without ``root_x`` and ``root_y``
+    that axis and hardly at all across it (the turned folds of docs/methods_report.md). A layout without ``root_x`` and ``root_y``
     is an :class:`InputError` naming ``source``."""
     names = list(dof_names)
     if not all(n in names for n in GROUND_DOFS):

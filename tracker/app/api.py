@@ -308,7 +308,7 @@ def model_name(model: str | Path | Any) -> str:
 
 
 #: Annealing layers per frame that :func:`track` (and the command line, and experiment files that leave
-#: ``annealing_layers`` unset) uses when none are asked for: 3 won in ``docs/unseen_people.md`` ("the annealed
+#: ``annealing_layers`` unset) uses when none are asked for: 3 won in ``docs/methods_report.md`` ("the annealed
 #: filter") for the zero-velocity baseline and the paced CRBM on people the priors were not
 #: trained on, and the FCRBM's tuning fold with its style inferred by mixture tracking (``docs/fcrbm.md``).
 #: The engine's own :class:`~tracker.engine.filter.FilterConfig` default stays plain SIR.
@@ -336,7 +336,7 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     the checkpoint's fingerprint. The filter tracks frames ``known_frames .. frames-1`` (default: to the end) from the ground truth's
     first poses (or ``init``, or a bodytrack ``InitialPose.txt``) with ``particles`` particles in ``views``
     (default all), ``annealing_layers`` layers per frame (default :data:`TRACK_ANNEALING_LAYERS`, 3, the setting
-    that won on unseen people in ``docs/unseen_people.md``; 1 is plain SIR). Random-walk priors take their scale
+    that won on unseen people in ``docs/methods_report.md``; 1 is plain SIR). Random-walk priors take their scale
     from ``step_std`` or ``train_mocap`` (:func:`build_prior`). ``record`` chooses what is kept per frame
     (:mod:`tracker.engine.recording`; add ``"particles"`` and ``"weights"`` to keep those); ``on_frame(step,
     error_mm)`` sees every frame as it is tracked. ``result.save(dir)`` writes ``result.json`` and

@@ -1,7 +1,7 @@
 """Time-warping pose clips: the same motion played faster or slower, still sampled at the clip's frame rate.
 
 A learned prior trained on people who walk at 1.1-1.4 m/s walks on at that pace when it tracks someone who
-walks at 0.6 m/s (docs/unseen_people.md). Training on every clip also replayed at other speeds shows the
+walks at 0.6 m/s (docs/methods_report.md). Training on every clip also replayed at other speeds shows the
 model the same gaits at other paces. A clip ``T x D`` replayed at ``speed`` is sampled at the times
 ``k * speed`` (frames of the original, ``k = 0, 1, ...`` while ``k * speed <= T - 1``), so ``speed`` 0.5
 gives ``2T - 1`` frames with half the per-frame motion and ``speed`` 2 about half as many with twice the

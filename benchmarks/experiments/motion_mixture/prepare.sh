@@ -1,12 +1,14 @@
 #!/usr/bin/env bash
 # Renders the protocol's sequences (sequences/) and trains its CRBMs (models/) beside this file, from
-# ../shared/mocap. Three folds, each leaving out the subjects it tracks:
+# the shared data's mocap/cmu (the data root: $POSE_TRACKER_DATA_ROOT, default ../shared beside the checkout).
+# Three folds, each leaving out the subjects it tracks:
 #   B (tuning): subjects 2 and 10 left out;  A (report): 16, 49, 11 and 131 left out;  C (report): 91 left out.
 # Each fold has a CRBM trained on the walks of the other subjects and one trained on all their clips.
 # Run from anywhere: bash benchmarks/experiments/motion_mixture/prepare.sh   (about 30 min on two cores)
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
-M="$(cd "$here/../../../../shared/mocap/cmu" && pwd)"
+root="${POSE_TRACKER_DATA_ROOT:-$here/../../../../shared}"
+M="$(cd "$root/mocap/cmu" && pwd)"
 mkdir -p "$here/sequences" "$here/models"
 render() {  # name clip start frames [synth options]
   local name="$1" clip="$2" start="$3" frames="$4"; shift 4
