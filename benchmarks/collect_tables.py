@@ -46,17 +46,23 @@ def experiment_key(recorded: str) -> str:
         return text[text.index(EXPERIMENTS):] if EXPERIMENTS in text else text
 
 
+def fail(message: str) -> None:
+    """One line on stderr and exit status 2, as the command line does for bad input."""
+    print(f"collect_tables: {message}", file=sys.stderr)
+    raise SystemExit(2)
+
+
 def section(folder: Path, figures: Path) -> tuple[str, str]:
     """The experiment key and the results section of one `compare` output folder."""
     for name in ("table.md", "experiment.json"):
         if not (folder / name).is_file():
-            raise SystemExit(f"{folder}: no {name} (not a finished `compare` output folder)")
+            fail(f"{folder}: no {name} (not a finished `compare` output folder)")
     try:
         meta = json.loads((folder / "experiment.json").read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
-        raise SystemExit(f"{folder / 'experiment.json'}: cannot be read ({exc})") from None
+        fail(f"{folder / 'experiment.json'}: cannot be read ({exc})")
     if "experiment" not in meta:
-        raise SystemExit(f"{folder / 'experiment.json'}: names no experiment file")
+        fail(f"{folder / 'experiment.json'}: names no experiment file")
     key = experiment_key(meta["experiment"])
     version = meta.get("version")
     lines = (folder / "table.md").read_text(encoding="utf-8").rstrip().splitlines()
