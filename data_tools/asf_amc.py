@@ -326,41 +326,44 @@ def asf_amc_clip(asf_path: str | Path, amc_path: str | Path, fps: float = CMU_FP
     fps = check_fps(fps, "source frame rate", str(amc_path))
     _check_same_subject(Path(asf_path), Path(amc_path))
     skel = read_asf(asf_path)
-    motion = read_amc(amc_path, skel)
+    root, rotations = bone_rotations(skel, read_amc(amc_path, skel))
+    unit = skel.mm_per_unit
+    names = ["root"]
+    pos = [root]
+    end = {"root": root}
+    parent_of = skel.parent_of()
+    for b in skel.order():
+        bone = skel.bones[b]
+        end[b] = end[parent_of[b]] + np.einsum("tij,j->ti", rotations[b], bone.direction * bone.length * unit)
+        names.append(b)
+        pos.append(end[b])
+    positions = np.stack(pos, axis=1) @ Y_UP_TO_Z_UP.T
+    return MocapClip(str(amc_path), positions, names, fps, "asf", unit=f"ASF units of {unit:.4g} mm", up="y")
+
+
+def bone_rotations(skel: AsfSkeleton, motion: dict[str, np.ndarray]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The root's position ``T x 3`` (mm, the file's y-up axes) and every bone's rotation ``T x 3 x 3`` from
+    the rest frame (``'root'`` included), for an AMC ``motion`` (:func:`read_amc`) on ``skel``."""
     T = motion["root"].shape[0]
     ang = np.pi / 180.0 if skel.degrees else 1.0
-    unit = skel.mm_per_unit
-
     root_vals = motion["root"]
     order = skel.root_order
     trans = np.stack([root_vals[:, order.index(a)] for a in ("tx", "ty", "tz")], axis=1) + skel.root_position
     rot_axes = "".join(a[1] for a in order if a.startswith("r"))
     rot_vals = np.stack([root_vals[:, order.index("r" + a)] for a in rot_axes], axis=1) * ang
     C = _ordered_rotation(skel.root_orientation * ang, skel.root_axis_order)
-    R_root = C @ _ordered_rotation(rot_vals, rot_axes) @ C.T
-
-    names = ["root"]
-    pos = [trans * unit]
-    rot = {"root": R_root}
-    end = {"root": pos[0]}
+    rot = {"root": C @ _ordered_rotation(rot_vals, rot_axes) @ C.T}
     parent_of = skel.parent_of()
     for b in skel.order():
         bone = skel.bones[b]
         p = parent_of[b]
-        Cb = _ordered_rotation(bone.axis * ang, bone.axis_order)
         if bone.dofs:
-            vals = motion[b] * ang
-            axes = "".join(d[1] for d in bone.dofs)
-            M = _ordered_rotation(vals, axes)
-            R = rot[p] @ (Cb @ M @ Cb.T)
+            Cb = _ordered_rotation(bone.axis * ang, bone.axis_order)
+            M = _ordered_rotation(motion[b] * ang, "".join(d[1] for d in bone.dofs))
+            rot[b] = rot[p] @ (Cb @ M @ Cb.T)
         else:
-            R = np.broadcast_to(rot[p], (T, 3, 3))
-        rot[b] = R
-        end[b] = end[p] + np.einsum("tij,j->ti", R, bone.direction * bone.length * unit)
-        names.append(b)
-        pos.append(end[b])
-    positions = np.stack(pos, axis=1) @ Y_UP_TO_Z_UP.T
-    return MocapClip(str(amc_path), positions, names, fps, "asf")
+            rot[b] = np.broadcast_to(rot[p], (T, 3, 3))
+    return trans * skel.mm_per_unit, rot
 
 
 def _check_same_subject(asf: Path, amc: Path) -> None:

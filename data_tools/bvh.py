@@ -9,20 +9,23 @@ Conventions of the format, as read here:
 - The length unit is not stated in BVH files. Give it as ``mm_per_unit``, or
   let :func:`infer_unit` choose among :data:`CANDIDATE_UNITS_MM` the one that
   makes the rest skeleton's height closest to an adult's (1.6 m); the choice is
-  recorded in the clip's ``notes``. The shared CMU conversions need this:
+  recorded in the clip's ``unit``. The shared CMU conversions need this:
   10_01/10_03/11_01 are in centimetres and 131_01 in CMU's ASF unit
   (1/0.45 inch); read as inches, subject 10 would be 4 m tall.
-- Data is y up and rotated to our z-up world on load.
+- Data is y up or z up (:func:`up_axis` tells from the rest skeleton); y-up
+  data is rotated to our z-up world on load.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Mapping
 
 import numpy as np
 
 from data_tools.checks import MAX_FPS, MAX_MM_PER_UNIT, MAX_POSITION_MM, MIN_MM_PER_UNIT, check_range, real_number
 from data_tools.mocap import MM_PER_INCH, Y_UP_TO_Z_UP, MocapClip
+from data_tools.skeleton_points import PointPlan, plan_points, read_joint_map
 from data_tools.textfiles import parse_floats, read_lines
 from tracker.core.errors import InputError
 from tracker.core.rotations import euler_to_matrix
@@ -228,33 +231,75 @@ def _positions(bvh: BvhFile, frames: np.ndarray) -> tuple[np.ndarray, list[str]]
     return np.stack(p_all + ends, axis=1), names + end_names
 
 
-def infer_unit(bvh: BvhFile) -> tuple[str, float]:
+def infer_unit(bvh: BvhFile, axis: int = 1) -> tuple[str, float]:
     """The candidate unit (name, mm per unit) that makes the rest skeleton about 1.6 m tall.
 
     The rest skeleton is the hierarchy with every channel zero; its height is
-    its vertical (y) extent. Log-ratio distance to 1.6 m picks the unit; the
-    candidates differ by factors of 2.2 or more, so the choice is clear-cut for
-    human skeletons.
+    its extent along the up ``axis`` (1: y, 2: z). Log-ratio distance to 1.6 m
+    picks the unit; the candidates differ by factors of 2.2 or more, so the
+    choice is clear-cut for human skeletons.
     """
     rest, _ = _positions(bvh, np.zeros((1, bvh.frames.shape[1])))
-    extent = float(np.ptp(rest[0, :, 1]))
+    extent = float(np.ptp(rest[0, :, axis]))
     if extent <= 0:
         raise InputError("rest skeleton has no height; cannot infer its length unit", bvh.path)
     best = min(CANDIDATE_UNITS_MM.items(), key=lambda kv: abs(np.log(extent * kv[1] / 1600.0)))
     return best
 
 
-def bvh_clip(path: str | Path, mm_per_unit: float | None = None) -> MocapClip:
-    """Joint positions of a BVH file in mm, z up, at the file's frame rate."""
+def up_axis(rest: np.ndarray, plan: PointPlan, source: str) -> int:
+    """The file's up axis (1: y, 2: z) from its rest skeleton ``J x 3`` (file axes): the axis along which the
+    thorax stands highest above the ankles. A skeleton standing along x, or upside down, is refused."""
+    thorax, left, right = plan.positions(rest[None], ("thorax", "left_ankle", "right_ankle"))[0]
+    v = thorax - 0.5 * (left + right)
+    axis = int(np.argmax(np.abs(v)))
+    if axis == 0 or v[axis] <= 0:
+        raise InputError(f"the rest skeleton stands along {'-' if v[axis] < 0 else '+'}{'xyz'[axis]} (thorax "
+                         "above the ankles); only y-up and z-up files are read", source)
+    return axis
+
+
+def file_rate(frame_time: float) -> float:
+    """The frame rate (Hz) a ``Frame Time`` (s) stands for: a whole number of Hz when the time is that rate's
+    rounded to a few decimals (``0.033333`` is 30 Hz, ``0.008333`` 120 Hz), else ``1 / frame_time``
+    (``0.0333667``: 29.97 Hz). Without the rounding, 121 frames of ``0.008333`` s would fall short of 1 s
+    and lose their last sample at 60 Hz."""
+    fps = 1.0 / frame_time
+    whole = round(fps)
+    return float(whole) if whole >= 1 and abs(fps - whole) <= 1e-4 * fps else fps
+
+
+def bvh_clip(path: str | Path, mm_per_unit: float | None = None,
+             joint_map: str | Path | Mapping | None = None) -> MocapClip:
+    """Joint positions of a BVH file in mm, z up, at the file's frame rate (:func:`file_rate`).
+
+    The body's points come from the joint names (a recognised convention, :mod:`data_tools.joint_names`) or
+    from ``joint_map`` (a JSON or TOML file, or a mapping; :func:`~data_tools.skeleton_points.read_joint_map`).
+    The up axis (y or z) comes from the rest skeleton (:func:`up_axis`), the length unit from its height
+    (:func:`infer_unit`) unless ``mm_per_unit`` is given.
+    """
     bvh = read_bvh(path)
-    notes = []
+    rest, names = _positions(bvh, np.zeros((1, bvh.frames.shape[1])))
+    mapping = None if joint_map is None else read_joint_map(joint_map)
+    map_source = None if joint_map is None or isinstance(joint_map, Mapping) else joint_map
+    try:
+        plan = plan_points(names, "bvh", mapping, str(path), map_source)
+    except InputError:
+        if mapping is not None:
+            raise
+        plan = None  # readable as points; asking for the body's markers repeats the refusal
+    axis = 1 if plan is None else up_axis(rest[0], plan, str(path))
     if mm_per_unit is None:
-        unit_name, mm_per_unit = infer_unit(bvh)
-        notes.append(f"length unit inferred as {unit_name} ({mm_per_unit:.4g} mm)")
+        unit_name, mm_per_unit = infer_unit(bvh, axis)
+        unit = (f"{unit_name[:-1]}; inferred from the skeleton's height)" if unit_name.endswith(")")
+                else f"{unit_name} (inferred from the skeleton's height)")
     else:
         mm_per_unit = real_number(mm_per_unit, "length unit (mm per file unit)", path, lo=MIN_MM_PER_UNIT,
                                   hi=MAX_MM_PER_UNIT)
+        unit = f"{mm_per_unit:g} mm per unit (given)"
     pos, names = _positions(bvh, bvh.frames)
-    positions = (pos * mm_per_unit) @ Y_UP_TO_Z_UP.T
+    to_world = Y_UP_TO_Z_UP if axis == 1 else np.eye(3)
+    positions = (pos * mm_per_unit) @ to_world.T
     check_range(positions, "joint positions", path, hi=MAX_POSITION_MM, unit=" mm", row_lines=bvh.row_lines)
-    return MocapClip(str(path), positions, names, 1.0 / bvh.frame_time, "bvh", notes)
+    return MocapClip(str(path), positions, names, file_rate(bvh.frame_time), "bvh", list(plan.notes) if plan else [], plan, unit,
+                     "yz"[axis - 1])

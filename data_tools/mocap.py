@@ -13,8 +13,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from data_tools.checks import MAX_FPS, MIN_FPS, check_range
+from data_tools.skeleton_points import PointPlan, plan_points
 from tracker.core.body import EXTRA_POINT_NAMES, MARKER_NAMES
 from tracker.core.errors import InputError
+from tracker.core.timewarp import MIN_SPEED, warped_length
 
 #: Rotation taking y-up mocap coordinates to our z-up world: (x, y, z) -> (x, -z, y).
 Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
@@ -29,7 +31,9 @@ class MocapClip:
     ``positions`` ``T x J x 3`` (mm, z up), ``point_names`` J names (ASF: bone
     ends, named by bone, plus ``root``; BVH: joint origins by joint name plus
     ``<joint>_end`` for end sites), ``fps`` frames per second, ``style``
-    ``'asf'`` or ``'bvh'`` (selects the marker naming table).
+    ``'asf'`` or ``'bvh'`` (selects the naming conventions tried). ``plan`` says which points are the body's
+    (None: the best naming convention, found when first asked); ``unit`` and ``up`` say how lengths and axes
+    were read (for the summary); ``notes`` what else a user should know.
     """
 
     path: str
@@ -38,15 +42,26 @@ class MocapClip:
     fps: float
     style: str
     notes: list[str] = field(default_factory=list)
+    plan: PointPlan | None = None
+    unit: str = ""
+    up: str = "y"
 
     @property
     def n_frames(self) -> int:
         return self.positions.shape[0]
 
+    def point_plan(self) -> PointPlan:
+        """Where the body's points come from (planned from the names when no plan is set)."""
+        if self.plan is None:
+            self.plan = plan_points(self.point_names, self.style, source=self.path)
+        return self.plan
 
+    def summary(self) -> str:
+        """How the file was read, in one phrase: its naming, length unit, up axis and frame rate."""
+        parts = [self.point_plan().naming, f"lengths in {self.unit}" if self.unit else "", f"{self.up} up",
+                 f"{self.fps:g} Hz"]
+        return ", ".join(p for p in parts if p)
 
-def _name_index(names: list[str]) -> dict[str, int]:
-    return {n.lower(): i for i, n in enumerate(names)}
 
 
 def check_fps(fps: float, what: str = "frame rate", source: str | None = None) -> float:
@@ -59,95 +74,26 @@ def check_fps(fps: float, what: str = "frame rate", source: str | None = None) -
     return float(check_range(fps, what, source, lo=MIN_FPS, hi=MAX_FPS, unit=" Hz"))
 
 
-def resample(clip: MocapClip, fps: float) -> MocapClip:
-    """The clip at ``fps`` frames per second.
-
-    When the source rate is an integer multiple of ``fps`` (120 -> 60 or 30 Hz)
-    every k-th frame is kept, as in Taylor (2009). Otherwise positions are
-    interpolated linearly in time (a small, documented loss of rigidity).
-    Upsampling is refused: it invents motion that was never measured.
-    """
-    fps = check_fps(fps, "target frame rate")
-    if fps > clip.fps * (1 + 1e-9):
-        raise InputError(f"cannot resample from {clip.fps:g} Hz up to {fps:g} Hz; choose a rate <= {clip.fps:g}",
-                         clip.path)
-    ratio = clip.fps / fps
-    if abs(ratio - round(ratio)) < 1e-6:
-        k = int(round(ratio))
-        pos = clip.positions[::k]
-    else:
-        t_src = np.arange(clip.n_frames) / clip.fps
-        t_new = np.arange(0.0, t_src[-1] + 1e-12, 1.0 / fps)
-        flat = clip.positions.reshape(clip.n_frames, -1)
-        pos = np.stack([np.interp(t_new, t_src, flat[:, j]) for j in range(flat.shape[1])], axis=1)
-        pos = pos.reshape(len(t_new), *clip.positions.shape[1:])
-    return MocapClip(clip.path, pos, list(clip.point_names), fps, clip.style, list(clip.notes))
-
-
-# Candidate point names per role, in order of preference (case-insensitive).
-# ASF points are bone *ends*: 'lhumerus' is the elbow. BVH points are joint
-# origins: 'LeftElbow' / 'lForeArm' is the elbow. '@mid:a,b' is the midpoint.
-_ASF_ROLES = {
-    "pelvis": ["root"], "thorax": ["thorax"], "head": ["head"],
-    "left_shoulder": ["lclavicle"], "left_elbow": ["lhumerus"], "left_wrist": ["lradius"],
-    "right_shoulder": ["rclavicle"], "right_elbow": ["rhumerus"], "right_wrist": ["rradius"],
-    "left_hip": ["lhipjoint"], "left_knee": ["lfemur"], "left_ankle": ["ltibia"],
-    "right_hip": ["rhipjoint"], "right_knee": ["rfemur"], "right_ankle": ["rtibia"],
-    "left_hand_end": ["lhand"], "right_hand_end": ["rhand"], "left_toe": ["lfoot"], "right_toe": ["rfoot"],
-}
-
-
-def _bvh_side(template: dict[str, list[str]]) -> dict[str, list[str]]:
-    out = {}
-    for role, names in template.items():
-        if role.startswith("SIDE_"):
-            for side, long, short in (("left", "Left", "l"), ("right", "Right", "r")):
-                out[role.replace("SIDE", side)] = [n.replace("LONG", long).replace("SHORT", short) for n in names]
-        else:
-            out[role] = names
-    return out
-
-
-# Two BVH naming families appear in CMU conversions: "Hips/LeftHip/LeftKnee"
-# and "hip/lThigh/lShin" (Poser style). When the head chain ends in eye joints
-# rather than an end site, the head marker is the midpoint between the eyes.
-_BVH_ROLES = _bvh_side({
-    "pelvis": ["@root"], "thorax": ["lowerneck", "neck"], "head": ["head_end", "@mid:lefteye,righteye"],
-    "SIDE_shoulder": ["LONGShoulder", "SHORTShldr"], "SIDE_elbow": ["LONGElbow", "SHORTForeArm"],
-    "SIDE_wrist": ["LONGWrist", "SHORTHand"], "SIDE_hip": ["LONGHip", "LONGUpLeg", "SHORTThigh"],
-    "SIDE_knee": ["LONGKnee", "LONGLeg", "SHORTShin"], "SIDE_ankle": ["LONGAnkle", "LONGFoot", "SHORTFoot"],
-    "SIDE_hand_end": ["SHORTFingers", "SHORTMid1", "LONGHand_end", "SHORThand_end"],
-    "SIDE_toe": ["LONGToe", "LONGToeBase", "SHORTFoot_end"],
-})
+def frame_times(n_frames: int, source_fps: float, fps: float, source: str | None = None) -> np.ndarray:
+    """The times (in frames of the source, fractional) of a clip of ``n_frames`` at ``source_fps`` sampled at
+    ``fps``: ``k * source_fps / fps`` for ``k = 0, 1, ...`` up to the last frame, whole numbers kept exact (120
+    to 60 Hz reads every second frame, as in Taylor 2009). Any rate down; up to
+    :data:`~tracker.core.timewarp.MIN_SPEED`'s inverse (10) times the source's rate."""
+    fps = check_fps(fps, "target frame rate", source)
+    step = source_fps / fps
+    if step < MIN_SPEED * (1 - 1e-9):
+        raise InputError(f"cannot resample from {source_fps:g} Hz up to {fps:g} Hz: at most {1 / MIN_SPEED:g} "
+                         f"times the file's rate ({source_fps / MIN_SPEED:g} Hz)", source)
+    n = warped_length(n_frames, step) if n_frames > 1 else 1
+    times = np.arange(n) * step
+    whole = np.round(times)
+    return np.where(np.abs(times - whole) < 1e-6, whole, np.minimum(times, n_frames - 1))
 
 
 def marker_positions(clip: MocapClip, roles=MARKER_NAMES + EXTRA_POINT_NAMES) -> np.ndarray:
-    """Positions ``T x M x 3`` (mm) of the named roles (default: 15 markers then the 4 extra fit points).
+    """Positions ``T x M x 3`` (mm) of the named roles (default: 15 markers then the 4 extra fit points), by
+    the clip's :class:`~data_tools.skeleton_points.PointPlan` (its naming convention or joint map).
 
-    Raises :class:`InputError` naming the clip's file and the roles that its
-    skeleton does not provide.
+    Raises :class:`InputError` naming the clip's file when its names are not recognised.
     """
-    table = _ASF_ROLES if clip.style == "asf" else _BVH_ROLES
-    idx = _name_index(clip.point_names)
-    out = np.empty((clip.n_frames, len(roles), 3))
-    missing = []
-    for m, role in enumerate(roles):
-        found = None
-        for cand in table[role]:
-            if cand == "@root":
-                found = clip.positions[:, 0, :]
-            elif cand.startswith("@mid:"):
-                a, b = cand[5:].split(",")
-                if a in idx and b in idx:
-                    found = 0.5 * (clip.positions[:, idx[a]] + clip.positions[:, idx[b]])
-            elif cand.lower() in idx:
-                found = clip.positions[:, idx[cand.lower()]]
-            if found is not None:
-                break
-        if found is None:
-            missing.append(f"{role} (looked for {', '.join(table[role])})")
-        else:
-            out[:, m] = found
-    if missing:
-        raise InputError("skeleton lacks points for: " + "; ".join(missing), clip.path)
-    return out
+    return clip.point_plan().positions(clip.positions, roles)

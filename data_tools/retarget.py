@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from data_tools.mocap import MocapClip, marker_positions, resample
+from data_tools.mocap import MocapClip, frame_times, marker_positions
 from tracker.core.body import (
     DEFAULT_STATURE, EXTRA_POINT_NAMES, MARKER_NAMES, SEGMENT_NAMES, BodyModel, BodyShape, default_shape,
     fifteen_cone_model,
@@ -27,6 +27,7 @@ from tracker.core.body import (
 from tracker.core.errors import InputError
 from tracker.core.kinematics import forward_kinematics, point_jacobians
 from tracker.core.rotations import continuous_exp_maps, elementary_rotation, matrix_to_exp_map
+from tracker.core.timewarp import exp_map_triples, sample_clip
 
 FIT_POINTS = MARKER_NAMES + EXTRA_POINT_NAMES
 _P = {name: i for i, name in enumerate(FIT_POINTS)}
@@ -226,21 +227,51 @@ def fit_poses(model: BodyModel, targets: np.ndarray, init: np.ndarray, iteration
 
 
 def retarget(clip: MocapClip, fps: float | None = None, shape: BodyShape | None = None) -> RetargetResult:
-    """Fit the 15-cone model to a mocap clip (resampled to ``fps`` first, if given).
+    """Fit the 15-cone model to a mocap clip, at ``fps`` Hz (None: the clip's own rate).
 
-    The shape is estimated from the clip unless given. Root orientations are
-    made continuous over time (no jumps of 2 pi in the exp map).
+    At another rate the clip is sampled at the times :func:`~data_tools.mocap.frame_times` gives: frames
+    that fall on the source's are fitted as they are (120 to 60 Hz fits every second frame); between two
+    source frames both are fitted and the poses interpolated as the time warp does
+    (:func:`tracker.core.timewarp.sample_clip`: slerp for the root's and ball joints' rotations, linear for
+    the rest), the ground-truth markers linearly. Only the source frames a sample reads are fitted. The shape
+    is estimated from the fitted frames unless given. Root orientations are made continuous over time (no
+    jumps of 2 pi in the exp map).
     """
-    if fps is not None:
-        clip = resample(clip, fps)
     if clip.n_frames < 1:
         raise InputError("clip has no frames", clip.path)
-    points = marker_positions(clip, FIT_POINTS)
-    if not np.all(np.isfinite(points)):
+    times = frame_times(clip.n_frames, clip.fps, clip.fps if fps is None else fps, clip.path)
+    whole = np.all(times == np.round(times))
+    lo = np.minimum(np.floor(times).astype(int), max(clip.n_frames - 2, 0))
+    read = times.astype(int) if whole else np.unique(np.concatenate([lo[times - lo < 1], lo[times > lo] + 1]))
+    all_points = marker_positions(clip, FIT_POINTS)
+    if not np.all(np.isfinite(all_points)):
         raise InputError("joint positions contain NaN or infinite values", clip.path)
+    points = all_points[read]
     shape = shape or shape_from_points(points, clip.path)
     model = fifteen_cone_model(shape)
-    init = np.zeros((clip.n_frames, model.n_dofs))
+    poses = _fit_frames(model, points)
+    markers = points[:, :len(MARKER_NAMES)]
+    if not whole:
+        poses = sample_clip(_fill(clip.n_frames, read, poses), times, exp_map_triples(model))
+        poses[:, 3:6] = continuous_exp_maps(poses[:, 3:6])
+        flat = all_points[:, :len(MARKER_NAMES)].reshape(clip.n_frames, -1)
+        markers = sample_clip(flat, times, ()).reshape(len(times), len(MARKER_NAMES), 3)
+    fps = clip.fps if fps is None else float(fps)
+    model_markers = forward_kinematics(model, poses).markers
+    return RetargetResult(model, poses, markers, model_markers, fps, clip.path)
+
+
+def _fill(n_frames: int, read: np.ndarray, poses: np.ndarray) -> np.ndarray:
+    """The clip's ``n_frames`` poses (``T x D``): the fitted ``poses`` at the frames ``read`` and, at every
+    other frame (one no sample reads with any weight), a copy of the next fitted frame's (the last one's after
+    it), so that every number is finite."""
+    return poses[np.minimum(np.searchsorted(read, np.arange(n_frames)), len(read) - 1)]
+
+
+def _fit_frames(model: BodyModel, points: np.ndarray) -> np.ndarray:
+    """Poses ``T x 40`` fitted to the fit points ``T x 19 x 3`` (frames in time order), refitted from their
+    neighbours' solutions where that does better, root orientations continuous."""
+    init = np.zeros((len(points), model.n_dofs))
     init[:, :6] = _root_from_points(points)
     poses, cost = fit_poses(model, points, init)
     # Refit frames from their neighbours' solutions where that does better
@@ -258,5 +289,4 @@ def retarget(clip: MocapClip, fps: float | None = None, shape: BodyShape | None 
         if not improved:
             break
     poses[:, 3:6] = continuous_exp_maps(poses[:, 3:6])
-    model_markers = forward_kinematics(model, poses).markers
-    return RetargetResult(model, poses, points[:, :len(MARKER_NAMES)], model_markers, clip.fps, clip.path)
+    return poses

@@ -4,7 +4,7 @@ import pytest
 from data_tools.asf_amc import asf_amc_clip, read_asf
 from data_tools.bvh import bvh_clip
 from data_tools.load import load_mocap
-from data_tools.mocap import marker_positions, resample
+from data_tools.mocap import frame_times, marker_positions
 from tests.conftest import SHARED_CLIPS
 from tracker.core.errors import InputError
 
@@ -34,23 +34,21 @@ def test_walking_speed(mocap_dir, rel):
 
 
 def test_bvh_units_inferred(mocap_dir):
-    assert "cm" in bvh_clip(mocap_dir / "bvh" / "10_01.bvh").notes[0]
-    assert "1/0.45 inch" in bvh_clip(mocap_dir / "bvh" / "131_01.bvh").notes[0]
+    assert bvh_clip(mocap_dir / "bvh" / "10_01.bvh").unit.startswith("cm")
+    assert "1/0.45 inch" in bvh_clip(mocap_dir / "bvh" / "131_01.bvh").unit
     explicit = bvh_clip(mocap_dir / "bvh" / "10_01.bvh", mm_per_unit=10.0)
-    assert not explicit.notes
+    assert explicit.unit == "10 mm per unit (given)" and not explicit.notes
 
 
-def test_resample_keeps_every_kth_frame(mocap_dir):
-    clip = load_mocap(mocap_dir / "07" / "07_01.amc")
-    half = resample(clip, 60)
-    assert half.n_frames == 158 and half.fps == 60
-    assert np.array_equal(half.positions, clip.positions[::2])
-    odd = resample(clip, 50)
-    assert odd.n_frames == int((clip.n_frames - 1) / 120 * 50) + 1
-    with pytest.raises(InputError, match="up to"):
-        resample(clip, 240)
+def test_frame_times_keep_every_kth_frame_and_interpolate_between():
+    assert np.array_equal(frame_times(316, 120, 60), np.arange(158) * 2.0)
+    odd = frame_times(316, 120, 50)
+    assert len(odd) == int((316 - 1) / 120 * 50) + 1 and odd[5] == 12.0 and odd[1] == pytest.approx(2.4)
+    assert np.array_equal(frame_times(31, 30, 60), np.arange(61) * 0.5)  # upsampling: halfway between frames
+    with pytest.raises(InputError, match="at most 10 times"):
+        frame_times(31, 30, 301)
     with pytest.raises(InputError, match=r"within \[0.1, 100000\] Hz"):
-        resample(clip, 0)
+        frame_times(316, 120, 0)
 
 
 # --- bad input -------------------------------------------------------------

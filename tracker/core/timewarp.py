@@ -56,8 +56,19 @@ def time_warp_clip(poses: np.ndarray, speed: float, exp_maps: Sequence[tuple[int
         raise InputError(f"time-warp speed must lie in [{MIN_SPEED:g}, {MAX_SPEED:g}], got {speed!r}")
     if speed == 1.0:
         return poses.copy()
+    return sample_clip(poses, np.arange(warped_length(len(poses), speed)) * speed, exp_maps)
+
+
+def sample_clip(poses: np.ndarray, times: np.ndarray, exp_maps: Sequence[tuple[int, int, int]]) -> np.ndarray:
+    """The clip ``poses`` (``T x D``, T >= 2) at the fractional frame indices ``times`` (``N``, each in
+    [0, T - 1]): positions and 1-/2-dof angles interpolated linearly, the exponential maps ``exp_maps`` by
+    spherical interpolation (see the module docstring). A whole-number time returns that frame exactly and
+    reads no other (a frame never read may hold any finite numbers). Returns ``N x D``."""
+    poses = np.asarray(poses, float)
     T = len(poses)
-    t = np.arange(warped_length(T, speed)) * speed
+    t = np.asarray(times, float)
+    if poses.ndim != 2 or T < 2 or t.ndim != 1 or not np.all((t >= 0) & (t <= T - 1)):
+        raise InputError(f"sampling a clip of {poses.shape} poses needs T >= 2 and times in [0, T - 1]")
     i0 = np.minimum(np.floor(t).astype(int), T - 2)
     a = t - i0  # in [0, 1]; 1 only at the last frame when it falls on the clip's end
     lo, hi = poses[i0], poses[i0 + 1]
