@@ -151,6 +151,11 @@ def execute_run(spec: RunSpec) -> dict:
     try:
         with writing(final):
             return _execute_run(spec, final, tmp)
+    except InputError as exc:  # a file of the temporary folder: named by the run's own folder instead
+        shutil.rmtree(tmp, ignore_errors=True)
+        if exc.path is not None and Path(exc.path).parent == tmp:
+            raise InputError(exc.reason, final / Path(exc.path).name) from None
+        raise
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
