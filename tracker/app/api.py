@@ -88,16 +88,20 @@ def load_sequence(path: str | Path) -> Sequence:
     return read_sequence(path)
 
 
-def load_clip(mocap: str | Path, skeleton: str | Path | None = None, fps: float = 60.0,
-              length_unit: float | None = None) -> RetargetResult:
-    """A mocap file (AMC with its ASF, or BVH) retargeted to the 15-cone body model at ``fps`` Hz."""
-    return retarget(load_mocap(mocap, skeleton, length_unit), fps=fps)
+def load_clip(mocap: str | Path, skeleton: str | Path | None = None, fps: float | None = 60.0,
+              length_unit: float | None = None, joint_map: str | Path | Mapping | None = None) -> RetargetResult:
+    """A mocap file (AMC with its ASF, or BVH) retargeted to the 15-cone body model at ``fps`` Hz (None: the
+    file's own rate; other rates are interpolated). ``joint_map`` (a JSON or TOML file, or a mapping of body
+    points to the file's joint names) is for skeletons whose names are not recognised
+    (docs/guide/motion_capture.md)."""
+    return retarget(load_mocap(mocap, skeleton, length_unit, joint_map=joint_map), fps=fps)
 
 
 def synthesize(mocap: str | Path | RetargetResult, out: str | Path, *, skeleton: str | Path | None = None,
                config: SynthConfig | None = None, progress: Callable | None = None, overwrite: bool = False,
                length_unit: float | None = None, then: str | Path | RetargetResult | None = None,
                then_skeleton: str | Path | None = None, switch_at: int | None = None, fade: int = 12,
+               joint_map: str | Path | Mapping | None = None, then_joint_map: str | Path | Mapping | None = None,
                **settings) -> Sequence:
     """Render a mocap clip (a file, or a clip from :func:`load_clip`) into a synthetic multi-view sequence
     folder ``out`` and return it. ``settings`` are :class:`~data_tools.synth.SynthConfig` fields (``frames``,
@@ -105,23 +109,27 @@ def synthesize(mocap: str | Path | RetargetResult, out: str | Path, *, skeleton:
 
     With ``then`` (a second clip) the person changes activity: the clip until frame ``switch_at`` (at the
     output rate, before ``start``/``frames`` cut the result), cross-faded over ``fade`` frames into ``then``
-    (:func:`data_tools.transition.cross_fade`; e.g. a walk into a run of the same subject)."""
+    (:func:`data_tools.transition.cross_fade`; e.g. a walk into a run of the same subject). ``joint_map`` and
+    ``then_joint_map`` name the files' joints as :func:`load_clip`'s does."""
     from data_tools.transition import cross_fade
 
     try:
         config = config or SynthConfig(**settings)
     except TypeError as exc:
         raise InputError(f"unknown synth setting ({exc})") from None
-    clip = mocap if isinstance(mocap, RetargetResult) else load_clip(mocap, skeleton, config.fps, length_unit)
+    clip = (mocap if isinstance(mocap, RetargetResult)
+            else load_clip(mocap, skeleton, config.fps, length_unit, joint_map))
     source = str(mocap) if not isinstance(mocap, RetargetResult) else clip.source
     if then is not None:
-        second = then if isinstance(then, RetargetResult) else load_clip(then, then_skeleton, config.fps, length_unit)
+        second = then if isinstance(then, RetargetResult) else load_clip(then, then_skeleton, config.fps, length_unit,
+                                                                          then_joint_map)
         if switch_at is None:
             raise InputError("a transition (then = ...) needs switch_at, the frame where the second clip has taken over")
         clip, _ = cross_fade(clip, second, switch_at, fade)
         source = clip.source
-    elif switch_at is not None:
-        raise InputError("switch_at applies to a transition: give the second clip (then = ...)")
+    elif switch_at is not None or then_joint_map is not None:
+        raise InputError(f"{'switch_at' if switch_at is not None else 'then_joint_map'} applies to a transition: "
+                         "give the second clip (then = ...)")
     render_sequence(clip, out, config, source=source, progress=progress, overwrite=overwrite)
     return read_sequence(out)
 
@@ -239,11 +247,14 @@ def build_likelihood(name: str, sequence: Sequence, views: Iterable[int] | None 
 def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
           skeletons: Iterable[str | Path] | None = None, fps: float = 60.0, seed: SeedLike = 0,
           progress: Callable[[int, int, dict], None] | None = None, checkpoint: str | Path | None = None,
-          resume: bool = False, **options) -> Any:
+          resume: bool = False, joint_maps: Iterable[str | Path | Mapping | None] | str | Path | None = None,
+          **options) -> Any:
     """Train the learned prior ``prior`` on mocap files (or retargeted clips) of any subjects and lengths.
 
     Each AMC pairs with its own skeleton (``skeletons``: one for all or one per file; default
-    ``<subject>.asf`` beside it). ``options`` are the prior's training options (see
+    ``<subject>.asf`` beside it); ``joint_maps`` likewise (one for all, one per file, None or ``"none"`` for
+    a file whose joint names are recognised). Every clip is resampled to ``fps`` Hz. ``options`` are the
+    prior's training options (see
     ``python -m tracker train --prior NAME --help``). Returns the trained model;
     ``model.save(path)`` writes its file.
     With ``checkpoint`` (a file path) and the prior's ``checkpoint_every`` option, training state is saved as
@@ -267,7 +278,7 @@ def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
                              "Hz); retarget them at one rate")
         clips, sources, fps = items, [c.source for c in items], rates[0]
     else:
-        clips, sources = load_training_clips(items, skeletons, fps), [str(f) for f in items]
+        clips, sources = load_training_clips(items, skeletons, fps, joint_maps), [str(f) for f in items]
     data = TrainingData(tuple(c.poses for c in clips), fps, clips[0].model, tuple(sources))
     extra = {}
     if resume:

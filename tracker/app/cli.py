@@ -21,12 +21,12 @@ from tracker.app.threads import set_threads
 from tracker.core.errors import InputError
 
 
-def _convert_one(mocap: str | Path, skeleton, fps: float, length_unit, out: Path):
+def _convert_one(mocap: str | Path, skeleton, fps: float | None, length_unit, out: Path, joint_map=None):
     from data_tools.clip_io import save_converted_clip
     from data_tools.load import load_mocap
     from data_tools.retarget import retarget
 
-    clip = load_mocap(mocap, skeleton, length_unit)
+    clip = load_mocap(mocap, skeleton, length_unit, joint_map=joint_map)
     result = retarget(clip, fps=fps)
     with atomic_path(out) as tmp:
         save_converted_clip(result, tmp)
@@ -36,10 +36,10 @@ def _convert_one(mocap: str | Path, skeleton, fps: float, length_unit, out: Path
 def cmd_convert(args: argparse.Namespace) -> int:
     out = check_output_file(args.out, "the output", (".npz",), new=not args.overwrite)
     check_not_inside(out, {"mocap file": args.mocap, **({"skeleton": args.skeleton} if args.skeleton else {})})
-    clip, result = _convert_one(args.mocap, args.skeleton, args.fps, args.length_unit, out)
+    clip, result = _convert_one(args.mocap, args.skeleton, args.fps, args.length_unit, out, args.joint_map)
     for note in clip.notes:
         print(f"note: {Path(args.mocap).name}: {note}", file=sys.stderr)
-    print(f"{Path(args.mocap).name}: {len(result.poses)} frames at {result.fps:g} fps, "
+    print(f"{Path(args.mocap).name}: {clip.summary()}; {len(result.poses)} frames at {result.fps:g} fps, "
           f"mean retarget residual {result.mean_residual:.2f} mm -> {out}")
     return 0
 
@@ -56,7 +56,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
                            width=args.width, height=args.height, noise=args.noise,
                            lighting_change=args.lighting_change, occluder=args.occluder,
                            missing_camera=args.missing_camera, turn=args.turn)
-    clip = load_mocap(args.mocap, args.skeleton, args.length_unit)
+    clip = load_mocap(args.mocap, args.skeleton, args.length_unit, joint_map=args.joint_map)
     for note in clip.notes:
         print(f"note: {Path(args.mocap).name}: {note}", file=sys.stderr)
     result = retarget(clip, fps=args.fps)
@@ -65,7 +65,8 @@ def cmd_synth(args: argparse.Namespace) -> int:
 
         if not (args.then and args.switch_at):
             raise InputError("a transition needs both --then FILE and --switch-at FRAME")
-        second = retarget(load_mocap(args.then, args.then_skeleton, args.length_unit), fps=args.fps)
+        second = retarget(load_mocap(args.then, args.then_skeleton, args.length_unit, joint_map=args.then_joint_map),
+                          fps=args.fps)
         result, change = cross_fade(result, second, args.switch_at, args.fade)
         print(f"transition: {Path(args.mocap).name} until frame {change.fade_start}, cross-faded into "
               f"{Path(args.then).name} (from its frame {change.second_start}) by frame {change.switch}")
@@ -151,6 +152,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     checkpoint = out.with_name(out.name + ".checkpoint")
     try:
         model = train(args.prior, args.mocap, skeletons=args.skeleton, fps=args.fps, seed=args.seed,
+                      joint_maps=args.joint_map,
                       progress=_progress_bar(f"training {args.prior}"), checkpoint=checkpoint, resume=args.resume,
                       **options)
     except KeyboardInterrupt:  # Ctrl-C: the last checkpoint (if any) stays for --resume; no model is written

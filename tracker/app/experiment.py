@@ -26,6 +26,7 @@ File layout (every key is checked, unknown ones refused)::
     start = 0                                # synth options: start, frames, views, seed, noise, ...
     frames = 150
     turn = 90                                # degrees about the vertical: the walk in another direction
+    joint_map = "mixamo_map.toml"            # a BVH whose joint names are not recognised (docs/guide/motion_capture.md)
     [[sequence]]                             # ... or two clips cross-faded: a change of activity
     name = "subject 2 walk then run"         # (data_tools.transition; switch_at at the experiment's fps)
     mocap = "mocap/cmu/02/02_01.amc"
@@ -94,9 +95,11 @@ TOP_KEYS = {"description", "data_root", "seed", "seeds", "fps", "baseline", "pai
 DATA_ROOT_ENV = "POSE_TRACKER_DATA_ROOT"
 TRACKING_KEYS = {"particles", "views", "annealing_layers", "frames", "known_frames", "resampling"}
 SEQUENCE_KEYS = {"name", "path", "mocap", "skeleton", "then", "then_skeleton", "switch_at", "fade", "start", "frames",
-                 "views", "seed", "noise", "width", "height", "lighting_change", "occluder", "missing_camera", "turn"}
-#: A rendered sequence's keys that describe a change of activity (data_tools.transition), not the rendering.
-TRANSITION_KEYS = {"then", "then_skeleton", "switch_at", "fade"}
+                 "views", "seed", "noise", "width", "height", "lighting_change", "occluder", "missing_camera", "turn",
+                 "joint_map", "then_joint_map"}
+#: A rendered sequence's keys that describe a change of activity (data_tools.transition) or how its clips are
+#: read (joint maps), not the rendering.
+TRANSITION_KEYS = {"then", "then_skeleton", "switch_at", "fade", "joint_map", "then_joint_map"}
 PRIOR_KEYS = {"label", "name", "options", "models", "train", "train_mocap", "train_seeds"}
 TRAIN_KEYS = {"mocap", "skeletons", "options", "seed"}
 LIKELIHOOD_KEYS = {"label", "name", "options"}
@@ -333,6 +336,7 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
         if grid["known_frames"] >= grid["frames"]:
             raise w.error("[tracking] frames", f"must exceed known_frames ({grid['known_frames']}), got "
                                                f"{grid['frames']}")
+    from data_tools.skeleton_points import read_joint_map
     from data_tools.synth import SynthConfig
     from tracker.engine.resampling import SCHEMES
 
@@ -365,6 +369,11 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
             for key in ("then", "then_skeleton"):  # a transition's second clip, relative to the file like mocap
                 if key in s:
                     synth[key] = str(w.file(s[key], entry))
+            for key in ("joint_map", "then_joint_map"):  # kept as read, so the cached rendering's hash covers it
+                if key in s:
+                    synth[key] = read_joint_map(w.file(s[key], entry))
+            if "then_joint_map" in s and "then" not in s:
+                raise w.error(entry, "then_joint_map applies to a transition: give the second clip (then = ...)")
             sequences.append(SequenceSpec(name, mocap=w.file(s["mocap"], entry),
                                           skeleton=w.file(s["skeleton"], entry) if "skeleton" in s else None,
                                           synth=synth))

@@ -59,6 +59,8 @@ _views = _number(int, 1, strict=False, maximum=MAX_VIEWS)
 #: 10 layers), and a million particles already take gigabytes per frame.
 _particles = _number(int, 1, strict=False, maximum=1_000_000)
 _layers = _number(int, 1, strict=False, maximum=100)
+_JOINT_MAP_HELP = ("JSON or TOML file naming the file's joint for each body point (pelvis = \"Hips\", ...), for "
+                   "skeletons whose names are not recognised (docs/guide/motion_capture.md)")
 
 
 log = logging.getLogger(__name__)
@@ -120,7 +122,9 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                                    "poses, markers (ground truth), model_markers, fps and the body shape.")
     c.add_argument("--mocap", required=True, help="motion file: .amc (CMU ASF/AMC) or .bvh")
     c.add_argument("--skeleton", help="ASF skeleton for an .amc file (default: <subject>.asf beside it)")
-    c.add_argument("--fps", type=_fps, default=60.0, help="output frame rate in Hz (default 60)")
+    c.add_argument("--fps", type=_fps, default=None,
+                   help="output frame rate in Hz (default: the file's own); other rates are interpolated")
+    c.add_argument("--joint-map", metavar="FILE", help=_JOINT_MAP_HELP)
     c.add_argument("--length-unit", type=_length_unit, default=None, metavar="MM",
                    help="BVH only: millimetres per file unit (default: inferred from the skeleton's height)")
     c.add_argument("--out", required=True, help="output .npz")
@@ -137,7 +141,9 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     s.add_argument("--views", dest="cameras", type=_views, action=_DeprecatedAlias, new_flag="--cameras N",
                    why=" (a number of cameras; track's --views is a list of camera indices)", metavar="N",
                    help="deprecated spelling of --cameras")
-    s.add_argument("--fps", type=_fps, default=60.0, help="frame rate in Hz (default 60)")
+    s.add_argument("--fps", type=_fps, default=60.0,
+                   help="frame rate in Hz (default 60, the rate train uses); the clip is resampled to it")
+    s.add_argument("--joint-map", metavar="FILE", help=_JOINT_MAP_HELP)
     s.add_argument("--start", type=_non_negative_int, default=0, help="first frame, at the output rate (default 0)")
     s.add_argument("--frames", type=_positive_int, default=None, help="number of frames (default: to the end)")
     s.add_argument("--seed", type=_seed, default=0,
@@ -161,6 +167,7 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     s.add_argument("--then", metavar="FILE", help="a second clip the person changes to (e.g. a run after a walk): "
                                                  "cross-faded into at --switch-at")
     s.add_argument("--then-skeleton", metavar="ASF", help="ASF skeleton of --then (default: <subject>.asf beside it)")
+    s.add_argument("--then-joint-map", metavar="FILE", help="joint map of --then (see --joint-map)")
     s.add_argument("--switch-at", type=_positive_int, default=None, metavar="FRAME",
                    help="with --then: the frame (output rate, before --start) where the second clip has taken over")
     s.add_argument("--fade", type=_positive_int, default=12, metavar="FRAMES",
@@ -190,7 +197,11 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     r.add_argument("--mocap", required=True, nargs="+", metavar="FILE", help="training clips (.amc or .bvh)")
     r.add_argument("--skeleton", nargs="+", metavar="ASF",
                    help="ASF skeleton(s): one for all .amc clips or one per clip (default: <subject>.asf beside each)")
-    r.add_argument("--fps", type=_fps, default=60.0, help="frame rate of the training data (default 60)")
+    r.add_argument("--fps", type=_fps, default=60.0,
+                   help="frame rate of the model (default 60, synth's); every clip is resampled to it")
+    r.add_argument("--joint-map", nargs="+", metavar="FILE",
+                   help="joint map(s): one for all clips or one per clip, 'none' for a clip whose joint names are "
+                        "recognised (see convert --help)")
     r.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
     r.add_argument("--resume", action="store_true",
                    help="continue an interrupted training from OUT.checkpoint (same arguments as before)")
