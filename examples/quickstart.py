@@ -39,6 +39,7 @@ for prior, models in [("zero-velocity", []), ("crbm", [out / "crbm1.pt"])]:
     runs[0].save(out / prior, overwrite=True)  # result.json + estimates.npz
     errors[prior] = tracker.summarize_runs([r.mean_error for r in runs])
 
-# 4. Compare: mean ± std over seeds of the per-run mean marker error (mm).
+# 4. Compare: mean ± std over seeds of the per-run mean absolute MPJPE (mm; the HumanEva marker error,
+#    result.json's metrics["mpjpe_abs"]).
 for prior, (mean, std) in errors.items():
     print(f"{prior:>14}: {mean:6.1f} ± {std:4.1f} mm over {args.seeds} seed(s)")

@@ -36,8 +36,8 @@ def read_model_file(path, fmt: str, kind: str) -> dict:
     except OSError as exc:
         raise InputError(f"cannot read the {what} file ({exc.strerror})", path) from None
     if not archive:  # torch.save writes zip archives; anything else (text, a truncated file) is not one of ours
-        raise InputError(f"not a {what} file: {what} files are the torch archives that pose-tracker train writes, "
-                         "and this file is not a torch archive", path)
+        raise InputError(f"not a {what} file: it is not a (complete) torch archive, which is what "
+                         "pose-tracker train writes", path)
     try:
         doc = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises many types for a corrupt or foreign archive

@@ -17,6 +17,7 @@ global random state.
 """
 from __future__ import annotations
 
+import logging
 import os
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence as Seq
@@ -46,6 +47,8 @@ from tracker.engine.registry import (
 )
 
 SeedLike = int | np.random.SeedSequence | np.random.Generator
+
+log = logging.getLogger(__name__)
 
 
 def make_rng(seed: SeedLike) -> np.random.Generator:
@@ -102,10 +105,12 @@ def synthesize(mocap: str | Path | RetargetResult, out: str | Path, *, skeleton:
                length_unit: float | None = None, then: str | Path | RetargetResult | None = None,
                then_skeleton: str | Path | None = None, switch_at: int | None = None, fade: int = 12,
                joint_map: str | Path | Mapping | None = None, then_joint_map: str | Path | Mapping | None = None,
-               **settings) -> Sequence:
+               cameras: int | None = None, **settings) -> Sequence:
     """Render a mocap clip (a file, or a clip from :func:`load_clip`) into a synthetic multi-view sequence
-    folder ``out`` and return it. ``settings`` are :class:`~data_tools.synth.SynthConfig` fields (``frames``,
-    ``views``, ``seed``, ``noise``, ...). A non-empty ``out`` is refused unless ``overwrite``.
+    folder ``out`` and return it. ``cameras`` is the number of cameras (default 4); ``settings`` are the other
+    :class:`~data_tools.synth.SynthConfig` fields (``frames``, ``seed``, ``noise``, ...). A non-empty ``out`` is
+    refused unless ``overwrite``. (``views=N``, the former name of ``cameras``, still works and logs a
+    deprecation warning: :func:`track`'s ``views`` are camera indices.)
 
     With ``then`` (a second clip) the person changes activity: the clip until frame ``switch_at`` (at the
     output rate, before ``start``/``frames`` cut the result), cross-faded over ``fade`` frames into ``then``
@@ -113,6 +118,16 @@ def synthesize(mocap: str | Path | RetargetResult, out: str | Path, *, skeleton:
     ``then_joint_map`` name the files' joints as :func:`load_clip`'s does."""
     from data_tools.transition import cross_fade
 
+    if "views" in settings:
+        log.warning("synthesize(views=N) is deprecated and will be removed: use cameras=N (a number of cameras; "
+                    "track's views are camera indices)")
+        if cameras is not None:
+            raise InputError("give the number of cameras once: cameras, not both cameras and views")
+        cameras = settings.pop("views")
+    if cameras is not None:
+        if config is not None:
+            raise InputError("give the number of cameras in config or as cameras, not both")
+        settings["views"] = cameras  # SynthConfig's field
     try:
         config = config or SynthConfig(**settings)
     except TypeError as exc:
@@ -220,7 +235,7 @@ def build_prior(name: str, sequence: Sequence, models: Seq[str | Path | Any] = (
     if entry.model_files == "none" and models:
         raise InputError(f"prior {name} takes no model files")
     if entry.model_files in ("one", "several") and not models:
-        raise InputError(f"prior {name} needs a model file (train one with: python -m tracker train --prior {name})")
+        raise InputError(f"prior {name} needs a model file (train one with: pose-tracker train --prior {name})")
     if entry.model_files == "one" and len(models) > 1:
         raise InputError(f"prior {name} takes one model file, got {len(models)}")
     resolved = resolve_options(f"prior {name}", entry.options, options)
@@ -255,7 +270,7 @@ def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
     ``<subject>.asf`` beside it); ``joint_maps`` likewise (one for all, one per file, None or ``"none"`` for
     a file whose joint names are recognised). Every clip is resampled to ``fps`` Hz. ``options`` are the
     prior's training options (see
-    ``python -m tracker train --prior NAME --help``). Returns the trained model;
+    ``pose-tracker train --prior NAME --help``). Returns the trained model;
     ``model.save(path)`` writes its file.
     With ``checkpoint`` (a file path) and the prior's ``checkpoint_every`` option, training state is saved as
     it goes; ``resume=True`` continues from it to the model an uninterrupted run gives.
@@ -342,7 +357,7 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     ``prior`` and ``likelihood`` are registered names or ready objects. A prior given by name is built from
     ``models`` (model files, or the models :func:`train` returns) and a likelihood by name; ``options`` are
     their options, each going to the one that declares it (``track(seq, "crbm", models=[model],
-    gibbs_steps=10, sharpness=40)``; ``python -m tracker track --prior crbm --help`` lists them); every declared
+    gibbs_steps=10, sharpness=40)``; ``pose-tracker track --prior crbm --help`` lists them); every declared
     option, given or default, is recorded in ``result.json`` (``prior_options``, ``likelihood_options``) and in
     the checkpoint's fingerprint. The filter tracks frames ``known_frames .. frames-1`` (default: to the end) from the ground truth's
     first poses (or ``init``, or a bodytrack ``InitialPose.txt``) with ``particles`` particles in ``views``
@@ -350,8 +365,10 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     that won on unseen people in ``docs/methods_report.md``; 1 is plain SIR). Random-walk priors take their scale
     from ``step_std`` or ``train_mocap`` (:func:`build_prior`). ``record`` chooses what is kept per frame
     (:mod:`tracker.engine.recording`; add ``"particles"`` and ``"weights"`` to keep those); ``on_frame(step,
-    error_mm)`` sees every frame as it is tracked. ``result.save(dir)`` writes ``result.json`` and
-    ``estimates.npz`` exactly as ``python -m tracker track`` does.
+    error_mm)`` sees every frame as it is tracked (``error_mm``: the frame's absolute MPJPE). ``result.save(dir)``
+    writes ``result.json`` and ``estimates.npz`` exactly as ``pose-tracker track`` does; ``result.json`` holds every
+    metric of :data:`tracker.core.metrics.METRICS` and records this call (``invocation``: the function and the
+    arguments given) and when it ran (``started``, ``finished``; ISO 8601, UTC).
 
     With ``checkpoint`` (a file path) the filter's state is saved every ``checkpoint_every`` frames and on
     Ctrl-C, which raises :class:`~tracker.app.tracking.TrackingInterrupted` carrying the partial result;

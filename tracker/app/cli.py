@@ -1,12 +1,16 @@
-"""Command line: ``python -m tracker <command>`` (the contract: README, "Commands").
+"""Command line: ``pose-tracker <command>`` (also ``python -m tracker <command>``; the contract: README,
+"Commands").
 
 The command line only parses arguments (:mod:`tracker.app.parser`) and calls the public API
-(:mod:`tracker.app.api`). Every bad input ends with a one-line reason on stderr and exit status 2.
+(:mod:`tracker.app.api`). Every bad input ends with a one-line reason on stderr, ``pose-tracker: error: ...``, and
+exit status 2. Informational lines go through :mod:`logging` (:mod:`tracker.app.console`: ``--quiet``,
+``--verbose``); the results a command exists to print go to stdout.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import logging
 import sys
 from pathlib import Path
 from typing import Sequence
@@ -15,11 +19,13 @@ import numpy as np
 
 from data_tools.files import atomic_path, check_not_inside, check_output_file, check_output_folder
 from tracker.app.api import likelihood_entry, load_sequence, prior_entry, track, train
+from tracker.app.console import PROG, configure_logging, error_line, progress_bar, shows_progress, verbosity
 from tracker.app.parser import build_parser, given_options, parse_arguments
 from tracker.app.plugins import import_plugin
 from tracker.app.threads import set_threads
 from tracker.core.errors import InputError
 
+log = logging.getLogger(__name__)
 
 def _convert_one(mocap: str | Path, skeleton, fps: float | None, length_unit, out: Path, joint_map=None):
     from data_tools.clip_io import save_converted_clip
@@ -38,27 +44,25 @@ def cmd_convert(args: argparse.Namespace) -> int:
     check_not_inside(out, {"mocap file": args.mocap, **({"skeleton": args.skeleton} if args.skeleton else {})})
     clip, result = _convert_one(args.mocap, args.skeleton, args.fps, args.length_unit, out, args.joint_map)
     for note in clip.notes:
-        print(f"note: {Path(args.mocap).name}: {note}", file=sys.stderr)
-    print(f"{Path(args.mocap).name}: {clip.summary()}; {len(result.poses)} frames at {result.fps:g} fps, "
-          f"mean retarget residual {result.mean_residual:.2f} mm -> {out}")
+        log.info(f"note: {Path(args.mocap).name}: {note}")
+    log.info(f"{Path(args.mocap).name}: {clip.summary()}; {len(result.poses)} frames at {result.fps:g} fps, "
+             f"mean retarget residual {result.mean_residual:.2f} mm -> {out}")
     return 0
 
 
 def cmd_synth(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from data_tools.load import load_mocap
     from data_tools.retarget import retarget
     from data_tools.synth import SynthConfig, synthesize
 
     check_output_folder(args.out, empty=not args.overwrite, replaceable=("cameras.json", "meta.json"))
-    settings = SynthConfig(views=args.views, fps=args.fps, start=args.start, frames=args.frames, seed=args.seed,
+    settings = SynthConfig(views=args.cameras, fps=args.fps, start=args.start, frames=args.frames, seed=args.seed,
                            width=args.width, height=args.height, noise=args.noise,
                            lighting_change=args.lighting_change, occluder=args.occluder,
                            missing_camera=args.missing_camera, turn=args.turn)
     clip = load_mocap(args.mocap, args.skeleton, args.length_unit, joint_map=args.joint_map)
     for note in clip.notes:
-        print(f"note: {Path(args.mocap).name}: {note}", file=sys.stderr)
+        log.info(f"note: {Path(args.mocap).name}: {note}")
     result = retarget(clip, fps=args.fps)
     if args.then or args.switch_at:
         from data_tools.transition import cross_fade
@@ -68,20 +72,18 @@ def cmd_synth(args: argparse.Namespace) -> int:
         second = retarget(load_mocap(args.then, args.then_skeleton, args.length_unit, joint_map=args.then_joint_map),
                           fps=args.fps)
         result, change = cross_fade(result, second, args.switch_at, args.fade)
-        print(f"transition: {Path(args.mocap).name} until frame {change.fade_start}, cross-faded into "
-              f"{Path(args.then).name} (from its frame {change.second_start}) by frame {change.switch}")
+        log.info(f"transition: {Path(args.mocap).name} until frame {change.fade_start}, cross-faded into "
+                 f"{Path(args.then).name} (from its frame {change.second_start}) by frame {change.switch}")
     out = synthesize(result, args.out, settings, source=result.source if args.then else str(args.mocap),
                      overwrite=args.overwrite,
-                     progress=lambda it: tqdm(it, desc="rendering", unit="frame"))
-    print(f"{Path(args.mocap).name}: {out.n_frames} frames x {args.views} views at "
-          f"{result.fps:g} fps -> {out.root} ({out.render_seconds / out.n_frames * 1000:.0f} ms per frame "
-          f"to render and write)")
+                     progress=lambda it: progress_bar(it, desc="rendering", unit="frame"))
+    log.info(f"{Path(args.mocap).name}: {out.n_frames} frames x {args.cameras} cameras at "
+             f"{result.fps:g} fps -> {out.root} ({out.render_seconds / out.n_frames * 1000:.0f} ms per frame "
+             f"to render and write)")
     return 0
 
 
 def cmd_show(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from tracker.app.api import show
 
     if not args.out and not args.video:
@@ -91,9 +93,9 @@ def cmd_show(args: argparse.Namespace) -> int:
     if args.video:
         check_output_file(args.video, "--video", (".mp4",))
     written = show(args.sequence, frame=args.frame, poses=args.poses, out=args.out, video=args.video,
-                   progress=lambda it: tqdm(it, desc="video", unit="frame"))
+                   progress=lambda it: progress_bar(it, desc="video", unit="frame"))
     for line in written:
-        print(line)
+        log.info(line)
     return 0
 
 
@@ -114,9 +116,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from tracker.app.compare import compare
 
     summary = compare(args.experiment, args.out, jobs=args.jobs, backend=args.backend, address=args.address,
-                      threads=args.threads, data_root=args.data_root, overwrite=args.overwrite)
+                      threads=args.threads, data_root=args.data_root, overwrite=args.overwrite,
+                      videos=args.videos, progress=shows_progress())
     print(summary["table"])
-    print(f"-> {Path(args.out) / 'table.md'}, table.csv, per_frame.png")
+    log.info(f"-> {Path(args.out) / 'table.md'}, table.csv, per_frame.png, report.html")
     return 0
 
 
@@ -127,34 +130,37 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _progress_bar(desc: str):
-    """A ``progress(done, total, metrics)`` callback drawing one tqdm bar (created on the first call)."""
-    from tqdm import tqdm
-
+    """A ``progress(done, total, metrics)`` callback drawing one tqdm bar (created on the first call; none under
+    ``--quiet``)."""
     state = {}
 
     def progress(done: int, total: int, metrics: dict) -> None:
         if "bar" not in state:
-            state["bar"] = tqdm(total=total, desc=desc, unit="it")
+            state["bar"] = progress_bar(total=total, desc=desc, unit="it")
         bar = state["bar"]
         bar.update(done - bar.n)
         bar.set_postfix({k: f"{v:.4g}" for k, v in metrics.items()})
         if done >= total:
             bar.close()
 
+    progress.close = lambda: state["bar"].close() if "bar" in state else None  # type: ignore[attr-defined]
     return progress
 
 
 def cmd_train(args: argparse.Namespace) -> int:
     out = check_output_file(args.out, "the model file", new=not args.overwrite)
     check_not_inside(out, {f"training file {i + 1}": f for i, f in enumerate([*args.mocap, *(args.skeleton or [])])})
+    from data_tools.load import load_training_clips
+
     options = given_options(args, prior_entry(args.prior).train_options)
-    print(f"training a {args.prior} prior on {len(args.mocap)} clip(s) at {args.fps:g} fps", flush=True)
+    clips = load_training_clips(args.mocap, args.skeleton, args.fps, args.joint_map)  # every file read, checked first
+    log.info(f"training a {args.prior} prior on {len(clips)} clip(s), {sum(len(c.poses) for c in clips)} frames at "
+             f"{clips[0].fps:g} fps")
     checkpoint = out.with_name(out.name + ".checkpoint")
+    progress = _progress_bar(f"training {args.prior}")
     try:
-        model = train(args.prior, args.mocap, skeletons=args.skeleton, fps=args.fps, seed=args.seed,
-                      joint_maps=args.joint_map,
-                      progress=_progress_bar(f"training {args.prior}"), checkpoint=checkpoint, resume=args.resume,
-                      **options)
+        model = train(args.prior, clips, skeletons=args.skeleton, fps=clips[0].fps, seed=args.seed,
+                      progress=progress, checkpoint=checkpoint, resume=args.resume, **options)
     except KeyboardInterrupt:  # Ctrl-C: the last checkpoint (if any) stays for --resume; no model is written
         if not prior_entry(args.prior).resumable:
             again = "; nothing saved"
@@ -162,15 +168,19 @@ def cmd_train(args: argparse.Namespace) -> int:
             again = "; continue with the same command and --resume"
         else:
             again = "; nothing saved (--checkpoint-every E saves the training state as it goes)"
-        print(f"\ninterrupted{again}", file=sys.stderr)
+        progress.close()
+        log.warning(f"interrupted{again}")
         return 130
     with atomic_path(out) as tmp:
         model.save(tmp)
-    print(f"{model.summary()} -> {out}")
+    log.info(f"{model.summary()} -> {out}")
     return 0
 
 
 TRACK_ARGS = "track_arguments.json"
+#: What the command line adds to the parsed arguments besides the run's settings: not saved for --resume, and
+#: allowed beside it.
+_CONSOLE = ("quiet", "verbose", "argv")
 
 
 def _track_arguments(args: argparse.Namespace) -> argparse.Namespace:
@@ -178,7 +188,7 @@ def _track_arguments(args: argparse.Namespace) -> argparse.Namespace:
     those saved by the interrupted run."""
     if args.resume:
         defaults = vars(build_parser(["track"]).parse_args(["track"]))
-        given = [k for k, v in vars(args).items() if k not in ("resume", "command", "plugin", "threads")
+        given = [k for k, v in vars(args).items() if k not in ("resume", "command", "plugin", "threads", *_CONSOLE)
                  and v not in (None, False, [], defaults.get(k))]
         if given:
             raise InputError(f"--resume takes no other arguments (got {', '.join('--' + g for g in given)})")
@@ -191,8 +201,11 @@ def _track_arguments(args: argparse.Namespace) -> argparse.Namespace:
         for spec in saved.get("plugin", []):
             import_plugin(spec)
         return argparse.Namespace(**{**vars(args), **saved, "resume": args.resume})
-    if not args.sequence or not args.prior or not args.out:
-        raise InputError("track needs DIR, --prior and --out (or --resume OUTDIR)")
+    missing = [name for name, given in (("DIR", args.sequence), ("--prior", args.prior), ("--out", args.out))
+               if not given]
+    if missing:
+        raise InputError(f"track: missing {' and '.join(missing)} (usage: {PROG} track DIR --prior NAME --out OUTDIR, "
+                         f"or {PROG} track --resume OUTDIR)")
     for key in ("sequence", "out", "video", "init"):
         if getattr(args, key):
             setattr(args, key, str(Path(getattr(args, key)).resolve()))
@@ -203,11 +216,9 @@ def _track_arguments(args: argparse.Namespace) -> argparse.Namespace:
 
 
 def cmd_track(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from data_tools.estimates import read_poses_file
     from data_tools.files import write_text_atomic
-    from tracker.app.tracking import TrackingInterrupted, check_frames
+    from tracker.app.tracking import TrackingInterrupted, check_frames, metrics_line
     from tracker.app.visualize import overlay_frames, write_video
 
     args = _track_arguments(args)
@@ -222,20 +233,20 @@ def cmd_track(args: argparse.Namespace) -> int:
     init = read_poses_file(args.init, "initial poses", seq.model) if args.init else None
     T, _, n_known = check_frames(seq, args.frames, args.known_frames, init)
     if not args.resume:
-        saved = {k: v for k, v in vars(args).items() if k not in ("resume", "command", "threads")}
+        saved = {k: v for k, v in vars(args).items() if k not in ("resume", "command", "threads", *_CONSOLE)}
         saved["plugin"] = [str(Path(p).resolve()) if p.endswith(".py") else p for p in args.plugin]
         write_text_atomic(out / TRACK_ARGS, json.dumps(saved, indent=1))
-    errors: list[float] = []
+    errors: list[float] = []  # the mpjpe_abs of each frame, for the bar
     bars: list = []  # the bar appears with the first tracked frame: a refusal before that stays one line
 
     def on_frame(step, err: float | None) -> None:
         if not bars:  # counts the tracked frames; its rate starts with the second (the first has no duration)
-            bars.append(tqdm(total=T - n_known, initial=1, desc=f"tracking ({args.prior})", unit="frame"))
+            bars.append(progress_bar(total=T - n_known, initial=1, desc=f"tracking ({args.prior})", unit="frame"))
         else:
             bars[0].update(1)
         if err is not None:
             errors.append(err)
-            bars[0].set_postfix(error_mm=f"{err:.0f}", mean_mm=f"{np.mean(errors):.0f}")
+            bars[0].set_postfix({"mpjpe_abs": f"{err:.0f} mm", "mean": f"{np.mean(errors):.0f} mm"})
 
     try:
         run = track(seq, args.prior, models=args.model or (), likelihood=args.likelihood,
@@ -246,33 +257,37 @@ def cmd_track(args: argparse.Namespace) -> int:
                     known_frames=args.known_frames, init=init, train_mocap=args.train_mocap, device=args.device,
                     on_frame=on_frame, checkpoint=out / "checkpoint.npz", checkpoint_every=args.checkpoint_every,
                     resume=bool(args.resume))
+    except InputError:  # refused before any frame was tracked (a bad model file, say): nothing stays behind
+        if not args.resume and not (out / "checkpoint.npz").exists():  # a full disk later keeps it resumable
+            (out / TRACK_ARGS).unlink(missing_ok=True)
+        raise
     except TrackingInterrupted as stop:
         for bar in bars:
             bar.close()
         if stop.partial is not None:
+            stop.partial.invocation = {"argv": [PROG, *args.argv]}
             stop.partial.save(out, overwrite=True)
         done = "" if stop.partial is None else f" after {len(stop.partial.tracked_frames)} frame(s)"
-        again = f"; resume with: python -m tracker track --resume {out}" if stop.checkpoint else ""
-        print(f"interrupted{done}: partial result in {out}{again}", file=sys.stderr)
+        again = f"; resume with: {PROG} track --resume {out}" if stop.checkpoint else ""
+        log.warning(f"interrupted{done}: partial result in {out}{again}")
         return 130
     for bar in bars:
         bar.update(T - n_known - bar.n)
         bar.close()
+    run.invocation = {"argv": [PROG, *args.argv]}
     result = run.save(out, overwrite=True)
     (out / TRACK_ARGS).unlink(missing_ok=True)
     if run.recovered_frames:
-        print(f"warning: no particle explained frame(s) {result['recovered_frames']}; the filter re-diffused "
-              f"around its last estimate", file=sys.stderr)
-    err = "" if run.mean_error is None else (f", mean error {result['mean_error_mm']:.1f} "
-                                             f"± {result['std_error_mm']:.1f} mm")
+        log.warning(f"no particle explained frame(s) {result['recovered_frames']}; the filter re-diffused around "
+                    "its last estimate")
     layers = run.settings["annealing_layers"]
-    print(f"{result['frames']} frames tracked with {args.particles} particles"
-          f"{f' x {layers} annealing layers' if layers > 1 else ''}, {len(views)} view(s), {args.prior}{err}, "
-          f"{run.seconds_per_frame:.3f} s per frame -> {out}")
+    log.info(f"{args.particles} particles{f' x {layers} annealing layers' if layers > 1 else ''}, {len(views)} "
+             f"view(s): {run.seconds_per_frame:.3f} s per frame")
+    print(f"{args.prior}, {result['frames_tracked']} frames tracked: {metrics_line(result['metrics'])} -> {out}")
     if args.video:
         write_video(Path(args.video), overlay_frames(seq, run.poses, views, run.errors, run.first_tracked,
                                                      estimate_name=args.prior), seq.fps or 25.0)
-        print(f"overlay video -> {args.video}")
+        log.info(f"overlay video -> {args.video}")
     return 0
 
 
@@ -293,19 +308,22 @@ def _plugins_from_argv(argv: list[str]) -> list[str]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    configure_logging()  # INFO until the arguments say otherwise (a deprecated flag warns while they are parsed)
     try:
         for spec in _plugins_from_argv(argv):
             import_plugin(spec)
         args = parse_arguments(argv)
+        configure_logging(verbosity(args.quiet, args.verbose))
+        args.argv = argv
         if args.command != "compare":  # compare gives each worker its share instead
             set_threads(args.threads)
         return COMMANDS[args.command](args)
     except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(error_line(str(exc)), file=sys.stderr)
         return 2
     except (MemoryError, RuntimeError) as exc:  # sizes within the checked ranges that this machine cannot hold
         if isinstance(exc, RuntimeError) and "can't allocate memory" not in str(exc):  # torch's allocator says so
             raise
         reason = str(exc).splitlines()[0][:160] if str(exc) else "allocation failed"
-        print(f"error: not enough memory for these settings ({reason}); choose smaller sizes", file=sys.stderr)
+        print(error_line(f"not enough memory for these settings ({reason}); choose smaller sizes"), file=sys.stderr)
         return 2

@@ -14,6 +14,7 @@ worker) resumes by running the grid again: finished runs are skipped, unfinished
 from __future__ import annotations
 
 import json
+import logging
 import os
 import shutil
 import time
@@ -29,6 +30,8 @@ from tracker.app.experiment import (
 )
 from tracker.app.fingerprints import CACHE_NAME, sequence_hash
 from tracker.core.errors import InputError
+
+log = logging.getLogger(__name__)
 
 BACKENDS = ("joblib", "dask", "ray")
 
@@ -297,7 +300,7 @@ def run_all(specs: list[RunSpec], jobs: int, backend: str, address: str | None) 
 # -- the whole experiment -------------------------------------------------------------------------------------
 
 def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str = "joblib",
-            address: str | None = None, threads: int | None = None, say: Callable[[str], None] = print,
+            address: str | None = None, threads: int | None = None, say: Callable[[str], None] | None = None,
             progress: bool = True, data_root: str | Path | None = None, videos: bool = True,
             overwrite: bool = False) -> dict:
     """Run an experiment (validated whole first), skipping finished runs; write and return its tables.
@@ -307,7 +310,9 @@ def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str
     experiment is never written into.
 
     ``data_root`` replaces the experiment file's ``data_root`` (see :mod:`tracker.app.experiment`); ``videos=False``
-    leaves the overlay videos out of ``report.html``."""
+    leaves the overlay videos out of ``report.html``. ``say`` receives the lines on what is being done (default:
+    this module's logger, at INFO); ``progress`` draws a bar over the runs."""
+    say = say or log.info
     import tracker
     from tracker.app.report import write_report
     from tracker.app.threads import share_of_cores

@@ -1,18 +1,26 @@
-"""The built-in default job (``python -m tracker demo``): render a shipped walk, train a CRBM on the other,
+"""The built-in default job (``pose-tracker demo``): render a shipped walk, train a CRBM on the other,
 track with the zero-velocity prior, the CRBM prior and the mixture of the two, and write the error plot and an
 overlay video of the mixture's estimates -- all
 through the public API, as a user's script would.
 
 The output folder is the demo's own: a second demo replaces the files an earlier one wrote there (so running it
-twice just works), and a non-empty folder that holds no demo output is refused."""
+twice just works), and a non-empty folder that holds no demo output is refused.
+
+What it does and how long it took are log lines (:mod:`logging`, shown by the command line unless ``--quiet``);
+the errors of each prior and the data's attribution are its results, printed to stdout."""
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import numpy as np
 
 from data_tools.samples import CMU_ATTRIBUTION, sample_walks
 from tracker.app.api import TRACK_ANNEALING_LAYERS, load_clip, synthesize, track, train
+from tracker.app.console import progress_bar
+from tracker.app.tracking import metrics_line
+
+log = logging.getLogger(__name__)
 
 
 #: What marks a folder as an earlier demo's output (the first things the demo writes).
@@ -20,8 +28,6 @@ DEMO_FILES = ("sequence", "crbm1.pt")
 
 
 def run_demo(out: Path, frames: int = 90) -> int:
-    from tqdm import tqdm
-
     from data_tools.files import check_output_folder
     from tracker.app.visualize import error_plot, overlay_frames, write_video
 
@@ -29,31 +35,31 @@ def run_demo(out: Path, frames: int = 90) -> int:
 
     asf, walks = sample_walks()
     train_walk, test_walk = walks  # 07_01 trains the priors, 07_02 is rendered and tracked
-    print(f"1/4 Rendering {frames} frames of CMU walk {test_walk.stem} into 4 cameras (60 Hz, 640x480)")
+    log.info(f"1/4 Rendering {frames} frames of CMU walk {test_walk.stem} into 4 cameras (60 Hz, 640x480)")
     seq = synthesize(load_clip(test_walk, asf, fps=60.0), out / "sequence", frames=frames, overwrite=True,
-                     progress=lambda it: tqdm(it, desc="rendering", unit="frame"))
+                     progress=lambda it: progress_bar(it, desc="rendering", unit="frame"))
     clip = load_clip(train_walk, asf, fps=60.0)
-    print(f"2/4 Training a first-order CRBM (150 hidden units, CD-10, 300 epochs) on {train_walk.stem}")
+    log.info(f"2/4 Training a first-order CRBM (150 hidden units, CD-10, 300 epochs) on {train_walk.stem}")
     crbm = train("crbm", [clip], fps=60.0, seed=0, order=1, hidden=150, epochs=300)
     crbm.save(out / "crbm1.pt", overwrite=True)
-    print(f"   {crbm.summary()} -> {out / 'crbm1.pt'}")
-    print(f"3/4 Tracking with each prior, 1000 particles, {TRACK_ANNEALING_LAYERS} annealing layers (the default), "
-          "4 views, seed 0")
+    log.info(f"   {crbm.summary()} -> {out / 'crbm1.pt'}")
+    log.info(f"3/4 Tracking with each prior, 1000 particles, {TRACK_ANNEALING_LAYERS} annealing layers (the default), "
+             "4 views, seed 0")
     runs = {}
     for name, models in (("zero-velocity", ()), ("crbm", (out / "crbm1.pt",)), ("mixture", (out / "crbm1.pt",))):
-        with tqdm(total=frames - 2, desc=name, unit="frame") as bar:
+        with progress_bar(total=frames - 2, desc=name, unit="frame") as bar:
             runs[name] = track(seq, name, models=models, particles=1000, seed=0, train_mocap=[train_walk],
-                               on_frame=lambda step, e: (bar.update(1), bar.set_postfix(error_mm=f"{e:.0f}")))
+                               on_frame=lambda step, e: (bar.update(1), bar.set_postfix(mpjpe_abs=f"{e:.0f} mm")))
         res = runs[name].save(out / f"track_{name}", overwrite=True)
-        print(f"   {name}: mean marker error {res['mean_error_mm']:.1f} ± {res['std_error_mm']:.1f} mm over "
-              f"{res['frames']} frames, {runs[name].seconds_per_frame:.3f} s per frame -> {out / f'track_{name}'}")
-    print("4/4 Writing the error plot and the overlay video (the mixture's estimates)")
+        print(f"{name}, {res['frames_tracked']} frames tracked: {metrics_line(res['metrics'])}")
+        log.info(f"   {runs[name].seconds_per_frame:.3f} s per frame -> {out / f'track_{name}'}")
+    log.info("4/4 Writing the error plot and the overlay video (the mixture's estimates)")
     curves = {name: (np.arange(r.first_tracked, len(r.poses)), r.errors) for name, r in runs.items()}
     error_plot(out / "error_per_frame.png", curves,
                f"Tracking CMU {test_walk.stem}, 4 views, 1000 particles, {TRACK_ANNEALING_LAYERS} annealing layers")
     shown = runs["mixture"]
     write_video(out / "overlay.mp4", overlay_frames(seq, shown.poses, list(range(seq.n_views)), shown.errors,
                                                     shown.first_tracked, estimate_name="mixture"), seq.fps)
-    print(f"   {out / 'error_per_frame.png'}, {out / 'overlay.mp4'}")
+    log.info(f"   {out / 'error_per_frame.png'}, {out / 'overlay.mp4'}")
     print(CMU_ATTRIBUTION)
     return 0

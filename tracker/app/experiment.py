@@ -23,7 +23,7 @@ File layout (every key is checked, unknown ones refused)::
     [[sequence]]                             # ... or a mocap clip the runner renders (and caches)
     name = "subject 16 walk"
     mocap = "mocap/cmu/16/16_15.amc"
-    start = 0                                # synth options: start, frames, views, seed, noise, ...
+    start = 0                                # synth options: start, frames, cameras, seed, noise, ...
     frames = 150
     turn = 90                                # degrees about the vertical: the walk in another direction
     joint_map = "mixamo_map.toml"            # a BVH whose joint names are not recognised (docs/guide/motion_capture.md)
@@ -74,6 +74,7 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
+import logging
 import os
 import sys
 from dataclasses import asdict, dataclass, field, replace
@@ -95,7 +96,8 @@ TOP_KEYS = {"description", "data_root", "seed", "seeds", "fps", "baseline", "pai
 DATA_ROOT_ENV = "POSE_TRACKER_DATA_ROOT"
 TRACKING_KEYS = {"particles", "views", "annealing_layers", "frames", "known_frames", "resampling"}
 SEQUENCE_KEYS = {"name", "path", "mocap", "skeleton", "then", "then_skeleton", "switch_at", "fade", "start", "frames",
-                 "views", "seed", "noise", "width", "height", "lighting_change", "occluder", "missing_camera", "turn",
+                 "cameras", "views", "seed", "noise", "width", "height", "lighting_change", "occluder", "missing_camera",
+                 "turn",
                  "joint_map", "then_joint_map"}
 #: A rendered sequence's keys that describe a change of activity (data_tools.transition) or how its clips are
 #: read (joint maps), not the rendering.
@@ -358,8 +360,15 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
             sequences.append(SequenceSpec(name, path=w.file(s["path"], entry, folder=True)))
         else:
             synth = {k: v for k, v in s.items() if k not in ("name", "mocap", "skeleton")}
+            if "views" in synth:  # the former name of cameras (a number of cameras; [tracking] views are indices)
+                if "cameras" in synth:
+                    raise w.error(entry, "give the number of cameras once: cameras, not both cameras and views")
+                logging.getLogger(__name__).warning(f"{path}: {entry}: views is deprecated and will be removed: "
+                                                    "use cameras (the number of cameras to render)")
+                synth["cameras"] = synth.pop("views")
             try:  # every rendering setting checked now, not when the runner reaches this sequence
-                rendering = SynthConfig(fps=float(fps), **{k: v for k, v in synth.items() if k not in TRANSITION_KEYS})
+                rendering = SynthConfig(fps=float(fps), **{"views" if k == "cameras" else k: v for k, v in synth.items()
+                                                           if k not in TRANSITION_KEYS})
                 rendering.check_missing_camera(rendering.views, "missing_camera")
             except InputError as exc:
                 raise w.error(entry, exc.reason) from None

@@ -1,10 +1,11 @@
 """An experiment's tables (Taylor 2009, Table 6.1 layout) and per-frame plot.
 
 For every table row (prior, and likelihood variant / view set / particle count where the grid has several)
-and sequence: mean ± standard deviation over seeds of each run's mean over frames, for the marker error
-(absolute and pelvis-relative), PA-MPJPE, 3D PCK at 150 mm (formulas: :mod:`tracker.core.metrics`) and
-seconds per frame. The paired differences table gives, for every row against the baseline, the mean over
-seed indices of (row - baseline) marker error with a 95% percentile bootstrap interval (10,000 resamples of
+and sequence: mean ± standard deviation over seeds of each run's mean over frames, for every metric of
+:data:`tracker.core.metrics.METRICS` (MPJPE absolute and root-relative, PA-MPJPE, 3DPCK at 150 mm absolute and
+root-relative; the names and formulas are there) and seconds per frame. The paired differences table gives, for
+every row against the baseline, the mean over seed indices of (row - baseline) absolute MPJPE with a 95%
+percentile bootstrap interval (10,000 resamples of
 the seed indices, seeded): runs of the same seed index share their generator's seed, so the pairing removes
 common sequence difficulty.
 """
@@ -17,14 +18,16 @@ from pathlib import Path
 import numpy as np
 
 from data_tools.files import atomic_path, write_text_atomic
-from tracker.core.metrics import summarize_runs
+from tracker.core.metrics import METRICS as CORE_METRICS, summarize_runs
 
-METRICS = (
-    ("mean_error_mm", "per_frame_error_mm", "Marker error (mm)"),
-    ("relative_error_mm", "per_frame_relative_error_mm", "Pelvis-relative marker error (mm)"),
-    ("pa_mpjpe_mm", "per_frame_pa_mpjpe_mm", "PA-MPJPE (mm)"),
-    ("pck150", "per_frame_pck150", "3D PCK at 150 mm (%)"),
-)
+#: The tables' metrics: (name, unit, heading), the names and order of :data:`tracker.core.metrics.METRICS`.
+METRICS = tuple((m.name, m.unit, f"{m.name}: {m.title} ({m.unit})") for m in CORE_METRICS)
+#: The metric of the paired differences, the replicate table and the plot.
+PRIMARY = CORE_METRICS[0].name
+#: Where runs finished by earlier versions of this version number kept their per-frame values (``result.json``
+#: before ``"metrics"``); a metric they lack shows as n/a.
+_EARLIER_KEYS = {"mpjpe_abs": "per_frame_error_mm", "mpjpe_rel": "per_frame_relative_error_mm",
+                 "pa_mpjpe": "per_frame_pa_mpjpe_mm", "pck_abs": "per_frame_pck150"}
 BOOTSTRAP_DRAWS = 10_000
 
 
@@ -40,6 +43,15 @@ def bootstrap_interval(differences: np.ndarray, level: float = 0.95, draws: int 
     return float(lo), float(hi)
 
 
+def per_frame_values(result: dict, metric: str) -> list[float] | None:
+    """A run's per-frame values of ``metric`` (a name of :data:`METRICS`) from its ``result.json`` content, or
+    None (no ground truth, or a run written before the metric existed)."""
+    metrics = result.get("metrics")
+    if isinstance(metrics, dict):
+        return (metrics.get(metric) or {}).get("per_frame")
+    return result.get(_EARLIER_KEYS.get(metric, ""))
+
+
 def _cell(values: list[float], digits: int = 1) -> str:
     """``mean ± std`` over runs (:func:`~tracker.core.metrics.summarize_runs`), or n/a."""
     v = np.asarray(values, float)
@@ -50,7 +62,9 @@ def _cell(values: list[float], digits: int = 1) -> str:
 
 
 def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
-    """``table.md``, ``table.csv`` and ``per_frame.png`` from the run results; returns the summary."""
+    """``table.md``, ``table.csv`` and ``per_frame.png`` from the run results; returns the summary: ``table``
+    (table.md's text), ``tables`` (the same without the closing line about this invocation), ``runs`` and
+    ``run_seconds`` (all runs' time, s)."""
     rows = list(dict.fromkeys(r["run"]["row"] for r in results))
     seqs = list(dict.fromkeys(r["run"]["sequence"] for r in results))
     by = {}
@@ -59,8 +73,8 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
     for group in by.values():
         group.sort(key=lambda r: r["run"]["seed_index"])
 
-    def per_run(r: dict, per_frame_key: str) -> float:
-        v = r.get(per_frame_key)
+    def per_run(r: dict, metric: str) -> float:
+        v = per_frame_values(r, metric)
         return float(np.mean(v)) if v else float("nan")
 
     md = io.StringIO()
@@ -68,14 +82,14 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
     md.write(f"`{exp.path.name}`: {exp.seeds} seed(s) per configuration, master seed {exp.seed}; "
              f"mean ± std over seeds of each run's mean over its tracked frames.\n")
     csv_rows = [["metric", "row", "sequence", "mean", "std", "runs", "seconds_per_frame"]]
-    for metric, per_frame_key, title in METRICS:
+    for metric, _, title in METRICS:
         md.write(f"\n## {title}\n\n| prior | " + " | ".join(seqs) + " | s/frame |\n")
         md.write("|---" * (len(seqs) + 2) + "|\n")
         for row in rows:
             cells, secs = [], []
             for s in seqs:
                 group = by.get((row, s), [])
-                vals = [per_run(r, per_frame_key) for r in group]
+                vals = [per_run(r, metric) for r in group]
                 cells.append(_cell(vals))
                 secs += [r["seconds_per_frame"] for r in group]
                 if group and np.all(np.isfinite(vals)):
@@ -100,13 +114,13 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
             pairs.append((row, exp.baseline + variant))
     if pairs:
         title = exp.baseline if exp.paired == "baseline" else "each other (row minus compared row)"
-        md.write(f"\n## Paired difference to {title} (marker error, mm; 95% bootstrap interval over seeds)\n\n")
+        md.write(f"\n## Paired difference to {title} ({PRIMARY}, mm; 95% bootstrap interval over seeds)\n\n")
         md.write("| prior | compared with | " + " | ".join(seqs) + " |\n" + "|---" * (len(seqs) + 2) + "|\n")
         for row, base_row in pairs:
             cells = []
             for s in seqs:
-                a = {r["run"]["seed_index"]: per_run(r, "per_frame_error_mm") for r in by.get((row, s), [])}
-                b = {r["run"]["seed_index"]: per_run(r, "per_frame_error_mm") for r in by.get((base_row, s), [])}
+                a = {r["run"]["seed_index"]: per_run(r, PRIMARY) for r in by.get((row, s), [])}
+                b = {r["run"]["seed_index"]: per_run(r, PRIMARY) for r in by.get((base_row, s), [])}
                 common = sorted(set(a) & set(b))
                 d = np.array([a[i] - b[i] for i in common])
                 if d.size == 0 or not np.all(np.isfinite(d)):
@@ -117,7 +131,8 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
             md.write(f"| {row} | {base_row} | " + " | ".join(cells) + " |\n")
     groups = _replicate_groups(exp, rows, split_row)
     _write_replicates(md, csv_rows, groups, seqs, lambda row, s: [
-        per_run(r, "per_frame_error_mm") for r in by.get((row, s), [])])
+        per_run(r, PRIMARY) for r in by.get((row, s), [])])
+    tables = md.getvalue()  # without the line about this invocation (report.html is the same on a rerun)
     cpu = sum({r["run"]["key"]: r.get("wall_seconds", 0.0) for r in results}.values())
     md.write(f"\n{meta['runs']} runs, {cpu:.0f} s of run time in all; this invocation ran {meta['ran_now']} of them "
              f"with {meta['jobs']} {meta['backend']} job(s) in {meta['wall_seconds_now']:.0f} s; package version "
@@ -127,7 +142,7 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
     csv.writer(buf).writerows(csv_rows)
     write_text_atomic(out / "table.csv", buf.getvalue())
     _plot(out / "per_frame.png", _plotted_rows(rows, groups), seqs, by)
-    return {"table": md.getvalue(), "runs": len(results)}
+    return {"table": md.getvalue(), "tables": tables, "runs": len(results), "run_seconds": cpu}
 
 
 def _replicate_groups(exp, rows: list[str], split_row) -> dict[tuple[str, str], list[str]]:
@@ -151,14 +166,14 @@ def _group_name(group: str, variant: str, members: list[str]) -> str:
 def _write_replicates(md: io.StringIO, csv_rows: list, groups: dict[tuple[str, str], list[str]], seqs: list[str],
                       errors) -> None:
     """The "over training seeds" table of the ``groups`` (:func:`_replicate_groups`): for each, the mean over its
-    models of each model's marker error (its mean over tracking seeds), the standard deviation between them, their
+    models of each model's absolute MPJPE (its mean over tracking seeds), the standard deviation between them, their
     range, and the mean standard deviation over tracking seeds within a model. ``errors(row, sequence)`` gives a
     row's per-run errors (mm). The means also go to ``table.csv`` as rows named like the group (their ``std`` is
     the spread between the models, ``runs`` all the models' runs), which :mod:`benchmarks.loso_summary` reads like
     any other."""
     if not groups:
         return
-    md.write("\n## Over training seeds (marker error, mm): mean over models ± std between models [range]; "
+    md.write(f"\n## Over training seeds ({PRIMARY}, mm): mean over models ± std between models [range]; "
              "mean std over tracking seeds within a model\n\n| prior | models | " + " | ".join(seqs) + " |\n"
              + "|---" * (len(seqs) + 2) + "|\n")
     for (group, variant), members in groups.items():
@@ -173,7 +188,7 @@ def _write_replicates(md: io.StringIO, csv_rows: list, groups: dict[tuple[str, s
             mean, between = summarize_runs(means)
             within = float(np.mean([summarize_runs(v)[1] for v in per_model]))
             cells.append(f"{mean:.1f} ± {between:.1f} [{min(means):.1f}, {max(means):.1f}]; {within:.1f}")
-            csv_rows.append(["mean_error_mm", name, s, f"{mean:.4f}", f"{between:.4f}",
+            csv_rows.append([PRIMARY, name, s, f"{mean:.4f}", f"{between:.4f}",
                              sum(len(v) for v in per_model), ""])
         md.write(f"| {group}{variant} | {len(members)} | " + " | ".join(cells) + " |\n")
 
@@ -190,7 +205,7 @@ def _plotted_rows(rows: list[str], groups: dict[tuple[str, str], list[str]]) -> 
 
 
 def _plot(path: Path, lines: dict[str, list[str]], seqs: list[str], by: dict) -> None:
-    """Per-frame marker error of each line (a row, or a ``train_seeds`` group's rows together), mean over its
+    """Per-frame absolute MPJPE of each line (a row, or a ``train_seeds`` group's rows together), mean over its
     runs with a ±1 std band, one panel per sequence.
 
     Each prior gets its own colour (up to 20 distinct ones) and each view set its own line style, so rows
@@ -209,11 +224,11 @@ def _plot(path: Path, lines: dict[str, list[str]], seqs: list[str], by: dict) ->
     axes = fig.subplots(len(seqs), 1, squeeze=False)[:, 0]
     for ax, s in zip(axes, seqs):
         for row in rows:
-            group = [r for member in lines[row] for r in by.get((member, s), []) if r.get("per_frame_error_mm")]
+            group = [r for member in lines[row] for r in by.get((member, s), []) if per_frame_values(r, PRIMARY)]
             if not group:
                 continue
-            n = min(len(r["per_frame_error_mm"]) for r in group)
-            errs = np.array([r["per_frame_error_mm"][:n] for r in group])
+            n = min(len(per_frame_values(r, PRIMARY)) for r in group)
+            errs = np.array([per_frame_values(r, PRIMARY)[:n] for r in group])
             frames = np.array(group[0]["tracked_frames"][:n])
             mean, sd = errs.mean(axis=0), errs.std(axis=0)
             prior, _, views = row.rpartition(", views ") if ", views " in row else (row, "", "")
@@ -224,7 +239,7 @@ def _plot(path: Path, lines: dict[str, list[str]], seqs: list[str], by: dict) ->
         ax.set_title(s)
         ax.set_xlabel("frame")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-        ax.set_ylabel("marker error (mm)")
+        ax.set_ylabel(f"{CORE_METRICS[0].title} (mm)")
         ax.set_ylim(bottom=0)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)

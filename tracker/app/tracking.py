@@ -1,14 +1,18 @@
 """Tracking a sequence: wire a sequence, a prior and a likelihood into the filter, and score the result.
 
 :func:`track` is the one implementation behind ``tracker.track`` and
-``python -m tracker track``; :class:`TrackingResult` holds everything a run
+``pose-tracker track``; :class:`TrackingResult` holds everything a run
 produced and writes ``result.json`` and ``estimates.npz`` (README, "Commands"),
 so Python and the command line write the same files.
 """
 from __future__ import annotations
 
+import functools
+import inspect
 import json
+import os
 from dataclasses import dataclass, field
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence as Seq
 
@@ -19,7 +23,7 @@ from data_tools.files import atomic_path, write_text_atomic
 from data_tools.sequence import Sequence
 from tracker.core.errors import InputError
 from tracker.core.kinematics import markers as model_markers
-from tracker.core.metrics import marker_error
+from tracker.core.metrics import METRICS, PCK_THRESHOLD_MM, frame_metrics, marker_error
 from tracker.engine.filter import FilterConfig, ParticleFilter
 from tracker.engine.likelihood import Likelihood
 from tracker.engine.prior import MotionPrior
@@ -36,7 +40,12 @@ class TrackingResult:
     has ground truth; ``records`` what the filter recorded per tracked frame (``ess``, timings, ...);
     ``settings`` every setting that produced the run (written to ``result.json``); ``summary_names`` names the
     entries of the prior's per-frame summary (``records["prior_summary"]``, e.g. the FCRBM's posterior over
-    style labels), empty for a prior without one.
+    style labels), empty for a prior without one. ``frames`` is the number of frames the run was asked to cover
+    (frames ``0 .. frames-1``, the known ones included; an interrupted run's partial result has fewer poses);
+    ``per_frame_metrics`` every metric of :data:`tracker.core.metrics.METRICS` per tracked frame (name ->
+    values), when the sequence has ground truth; ``invocation`` how the run was asked for (``{"function",
+    "arguments"}`` for the API, ``{"argv"}`` for the command line), ``started`` and ``finished`` when (ISO 8601,
+    UTC).
     """
 
     poses: np.ndarray
@@ -49,6 +58,11 @@ class TrackingResult:
     summary_names: list[str] = field(default_factory=list)
     #: The prior's :attr:`~tracker.engine.prior.MotionPrior.summary_kind`.
     summary_kind: str = "posterior"
+    frames: int | None = None
+    per_frame_metrics: dict[str, np.ndarray] | None = None
+    invocation: dict[str, Any] = field(default_factory=dict)
+    started: str | None = None
+    finished: str | None = None
 
     @property
     def tracked_frames(self) -> list[int]:
@@ -56,7 +70,8 @@ class TrackingResult:
 
     @property
     def mean_error(self) -> float | None:
-        """Mean marker error over the tracked frames (mm), or None without ground truth."""
+        """Mean absolute MPJPE (the HumanEva marker error, ``metrics["mpjpe_abs"]``) over the tracked frames
+        (mm), or None without ground truth."""
         return None if self.errors is None else float(np.mean(self.errors))
 
     @property
@@ -110,15 +125,14 @@ class TrackingResult:
         """The content of ``result.json``."""
         import tracker
 
-        errors = self.errors
         summary = self.prior_summary
+        frames = len(self.poses) if self.frames is None else self.frames
         return {
             "version": tracker.__version__,
+            "invocation": self.invocation, "started": self.started, "finished": self.finished,
             **self.settings,
-            "frames": len(self.tracked_frames),
-            "mean_error_mm": self.mean_error,
-            "std_error_mm": None if errors is None else float(np.std(errors)),
-            "per_frame_error_mm": None if errors is None else [round(float(e), 3) for e in errors],
+            "frames": frames, "frames_known": self.first_tracked, "frames_tracked": len(self.tracked_frames),
+            "metrics": metrics_document(self.per_frame_metrics),
             "seconds_per_frame": self.seconds_per_frame,
             "tracked_frames": self.tracked_frames, "first_tracked_frame": self.first_tracked,
             "mean_effective_sample_size": float(np.mean(self.ess)) if "ess" in self.records else None,
@@ -314,6 +328,90 @@ def _result(seq: Sequence, known: np.ndarray, n0: int, records: dict, gt, T: int
     poses = np.concatenate([known[:n0], records["mean_poses"].reshape(-1, D)])
     best = np.concatenate([known[:n0], records["best_poses"].reshape(-1, D)])
     est_markers = model_markers(seq.model, poses)
-    errors = None if gt is None else marker_error(est_markers[n0:], gt.markers[n0:len(poses)])
-    return TrackingResult(poses=poses, markers=est_markers, best_poses=best, first_tracked=n0, errors=errors,
-                          records=records, summary_names=list(summary[0]), summary_kind=summary[1])
+    per_frame = None if gt is None else frame_metrics(est_markers[n0:], gt.markers[n0:len(poses)])
+    return TrackingResult(poses=poses, markers=est_markers, best_poses=best, first_tracked=n0,
+                          errors=None if per_frame is None else per_frame[METRICS[0].name], records=records,
+                          summary_names=list(summary[0]), summary_kind=summary[1], frames=T,
+                          per_frame_metrics=per_frame)
+
+
+def metrics_document(per_frame: Mapping[str, np.ndarray] | None) -> dict[str, dict] | None:
+    """``result.json``'s ``"metrics"``: for every metric of :data:`~tracker.core.metrics.METRICS` its ``unit``,
+    ``mean`` and ``std`` over the tracked frames (ddof 0) and ``per_frame`` values (the 3DPCKs also their
+    ``threshold_mm``); None without ground truth."""
+    if per_frame is None:
+        return None
+    out = {}
+    for m in METRICS:
+        v = np.asarray(per_frame[m.name], float)
+        out[m.name] = {"title": m.title, "unit": m.unit,
+                       **({"threshold_mm": PCK_THRESHOLD_MM} if m.unit == "%" else {}),
+                       "mean": float(v.mean()), "std": float(v.std()),
+                       "per_frame": [round(float(x), 3 if m.unit == "mm" else 2) for x in v]}
+    return out
+
+
+def metrics_line(metrics: Mapping[str, dict] | None) -> str:
+    """``result.json``'s ``"metrics"`` on one line: ``mpjpe_abs 25.0 ± 11.0 mm, ..., pck_rel 100.0%`` (mean ± std
+    over the tracked frames for the errors, the mean for the 3DPCKs), or ``no ground truth to score``."""
+    if not metrics:
+        return "no ground truth to score"
+    return ", ".join(f"{name} {m['mean']:.1f} ± {m['std']:.1f} mm" if m["unit"] == "mm" else f"{name} {m['mean']:.1f}%"
+                     for name, m in metrics.items())
+
+
+def utc_now() -> str:
+    """The current time, ISO 8601 in UTC to the second (``2026-01-31T12:00:00+00:00``)."""
+    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+
+
+def _described(value: Any) -> Any:
+    """A JSON value that says what an argument of an API call was: plain values as they are, paths as text, a
+    sequence by its folder, an array by its shape, a seed as :func:`seed_description` records it, anything else
+    by its type."""
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    if isinstance(value, Sequence):
+        return str(value.root)
+    if isinstance(value, (np.random.SeedSequence, np.random.Generator)):
+        return seed_description(value)
+    if isinstance(value, np.ndarray):
+        return f"array of shape {list(value.shape)}"
+    if isinstance(value, Mapping):
+        return {str(k): _described(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_described(v) for v in value]
+    if callable(value):
+        return f"callable {getattr(value, '__qualname__', type(value).__name__)}"
+    return f"{type(value).__name__} (in memory)"
+
+
+def records_call(function: Callable[..., TrackingResult]) -> Callable[..., TrackingResult]:
+    """``function`` (the API's ``track``), whose result -- and the partial result of an interrupted run --
+    records the call (``invocation``: ``tracker.<name>`` and the arguments the caller gave, keyword options
+    flattened) and when it started and finished (:func:`utc_now`)."""
+    signature = inspect.signature(function)
+
+    @functools.wraps(function)
+    def wrapper(*args, **kwargs) -> TrackingResult:
+        bound = signature.bind(*args, **kwargs)
+        given = dict(bound.arguments)
+        for name, p in signature.parameters.items():  # **options: the options themselves, as they were written
+            if p.kind is inspect.Parameter.VAR_KEYWORD:
+                given.update(given.pop(name, {}))
+        invocation = {"function": f"tracker.{function.__name__}", "arguments": _described(given)}
+        started = utc_now()
+        try:
+            result = function(*args, **kwargs)
+        except TrackingInterrupted as stop:
+            if stop.partial is not None:
+                stop.partial.invocation, stop.partial.started, stop.partial.finished = invocation, started, utc_now()
+            raise
+        result.invocation, result.started, result.finished = invocation, started, utc_now()
+        return result
+
+    return wrapper
