@@ -150,8 +150,8 @@ def _complete(sources: dict[str, tuple[int, ...] | None]) -> tuple[list[str], li
     return derived, missing
 
 
-def _derived_notes(derived: list[str]) -> list[str]:
-    return [f"{p} derived from {DERIVED_FROM[p][1]} (the file has no such point)" for p in derived]
+def _derived_notes(derived: list[str], why: str = "the file has no such point") -> list[str]:
+    return [f"{p} derived from {DERIVED_FROM[p][1]} ({why})" for p in derived]
 
 
 def plan_points(names: list[str], style: str, joint_map: Mapping[str, object] | None = None,
@@ -222,7 +222,8 @@ def _plan_from_map(found: _Names, joint_map: Mapping[str, object], source, map_s
         raise InputError(f"joint map {where} gives no joint for {', '.join(markers_missing)} (every one of "
                          f"{', '.join(MARKER_NAMES)} is needed; hand ends, toes and the head end can be derived)",
                          source)
-    return PointPlan(f"joints from the joint map {Path(str(where)).name}", sources, _derived_notes(derived))
+    return PointPlan(f"joints from the joint map {Path(str(where)).name}", sources,
+                     _derived_notes(derived, "the joint map names none"))
 
 
 def read_joint_map(path: str | Path | Mapping) -> dict[str, object]:
