@@ -57,7 +57,9 @@ def test_prior_defined_outside_the_package_tracks_through_api_and_cli(walk_32_fr
                  "--frames", "6", "--seed", "2", "--out", str(tmp_path / "cli")]) == 0
     api = json.loads((tmp_path / "api" / "result.json").read_text())
     cli = json.loads((tmp_path / "cli" / "result.json").read_text())
-    assert api["per_frame_error_mm"] == cli["per_frame_error_mm"]  # one implementation behind both
+    assert api["metrics"] == cli["metrics"]  # one implementation behind both
+    assert api["invocation"]["function"] == "tracker.track" and api["invocation"]["arguments"]["drift_mm"] == 1.0
+    assert cli["invocation"]["argv"][:3] == ["pose-tracker", "track", str(seq.root)]
     assert {k for k in api if k != "seconds_per_frame"} == {k for k in cli if k != "seconds_per_frame"}
 
 

@@ -42,7 +42,7 @@ def one_line_refusal(code: int, err: str, *fragments: str) -> str:
     (["convert", "--mocap", AMC, "--fps", "1e308", "--out", "x.npz"], ("--fps", "at most 100000")),
     (["convert", "--mocap", AMC, "--length-unit", "1e308", "--out", "x.npz"], ("--length-unit", "at most 10000")),
     (["synth", "--mocap", AMC, "--width", "1000000000", "--out", "s"], ("--width", "at most 20000")),
-    (["synth", "--mocap", AMC, "--views", "1000000000", "--out", "s"], ("--views", "at most 64")),
+    (["synth", "--mocap", AMC, "--cameras", "1000000000", "--out", "s"], ("--cameras", "at most 64")),
     (["synth", "--mocap", AMC, "--noise", "1e308", "--out", "s"], ("--noise", "at most 255")),
     (["synth", "--mocap", AMC, "--lighting-change", "1e308", "--out", "s"], ("--lighting-change", "less than 2")),
     (["synth", "--mocap", AMC, "--lighting-change", "-5", "--out", "s"], ("--lighting-change", "greater than -0.9")),

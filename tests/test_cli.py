@@ -17,7 +17,7 @@ def test_help_lists_commands():
 def test_convert_writes_clip(mocap_dir, tmp_path, capsys):
     out = tmp_path / "clip.npz"
     assert main(["convert", "--mocap", str(mocap_dir / "07" / "07_02.amc"), "--fps", "30", "--out", str(out)]) == 0
-    line = capsys.readouterr().out.strip()
+    line = capsys.readouterr().err.strip()  # what was read and written: a log line (convert's result is the file)
     assert line.startswith("07_02.amc: CMU ASF names, lengths in ASF units of 56.44 mm, y up, 120 Hz; 83 frames at "
                            "30 fps, mean retarget residual") and line.count("\n") == 0
     with np.load(out) as d:
@@ -46,9 +46,11 @@ def test_convert_bad_inputs_exit_2(mocap_dir, tmp_path):
 
 def test_demo(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path), "--frames", "8"]) == 0
-    out = capsys.readouterr().out
-    assert "07_02" in out and "mean marker error" in out and "mocap.cs.cmu.edu" in out
-    for name in ("zero-velocity", "crbm"):
+    printed = capsys.readouterr()
+    assert "07_02" in printed.err and "mocap.cs.cmu.edu" in printed.out  # what it does on stderr, results on stdout
+    for name in ("zero-velocity", "crbm", "mixture"):
+        assert f"{name}, 6 frames tracked: mpjpe_abs " in printed.out
         res = json.loads((tmp_path / f"track_{name}" / "result.json").read_text())
-        assert res["frames"] == 6 and res["mean_error_mm"] < 100 and res["prior"] == name
+        assert res["frames"] == 8 and res["frames_tracked"] == 6 and res["prior"] == name
+        assert res["metrics"]["mpjpe_abs"]["mean"] < 100
     assert (tmp_path / "overlay.mp4").stat().st_size > 1000 and (tmp_path / "error_per_frame.png").exists()

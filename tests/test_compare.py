@@ -44,7 +44,7 @@ frames = 6
 
 def run_numbers(out: Path) -> dict:
     return {json.loads((d / "result.json").read_text())["run"]["key"]:
-            json.loads((d / "result.json").read_text())["per_frame_error_mm"] for d in (out / "runs").iterdir()}
+            json.loads((d / "result.json").read_text())["metrics"] for d in (out / "runs").iterdir()}
 
 
 @pytest.mark.parametrize("mutation, expected", [
@@ -126,7 +126,7 @@ def test_numbers_do_not_depend_on_workers_and_finished_runs_are_skipped(tmp_path
     compare(path, tmp_path / "a", jobs=1, say=said.append, progress=False)
     assert any("6 runs: 4 finished before (skipped), 2 to run" in s for s in said)
     rows = (tmp_path / "a" / "table.csv").read_text()
-    assert "zv-scaled" in rows and rows.count("mean_error_mm") == 3
+    assert "zv-scaled" in rows and rows.count("mpjpe_abs") == 3
 
 
 def test_unset_annealing_layers_are_tracks_default_for_every_prior(tmp_path):
@@ -169,7 +169,7 @@ def test_train_seeds_repeat_a_training_and_the_report_averages_over_the_models(t
     assert len(list((tmp_path / "out" / "models").iterdir())) == 2  # one model per training seed
     with open(tmp_path / "out" / "table.csv", newline="") as f:
         rows = {r["row"]: (float(r["mean"]), float(r["std"]), int(r["runs"])) for r in csv.DictReader(f)
-                if r["metric"] == "mean_error_mm"}
+                if r["metric"] == "mpjpe_abs"}
     one, two = rows["C, training seed 4"][0], rows["C, training seed 7"][0]
     assert one != two  # different models
     mean, between, runs = rows["C (over 2 training seeds)"]

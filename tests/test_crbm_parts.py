@@ -155,7 +155,7 @@ def test_train_and_track_a_paced_model_from_the_command_line(mocap_dir, walk_32_
     result = json.loads((out / "result.json").read_text())
     summary = result["prior_summary"]
     assert summary["names"] == ["pace (mm/frame)", "height offset (mm)", "posture offset rms (deg)"]
-    assert len(summary["per_frame"]) == result["frames"]
+    assert len(summary["per_frame"]) == result["frames_tracked"]
     assert all(0 < row[0] < 100 for row in summary["per_frame"])  # a walker's ground speed, mm per frame
     assert (out / "prior_summary.png").stat().st_size > 0
 

@@ -142,7 +142,7 @@ def test_train_and_track_through_the_api_and_the_cli(walk_32_frames, tmp_path, c
     assert main(["track", str(walk_32_frames.root), "--prior", "deep-crbm", "--model", str(tmp_path / "c.pt"),
                  "--particles", "30", "--frames", "4", "--gibbs-steps", "3", "--out", str(tmp_path / "t")]) == 0
     result = json.loads((tmp_path / "t" / "result.json").read_text())
-    assert result["prior"] == "deep-crbm" and result["frames"] == 2 and "prior_summary" not in result
+    assert result["prior"] == "deep-crbm" and result["frames_tracked"] == 2 and "prior_summary" not in result
     capsys.readouterr()
     with pytest.raises(SystemExit) as stop:  # argparse refuses the flag's value
         main(["train", "--prior", "deep-crbm", "--mocap", *map(str, files), "--top-order", "0", "--out",

@@ -323,7 +323,7 @@ def test_cross_faded_sequence_changes_activity(s2, tmp_path):
     with pytest.raises(InputError, match="switch_at must be a frame"):
         cross_fade(walk, run, 5, fade=10)
     seq = tracker.synthesize(s2 / "02_01.amc", tmp_path / "s", fps=30, then=run, switch_at=60,
-                             fade=10, start=45, frames=20, views=1, width=160, height=120)
+                             fade=10, start=45, frames=20, cameras=1, width=160, height=120)
     assert seq.n_frames == 20 and "02_03" in json.loads((tmp_path / "s" / "meta.json").read_text())["source"]
     with pytest.raises(InputError, match="needs switch_at"):
         tracker.synthesize(s2 / "02_01.amc", tmp_path / "t", fps=30, then=run, frames=5)

@@ -122,7 +122,7 @@ def copy_sequence(src, dst):
 def test_show_and_synth_cli(mocap_dir, tmp_path):
     out = tmp_path / "s"
     assert main(["synth", "--mocap", str(mocap_dir / "07" / "07_10.amc"), "--out", str(out), "--frames", "2",
-                 "--views", "2", "--width", "320", "--height", "240", "--start", "10"]) == 0
+                 "--cameras", "2", "--width", "320", "--height", "240", "--start", "10"]) == 0
     seq = read_sequence(out)
     assert seq.n_views == 2 and seq.n_frames == 2 and seq.image(0, 0).shape == (240, 320, 3)
     png = tmp_path / "grid.png"

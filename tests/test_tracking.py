@@ -73,11 +73,12 @@ def test_track_command_writes_design_outputs(walk_32_frames, tmp_path):
                  "--views", "0,2", "--frames", "6", "--seed", "1", "--out", str(out),
                  "--video", str(tmp_path / "o.mp4")]) == 0
     res = json.loads((out / "result.json").read_text())
-    for key in ("prior", "particles", "views", "seed", "frames", "mean_error_mm", "std_error_mm",
-                "per_frame_error_mm", "seconds_per_frame"):
+    for key in ("prior", "particles", "views", "seed", "frames", "frames_known", "frames_tracked", "metrics",
+                "seconds_per_frame", "invocation", "started", "finished"):
         assert key in res, key
-    assert res["views"] == [0, 2] and res["frames"] == 4 and len(res["per_frame_error_mm"]) == 4
-    assert res["mean_error_mm"] == pytest.approx(np.mean(res["per_frame_error_mm"]), abs=1e-3)
+    assert res["views"] == [0, 2] and (res["frames"], res["frames_known"], res["frames_tracked"]) == (6, 2, 4)
+    error = res["metrics"]["mpjpe_abs"]
+    assert len(error["per_frame"]) == 4 and error["mean"] == pytest.approx(np.mean(error["per_frame"]), abs=1e-3)
     import tracker
     assert res["version"] == tracker.__version__
     with np.load(out / "estimates.npz") as z:
@@ -92,7 +93,8 @@ def test_track_bodytrack_without_ground_truth(bodytrack_dir, tmp_path):
     assert main(["track", str(bodytrack_dir), "--prior", "zero-velocity", "--particles", "200",
                  "--annealing-layers", "3", "--out", str(out)]) == 0
     res = json.loads((out / "result.json").read_text())
-    assert res["frames"] == 1 and res["mean_error_mm"] is None and res["model"] == "bodytrack-10-cone"
+    assert res["frames"] == res["frames_tracked"] == 1 and res["metrics"] is None
+    assert res["model"] == "bodytrack-10-cone"
     with np.load(out / "estimates.npz") as z:
         assert z["poses"].shape == (1, 31) and np.all(np.isfinite(z["poses"]))
 
@@ -145,18 +147,18 @@ def test_ctrl_c_saves_a_checkpoint_and_resume_gives_the_uninterrupted_result(wal
         time.sleep(0.01)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
-    assert proc.returncode == 130 and "resume with: python -m tracker track --resume" in err, err[-500:]
+    assert proc.returncode == 130 and "resume with: pose-tracker track --resume" in err, err[-500:]
     assert "Traceback" not in err
     partial = json.loads((out / "result.json").read_text())
-    assert partial["complete"] is False and 0 < partial["frames"] < 22
+    assert partial["complete"] is False and partial["frames"] == 24 and 0 < partial["frames_tracked"] < 22
     r = subprocess.run([sys.executable, "-m", "tracker", "track", "--resume", str(out)], capture_output=True,
                        text=True)
     assert r.returncode == 0, r.stderr[-500:]
     with np.load(out / "estimates.npz") as a, np.load(tmp_path / "whole" / "estimates.npz") as b:
         assert np.array_equal(a["poses"], b["poses"]) and np.array_equal(a["best_poses"], b["best_poses"])
     resumed = json.loads((out / "result.json").read_text())
-    assert resumed["per_frame_error_mm"] == json.loads((tmp_path / "whole" / "result.json").read_text())[
-        "per_frame_error_mm"] and "complete" not in resumed
+    assert resumed["metrics"] == json.loads((tmp_path / "whole" / "result.json").read_text())["metrics"]
+    assert "complete" not in resumed
     assert not (out / "checkpoint.npz").exists()
     r = subprocess.run([sys.executable, "-m", "tracker", "track", "--resume", str(out)], capture_output=True,
                        text=True)

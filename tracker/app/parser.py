@@ -137,10 +137,10 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     s.add_argument("--mocap", required=True, help="motion file: .amc (CMU ASF/AMC) or .bvh")
     s.add_argument("--skeleton", help="ASF skeleton for an .amc file (default: <subject>.asf beside it)")
     s.add_argument("--out", required=True, help="output sequence folder")
-    s.add_argument("--cameras", type=_views, default=4, help="number of cameras (default 4)")
+    s.add_argument("--cameras", type=_views, default=4, metavar="N", help="number of cameras (default 4)")
     s.add_argument("--views", dest="cameras", type=_views, action=_DeprecatedAlias, new_flag="--cameras N",
-                   why=" (a number of cameras; track's --views is a list of camera indices)", metavar="N",
-                   help="deprecated spelling of --cameras")
+                   why=" (a number of cameras; track's --views is a list of camera indices)",
+                   help=argparse.SUPPRESS)  # the former --cameras, kept for one version
     s.add_argument("--fps", type=_fps, default=60.0,
                    help="frame rate in Hz (default 60, the rate train uses); the clip is resampled to it")
     s.add_argument("--joint-map", metavar="FILE", help=_JOINT_MAP_HELP)
