@@ -65,7 +65,7 @@ CONVENTIONS: tuple[tuple[str, str, dict[str, tuple]], ...] = (
         "pelvis": ["@root"], "thorax": ["Neck"], "head": ["HeadTop_End", "Head_end"], HEAD_JOINT: ["Head"],
         "SIDE_shoulder": ["{Side}Arm"], "SIDE_elbow": ["{Side}ForeArm"], "SIDE_wrist": ["{Side}Hand"],
         "SIDE_hip": ["{Side}UpLeg"], "SIDE_knee": ["{Side}Leg"], "SIDE_ankle": ["{Side}Foot"],
-        "SIDE_hand_end": ["{Side}HandMiddle1", "{Side}FingerBase", "{Side}Hand_end"],
+        "SIDE_hand_end": ["{Side}HandMiddle1", "{Side}HandIndex1", "{Side}FingerBase", "{Side}Hand_end"],
         "SIDE_toe": ["{Side}ToeBase", "{Side}Toe", "{Side}Foot_end"],
     })),
     # Biovision's names, as MocapBank and CMU's "Hips/LeftHip/Chest2" export use them (the latter adds
