@@ -1,9 +1,8 @@
 """The FCRBM motion prior: every particle carries a style label, and its pose is drawn by the FCRBM with the label
 clamped (Taylor 2009, Ch. 5; the model is :mod:`priors.fcrbm_model`). Registered as ``fcrbm``.
 
-By default an equal share of the particles carries each label and the filter weighs the labels against each other
-(mixture tracking, :mod:`tracker.engine.mixture`, switching with probability ``style_switch`` per frame); with
-``style_inference="particles"`` each particle's label switches on its own with that probability. The filter's
+An equal share of the particles carries each label and the filter weighs the labels against each other
+(mixture tracking, :mod:`tracker.engine.mixture`, switching with probability ``style_switch`` per frame). The filter's
 posterior over the style is the weighted histogram of the particles' labels (:meth:`FCRBMPrior.summarize`),
 recorded per frame in ``result.json``.
 """
@@ -20,7 +19,7 @@ from priors.common import gibbs_steps_option, loaded, source_of
 from priors.conditional import ConditionalPrior
 from priors.crbm_training import CRBM_TRAIN_OPTIONS, growth_orders, parse_history_noise
 from priors.fcrbm_model import (
-    STYLE_INFERENCE, STYLE_TEMPERATURE, FCRBMConfig, FCRBMModel, load_fcrbm, parse_labels, train_fcrbm,
+    STYLE_TEMPERATURE, FCRBMConfig, FCRBMModel, load_fcrbm, parse_labels, train_fcrbm,
 )
 from priors.parts import GroundDiffusion, GrowingModels
 from tracker.core.errors import InputError
@@ -95,11 +94,9 @@ class FCRBMPrior(ConditionalPrior):
 
     Per-particle state: :class:`~priors.conditional.ConditionalPrior`'s (the pending root step) with ``style``
     ``(P,)``, the label indices, and ``clock`` ``(P,)``, the sequence frame the next sample is for (which a style
-    schedule reads). An unknown style is inferred by mixture tracking (``style_inference="mixture"``, the
-    default): every label keeps an equal share of the particles, and the filter moves weight between the labels by
-    their tempered evidence and switches with probability ``style_switch`` per frame (:meth:`mixture`). With
-    ``"particles"`` every particle's label switches with probability ``style_switch`` to one of the other labels,
-    chosen uniformly, before its pose is drawn. ``style`` fixes every particle's label (no switching: the
+    schedule reads). An unknown style is inferred by mixture tracking: every label keeps an equal share of the
+    particles, and the filter moves weight between the labels by their tempered evidence and switches with
+    probability ``style_switch`` per frame (:meth:`mixture`). ``style`` fixes every particle's label (no switching: the
     oracle), or follows a schedule. :meth:`summarize` gives the filter's posterior over the labels.
     """
 
@@ -108,12 +105,11 @@ class FCRBMPrior(ConditionalPrior):
 
     def __init__(self, models: Sequence[FCRBMModel], gibbs_steps: int = 30, *, device: str = "cpu",
                  ground: GroundDiffusion = GroundDiffusion(), style_switch: float = 0.05, style: str | None = None,
-                 style_inference: str = "mixture", style_temperature: float = STYLE_TEMPERATURE):
+                 style_temperature: float = STYLE_TEMPERATURE):
         grown = GrowingModels(models, "FCRBM")
         first = grown.first
         checks = {"Gibbs steps": (gibbs_steps, gibbs_steps >= 1),
                   "style switch": (style_switch, 0 <= style_switch <= 1),
-                  "style inference": (style_inference, style_inference in STYLE_INFERENCE),
                   "style temperature": (style_temperature, style_temperature >= 1)}
         for what, (value, ok) in checks.items():
             if not ok:
@@ -123,7 +119,7 @@ class FCRBMPrior(ConditionalPrior):
         self.style = None if style in (None, "") else str(style)
         self.schedule = None if self.style is None else parse_style_schedule(self.style, self.labels)
         self.style_switch = float(style_switch)
-        self.style_inference, self.style_temperature = style_inference, float(style_temperature)
+        self.style_temperature = float(style_temperature)
         self.gibbs_steps = int(gibbs_steps)
         for m in grown:
             m.fcrbm.to(self.device)
@@ -131,7 +127,7 @@ class FCRBMPrior(ConditionalPrior):
 
     def settings(self) -> dict:
         return {**super().settings(), "gibbs_steps": self.gibbs_steps, "labels": self.labels, "style": self.style,
-                "style_switch": self.style_switch, "style_inference": self.style_inference,
+                "style_switch": self.style_switch,
                 "style_temperature": self.style_temperature}
 
     def draw(self, model: FCRBMModel, conditioning: torch.Tensor, generator: torch.Generator,
@@ -143,16 +139,13 @@ class FCRBMPrior(ConditionalPrior):
 
     def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
         """The pending step of the last known frame, and every particle's label: the ``style`` (schedule) given;
-        else with mixture inference an equal share of the particles per label (particle ``i`` label ``i mod L``),
-        with per-particle inference drawn uniformly. The clock starts at the first tracked frame, ``len(known)``."""
+        else an equal share of the particles per label (particle ``i`` label ``i mod L``). The clock starts at the first tracked frame, ``len(known)``."""
         state = super().start(known, n_particles, rng)
         clock = np.full(n_particles, len(known), np.int64)
         if self.schedule is not None:
             style = self.scheduled(clock)
-        elif self.style_inference == "mixture":
-            style = np.arange(n_particles) % len(self.labels)
         else:
-            style = rng.integers(len(self.labels), size=n_particles)
+            style = np.arange(n_particles) % len(self.labels)
         return {**state, "style": style.astype(np.int64), "clock": clock}
 
     def restart(self, state: PriorState, recent: np.ndarray, n_particles: int,
@@ -169,24 +162,15 @@ class FCRBMPrior(ConditionalPrior):
         return indices[np.searchsorted(frames, clock, side="right") - 1]
 
     def mixture(self, state: PriorState) -> Mixture | None:
-        """With mixture inference of an unknown style: one component per label (the particles carrying it), the
+        """For an unknown style: one component per label (the particles carrying it), the
         switching probability ``style_switch`` between them, the evidence tempered by ``style_temperature``."""
-        if self.schedule is not None or self.style_inference != "mixture" or len(self.labels) < 2:
+        if self.schedule is not None or len(self.labels) < 2:
             return None
         return Mixture(np.asarray(state["style"]), switching(len(self.labels), self.style_switch),
                        self.style_temperature)
 
     def relabel(self, state: PriorState, component: np.ndarray) -> PriorState:
         return {**state, "style": np.array(component, np.int64)}
-
-    def switch(self, style: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Labels ``(P,)`` after one frame's switching (each to another label with probability ``style_switch``);
-        with mixture inference the labels stay (the filter moves weight and particles between them)."""
-        L = len(self.labels)
-        if L < 2 or self.style_switch == 0 or self.style_inference == "mixture":
-            return style
-        flip = rng.random(len(style)) < self.style_switch
-        return np.where(flip, (style + rng.integers(1, L, size=len(style))) % L, style)
 
     def sample_styled(self, history: np.ndarray, available: int, state: PriorState, rows: np.ndarray,
                       rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
@@ -197,7 +181,7 @@ class FCRBMPrior(ConditionalPrior):
     def sample(self, history: np.ndarray, available: int, state: PriorState,
                rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
         clock = np.asarray(state["clock"])
-        style = self.scheduled(clock) if self.schedule is not None else self.switch(np.asarray(state["style"]), rng)
+        style = self.scheduled(clock) if self.schedule is not None else np.asarray(state["style"])
         onehot = np.eye(len(self.labels), dtype=np.float32)[style]
         poses, new = self.sample_styled(history, available, state, onehot, rng)
         return poses, {**new, "style": style, "clock": clock + 1}
@@ -273,9 +257,6 @@ FCRBM_TRAIN_OPTIONS = (
              Option("style", str, None, "give every particle this label and never switch (the oracle), or a "
                                         "schedule walk,run@120 (label per sequence frame, for an activity "
                                         "change); default: inferred"),
-             Option("style_inference", str, "mixture", "how an unknown style is inferred: mixture (a fixed share "
-                    "of the particles per label, weight moving between labels) or particles (each "
-                    "particle switches its own label)", choices=STYLE_INFERENCE),
              Option("style_temperature", float, STYLE_TEMPERATURE, "mixture inference: the likelihood is raised "
                     f"to 1/T when the labels are weighed (default {STYLE_TEMPERATURE:g})", minimum=1.0,
                     maximum=1e6)))
@@ -285,5 +266,5 @@ def build_fcrbm(context: PriorContext, model_files: Sequence[Path], options: dic
                            source_of(model_files[0]))
     return FCRBMPrior([model], options["gibbs_steps"], device=context.device,
                       ground=GroundDiffusion(options["root_noise"]), style_switch=options["style_switch"],
-                      style=options["style"], style_inference=options["style_inference"],
+                      style=options["style"],
                       style_temperature=options["style_temperature"])

@@ -30,10 +30,9 @@ expected visible values, probabilities on the final step). Blends and transition
 (:func:`priors.fcrbm.generate`, :func:`priors.fcrbm.transition_styles`).
 
 Tracking (:class:`priors.fcrbm.FCRBMPrior`, registered as ``fcrbm``): each particle carries a discrete style label besides its
-pose history, and its pose is drawn with its label clamped. By default an equal share of the particles carries
+pose history, and its pose is drawn with its label clamped. An equal share of the particles carries
 each label and the filter weighs the labels against each other (mixture tracking, :mod:`tracker.engine.mixture`,
-switching with probability ``style_switch`` per frame); with ``style_inference="particles"`` each particle's label
-switches on its own with that probability. The filter's posterior over the style is the weighted histogram of the
+switching with probability ``style_switch`` per frame). The filter's posterior over the style is the weighted histogram of the
 particles' labels (:meth:`priors.fcrbm.FCRBMPrior.summarize`), recorded per frame in ``result.json``. Particles
 that share a label share the effective weights ``Wv diag(s) Wh^T``, so sampling works on one ``K x H`` matrix per
 label (:meth:`FCRBM.gibbs`).
@@ -71,7 +70,6 @@ GROUPED_STYLES_MAX = 16
 #: How the FCRBM prior infers an unknown style: ``"mixture"`` keeps a fixed share of the particles on every label
 #: and moves weight between them (mixture tracking, :mod:`tracker.engine.mixture`); ``"particles"`` lets every
 #: particle carry and switch its own label, the posterior being the weighted histogram.
-STYLE_INFERENCE = ("mixture", "particles")
 #: Temperature of the labels' evidence in mixture inference (the likelihood to the power ``1 / T`` when the
 #: labels are weighed against each other). Chosen on a tuning fold (``docs/fcrbm.md``, "Mixture tracking").
 STYLE_TEMPERATURE = 10.0

@@ -95,7 +95,7 @@ BUILT = {
     "crbm": [("crbm", ["crbm"], {}), ("crbm", ["crbm-paced"], {}), ("crbm", ["crbm", "crbm"], {}),
              ("crbm", ["crbm"], {"height_spread": 30.0, "height_drift": 1.0, "posture_gain": 0.2})],
     "gpdm": [("gpdm", ["gpdm"], {}), ("gpdm", ["gpdm"], {"height_drift": 2.0})],
-    "fcrbm": [("fcrbm", ["fcrbm"], {}), ("fcrbm", ["fcrbm"], {"style_inference": "particles"})],
+    "fcrbm": [("fcrbm", ["fcrbm"], {}), ("fcrbm", ["fcrbm"], {"style": "b"})],
     "deep-crbm": [("deep-crbm", ["deep-crbm"], {"height_spread": 20.0})],
     "mixture": [("mixture", ["crbm-paced"], {}), ("mixture", ["crbm", "gpdm"], {"components": "crbm,gpdm"}),
                 ("mixture", ["fcrbm", "deep-crbm"], {"components": "fcrbm,deep-crbm"}),
