@@ -195,7 +195,7 @@ def test_killed_experiment_resumes_without_redoing_finished_runs(tmp_path):
     assert 2 <= len(finished) < 8, finished
     r = subprocess.run(cmd, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr[-500:]
-    assert f"8 runs: {len(finished)} finished before (skipped), {8 - len(finished)} to run" in r.stdout
+    assert f"8 runs: {len(finished)} finished before (skipped), {8 - len(finished)} to run" in r.stderr  # a log line
     after = {d.name for d in (out / "runs").iterdir()}
     assert finished <= after and len(after) == 8  # nothing half-written left, nothing redone
 

@@ -407,6 +407,7 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
         "likelihood_options": likelihood_options, "likelihood_settings": lik_obj.settings(),
         "device": str(torch_device(device)),
     }
+    log.debug(f"tracking settings: {settings}")
     try:
         result = run_tracking(seq, prior_obj, lik_obj, config, rng, views, frames, known_frames, init, record,
                               on_frame, None if checkpoint is None else Path(checkpoint), checkpoint_every, resume,

@@ -315,6 +315,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = parse_arguments(argv)
         configure_logging(verbosity(args.quiet, args.verbose))
         args.argv = argv
+        log.debug(f"arguments: {vars(args)}")
         if args.command != "compare":  # compare gives each worker its share instead
             set_threads(args.threads)
         return COMMANDS[args.command](args)
