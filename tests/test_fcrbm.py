@@ -297,7 +297,8 @@ def test_train_and_track_through_the_cli(s2, walk_32_frames, tmp_path, capsys):
     assert result["prior"] == "fcrbm" and len(result["prior_summary"]["per_frame"]) == 3
     assert (tmp_path / "t" / "prior_summary.png").stat().st_size > 1000
     capsys.readouterr()
-    for args, expected in [(["train", "--prior", "fcrbm", "--mocap", *amc, "--labels", "walk", "--out", str(model)],
+    for args, expected in [(["train", "--prior", "fcrbm", "--mocap", *amc, "--labels", "walk", "--out",
+                             str(tmp_path / "other.pt")],
                             "1 label(s) given for 2 training clip(s)"),
                            (["track", str(walk_32_frames.root), "--prior", "fcrbm", "--model", str(model),
                              "--style", "jump", "--out", str(tmp_path / "u")], "not a label of this FCRBM")]:
