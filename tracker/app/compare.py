@@ -6,7 +6,8 @@ Layout of the output folder::
     OUT/models/<hash>.pt     trained models (cached likewise)
     OUT/runs/<hash>/         one finished run: result.json (settings, metrics, per-frame errors),
                              estimates.npz, run.log -- written under a temporary name, then renamed
-    OUT/table.md, table.csv, per_frame.png, experiment.json
+    OUT/videos/<hash>.mp4    report.html's videos (cached likewise)
+    OUT/table.md, table.csv, per_frame.png, report.html (tracker.app.report_html), experiment.json
 
 A run folder exists only once its run has finished, so an interrupted experiment (Ctrl-C, a killed
 worker) resumes by running the grid again: finished runs are skipped, unfinished ones start over.

@@ -275,7 +275,9 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     e = sub.add_parser("compare", parents=[plugin_flag], help="run an experiment: priors x sequences x settings x seeds, with tables",
                        description="Run every configuration of an experiment file (TOML; see "
                                    "tracker/app/experiment.py and benchmarks/experiments/) in parallel, skipping "
-                                   "runs finished before, and write table.md, table.csv and per_frame.png.")
+                                   "runs finished before, and write table.md, table.csv, per_frame.png and "
+                                   "report.html (one self-contained page: the tables, the plot and overlay "
+                                   "videos).")
     e.add_argument("experiment", metavar="EXPERIMENT", help="experiment file (.toml)")
     e.add_argument("--out", required=True,
                    help="output folder (runs, cached sequences and models, tables); an earlier compare output "
@@ -289,6 +291,9 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     e.add_argument("--data-root", default=None, metavar="DIR",
                    help="folder the experiment's data paths are relative to, in place of the file's data_root "
                         "(default: $POSE_TRACKER_DATA_ROOT, else the file's data_root)")
+    e.add_argument("--no-videos", dest="videos", action="store_false",
+                   help="leave out report.html's overlay videos of the best and the worst prior (a few seconds "
+                        "each: one per sequence and view set)")
 
     d = sub.add_parser("demo", parents=[plugin_flag], help="render, track and score a shipped walk (the built-in default job)",
                        description="Render 1.5 s of the shipped CMU walk 07_02 into 4 cameras, train a CRBM on "

@@ -134,6 +134,54 @@ def grid(images: list[np.ndarray], columns: int | None = None) -> np.ndarray:
     return canvas
 
 
+def draw_estimate_and_truth(image: np.ndarray, model: BodyModel, estimate: list[np.ndarray | None] | None,
+                            truth: list[np.ndarray | None] | None, thickness: int = 1) -> np.ndarray:
+    """One view's estimate outlines (left/right/centre colours, ``thickness`` px) and, over them, the ground
+    truth's as a thin outline (visible where the two coincide), on a copy of ``image``; either may be None."""
+    out = as_rgb(image)
+    if estimate is not None:
+        out = draw_model(out, model, estimate, thickness)
+    if truth is not None:
+        out = draw_model(out, model, truth, 1, colour=TRUTH_COLOUR)
+    return out
+
+
+def scale_polygons(polygons: list[np.ndarray | None], scale: float, corner: tuple[int, int] = (0, 0)
+                   ) -> list[np.ndarray | None]:
+    """Outlines (pixels of an image) in the part of it from pixel ``corner`` (x, y) on, resized by ``scale``;
+    pixel centres map to pixel centres (the origin is the centre of the top-left pixel)."""
+    shift = np.asarray(corner, float)
+    return [None if p is None else (p - shift + 0.5) * scale - 0.5 for p in polygons]
+
+
+def text_strip(width: int, lines: list[str], scale: float = 0.45) -> np.ndarray:
+    """A dark strip ``width`` pixels wide with ``lines`` of white text, one under the other; a line too long
+    for the width is drawn smaller (down to 0.3), then cut with "..."."""
+    height = int(round(22 * scale / 0.45))
+    strip = np.zeros((height * len(lines) + 6, width, 3), np.uint8)
+    for i, text in enumerate(lines):
+        size = scale
+        while size > 0.3 and cv2.getTextSize(text, _FONT, size, 1)[0][0] > width - 10:
+            size -= 0.025
+        while len(text) > 4 and cv2.getTextSize(text, _FONT, size, 1)[0][0] > width - 10:
+            text = text[:-4] + "..."
+        cv2.putText(strip, text, (5, height * (i + 1) - 3), _FONT, size, (255, 255, 255), 1, cv2.LINE_AA)
+    return strip
+
+
+def side_by_side(tiles: list[np.ndarray], gap: int = 4) -> np.ndarray:
+    """RGB images of one height next to each other, ``gap`` dark pixels apart."""
+    h = tiles[0].shape[0]
+    if any(t.shape[0] != h for t in tiles):
+        raise ValueError("side by side images must share one height")
+    parts = []
+    for i, tile in enumerate(tiles):
+        if i:
+            parts.append(np.zeros((h, gap, 3), np.uint8))
+        parts.append(as_rgb(tile))
+    return np.concatenate(parts, axis=1)
+
+
 def overlay_grid(seq, pose: np.ndarray | None, frame: int, views: list[int], text: str = "",
                  thickness: int = 1, truth: np.ndarray | None = None, estimate_name: str | None = None
                  ) -> np.ndarray:
@@ -146,11 +194,8 @@ def overlay_grid(seq, pose: np.ndarray | None, frame: int, views: list[int], tex
     gt = None if truth is None else segment_polygons(seq.model, truth, rig)
     tiles = []
     for i, v in enumerate(views):
-        img = seq.image(frame, v)
-        if est is not None:
-            img = draw_model(img, seq.model, est[i], thickness)
-        if gt is not None:
-            img = draw_model(img, seq.model, gt[i], 1, colour=TRUTH_COLOUR)
+        img = draw_estimate_and_truth(seq.image(frame, v), seq.model, None if est is None else est[i],
+                                      None if gt is None else gt[i], thickness)
         tiles.append(label(img, rig[i].name))
     canvas = grid(tiles)
     strip = legend_strip(canvas.shape[1], estimate_name if est is not None else None, gt is not None, text)
@@ -170,10 +215,11 @@ def overlay_frames(seq, poses: np.ndarray, views: list[int], errors: np.ndarray 
         yield overlay_grid(seq, poses[k], k, views, text, thickness=2, truth=truth, estimate_name=estimate_name)
 
 
-def write_video(path, frames, fps: float) -> None:
+def write_video(path, frames, fps: float, crf: int = 20) -> None:
     """Write RGB frames (an iterable of equal-sized ``H x W x 3`` uint8) to an H.264 .mp4 (yuv420p, which
-    browsers and slide software play) with PyAV; odd sizes are padded by a pixel. Written atomically: a
-    failure part-way leaves no truncated video behind."""
+    browsers and slide software play) with PyAV; odd sizes are padded by a pixel; ``crf`` is x264's constant
+    rate factor (higher: smaller and coarser). Written atomically: a failure part-way leaves no truncated video
+    behind."""
     from pathlib import Path
 
     import av
@@ -192,7 +238,7 @@ def write_video(path, frames, fps: float) -> None:
                     stream = container.add_stream("libx264", rate=round(float(fps)))
                     stream.width, stream.height = w + w % 2, h + h % 2
                     stream.pix_fmt = "yuv420p"
-                    stream.options = {"crf": "20", "preset": "veryfast"}
+                    stream.options = {"crf": str(crf), "preset": "veryfast"}
                 if (h + h % 2, w + w % 2) != (stream.height, stream.width):
                     raise InputError(f"video frames must share one size: {w}x{h} after "
                                      f"{stream.width}x{stream.height}", path)

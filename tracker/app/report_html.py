@@ -1,0 +1,488 @@
+"""``report.html``: an experiment's tables, per-frame plot and overlay videos in one self-contained page.
+
+The page holds everything it shows (the per-frame plot as a PNG and the videos as H.264 MP4, both as base64
+``data:`` URIs, the style inline), so the one file opens in any browser, offline, wherever it is copied. It is
+built from the finished runs alone (their ``result.json`` and ``estimates.npz``, and the sequence folders),
+so running ``compare`` again over a finished folder writes the same page again, apart from its date; the
+videos are also kept in ``OUT/videos/`` (by a hash of what they show) and reused by such a rerun.
+
+For every sequence and every variant of the grid (view set, likelihood, particle count, annealing layers:
+rows that differ only in their prior) one video puts the best and the worst prior side by side: the rows with
+the lowest and the highest marker error (mean over seeds). Each side shows the run whose own mean error is the
+closest to its row's mean over seeds (the lowest seed index on a tie): its estimate (the mean pose, drawn like
+``track --video``) and the ground truth over the first camera of the view set, at most
+:data:`VIDEO_FRAMES` frames (every k-th frame of a longer sequence), :data:`TILE_WIDTH` pixels wide per side.
+"""
+from __future__ import annotations
+
+import base64
+import html
+import math
+import re
+import shlex
+import time
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from string import Template
+from typing import Callable, Iterator
+
+import numpy as np
+
+from data_tools.files import write_text_atomic
+from tracker.core.errors import InputError
+
+#: Most frames in a video (a longer sequence shows every k-th frame).
+VIDEO_FRAMES = 150
+#: Width of each side of a video (pixels).
+TILE_WIDTH = 320
+#: x264's constant rate factor for the videos (20 is ``track --video``'s; higher is smaller).
+VIDEO_CRF = 26
+
+
+# -- choosing the runs shown --------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Side:
+    """One side of a comparison video: a table row, its mean marker error over seeds (mm), how many seeds, and
+    the run shown (its ``result.json`` with ``run``)."""
+
+    row: str
+    mean_mm: float
+    seeds: int
+    run: dict
+
+    @property
+    def run_mm(self) -> float:
+        return float(np.mean(marker_errors(self.run)))
+
+
+@dataclass(frozen=True)
+class Pick:
+    """The best and the worst prior of one sequence and grid variant (``variant``: the settings the two share
+    that vary in the experiment, e.g. ``"views 0"``; empty when the grid has one variant)."""
+
+    sequence: str
+    variant: str
+    best: Side
+    worst: Side
+
+
+def _variant_key(run: dict) -> tuple:
+    """Everything but the prior that tells a run's table row apart."""
+    views = None if run["views"] is None else tuple(run["views"])
+    return (run["likelihood"], repr(sorted(run["likelihood_options"].items())), views, run["particles"],
+            run["annealing_layers"])
+
+
+def _variant_names(keys: list[tuple]) -> dict[tuple, str]:
+    """Each variant described by the settings that differ between the variants (none: an empty name)."""
+    def parts(key: tuple) -> list[str]:
+        likelihood, options, views, particles, layers = key
+        return [f"likelihood {likelihood}" + ("" if options == "[]" else f" {options}"),
+                "all views" if views is None else f"views {','.join(map(str, views))}",
+                f"{particles} particles", f"{layers} annealing layer{'s' if layers != 1 else ''}"]
+
+    described = [parts(k) for k in keys]
+    varying = [i for i in range(4) if len({d[i] for d in described}) > 1]
+    return {k: ", ".join(d[i] for i in varying) for k, d in zip(keys, described)}
+
+
+def marker_errors(result: dict) -> list[float] | None:
+    """A run's per-frame marker error (mm; the tables' first metric) from its ``result.json`` content, or None
+    without ground truth."""
+    from tracker.app.report import PRIMARY, per_frame_values
+
+    return per_frame_values(result, PRIMARY)
+
+
+def representative(runs: list[dict]) -> dict:
+    """The run whose mean marker error is the closest to the mean over ``runs`` (the lowest seed index on a
+    tie)."""
+    means = np.array([np.mean(marker_errors(r)) for r in runs])
+    order = sorted(range(len(runs)), key=lambda i: (abs(means[i] - means.mean()), runs[i]["run"]["seed_index"]))
+    return runs[order[0]]
+
+
+def pick_runs(results: list[dict]) -> tuple[list[Pick], list[str]]:
+    """The best and the worst row of every sequence and grid variant (by the mean over seeds of each run's mean
+    marker error), each with its :func:`representative` run; and a note for each sequence and variant that has
+    none (no ground truth, or a single prior)."""
+    groups: dict[tuple[str, tuple], dict[str, list[dict]]] = {}
+    for r in results:
+        groups.setdefault((r["run"]["sequence"], _variant_key(r["run"])), {}).setdefault(r["run"]["row"], []).append(r)
+    names = _variant_names(list(dict.fromkeys(k for _, k in groups)))
+    picks, notes = [], []
+    for (sequence, key), rows in groups.items():
+        where = sequence + (f" ({names[key]})" if names[key] else "")
+        scored = {row: runs for row, runs in rows.items()
+                  if all(marker_errors(r) for r in runs)}
+        if len(scored) < 2:
+            why = "no ground truth to rank the priors by" if len(scored) < len(rows) else "one prior only"
+            notes.append(f"{where}: no video ({why})")
+            continue
+        sides = [Side(row, float(np.mean([np.mean(marker_errors(r)) for r in runs])), len(runs),
+                      representative(runs)) for row, runs in scored.items()]
+        best = min(sides, key=lambda s: s.mean_mm)
+        worst = max(sides, key=lambda s: s.mean_mm)
+        if best.row == worst.row:  # every row equally good
+            worst = next(s for s in sides if s.row != best.row)
+        picks.append(Pick(sequence, names[key], best, worst))
+    return picks, notes
+
+
+# -- the videos ---------------------------------------------------------------------------------------------------
+
+def _short_label(row: str, labels: list[str]) -> str:
+    """A row's prior label (the row without the variant that both sides share)."""
+    return next((lab for lab in sorted(labels, key=len, reverse=True) if row == lab or row.startswith(lab + ", ")),
+                row)
+
+
+def crop_box(polygons: list[np.ndarray], width: int, height: int, margin: float = 0.15, min_width: int = 160
+             ) -> tuple[int, int, int, int]:
+    """The part of a ``width x height`` image that a video shows: the box (x0, y0, x1, y1), pixels, around
+    every outline point inside the image (``polygons``: ``n x 2`` arrays), widened by ``margin`` of its size on
+    each side, at least ``min_width`` wide (so that small figures are not enlarged more than
+    ``TILE_WIDTH / min_width`` times), at least 0.9 times as wide as tall and at most twice as wide as tall,
+    within the image (the whole image when no point is inside)."""
+    pts = np.concatenate([p for p in polygons if p is not None and len(p)] or [np.zeros((0, 2))])
+    pts = pts[(pts[:, 0] >= 0) & (pts[:, 0] <= width - 1) & (pts[:, 1] >= 0) & (pts[:, 1] <= height - 1)]
+    if not len(pts):
+        return 0, 0, width, height
+    (x0, y0), (x1, y1) = pts.min(axis=0), pts.max(axis=0)
+    pad = margin * max(x1 - x0, y1 - y0)
+    w, h = x1 - x0 + 2 * pad, y1 - y0 + 2 * pad
+    w = min(max(w, 0.9 * h, min_width), width)
+    h = min(max(h, w / 2), height)
+    cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+    left = int(round(min(max(cx - w / 2, 0), width - w)))
+    top = int(round(min(max(cy - h / 2, 0), height - h)))
+    return left, top, left + int(round(w)), top + int(round(h))
+
+
+def comparison_frames(pick: Pick, seq, runs_dir: Path, labels: list[str]) -> tuple[Iterator[np.ndarray], int, int]:
+    """The frames of ``pick``'s video (RGB, made as they are iterated), how many, and the step between shown
+    sequence frames: a legend, then side by side for each prior its name and errors above the camera's image
+    (cut to the part where the figure and the estimates are, :func:`crop_box`) with its estimate, the ground
+    truth and the frame's marker error."""
+    from data_tools.estimates import read_poses_file
+
+    sides = [("best", pick.best), ("worst", pick.worst)]
+    views = pick.best.run["run"]["views"]
+    view = 0 if views is None else views[0]
+    poses = [read_poses_file(runs_dir / s.run["run"]["key"] / "estimates.npz", "estimates", seq.model)
+             for _, s in sides]
+    n = min(seq.n_frames, *(len(p) for p in poses))
+    step = max(1, math.ceil(n / VIDEO_FRAMES))
+    shown = list(range(0, n, step))
+    headers = [[f"{which}: {_short_label(s.row, labels)}",
+                f"{s.mean_mm:.0f} mm over {s.seeds} seed(s); seed {s.run['run']['seed_index']}: {s.run_mm:.0f} mm"]
+               for which, s in sides]
+    errors = [dict(zip(s.run["tracked_frames"], marker_errors(s.run))) for _, s in sides]
+    return _frames(seq, view, poses, shown, headers, errors), len(shown), step
+
+
+def _frames(seq, view: int, poses: list[np.ndarray], shown: list[int], headers: list[list[str]],
+            errors: list[dict[int, float]]) -> Iterator[np.ndarray]:
+    """:func:`comparison_frames`' pictures."""
+    import cv2
+
+    from tracker.app.visualize import (draw_estimate_and_truth, label, legend_strip, scale_polygons,
+                                       segment_polygons, side_by_side, text_strip)
+
+    rig = seq.rig.subset([view])
+    cam = rig[0]
+    truth = None if seq.groundtruth is None else seq.groundtruth.poses
+    outlines = {k: ([segment_polygons(seq.model, p[k], rig)[0] for p in poses],
+                    segment_polygons(seq.model, truth[k], rig)[0] if truth is not None and k < len(truth) else None)
+                for k in shown}
+    x0, y0, x1, y1 = crop_box([q for est, gt in outlines.values() for polys in [*est, gt or []] for q in polys
+                               if q is not None], cam.width, cam.height)
+    scale = TILE_WIDTH / (x1 - x0)
+    size = (TILE_WIDTH, int(round((y1 - y0) * scale)))
+    heads = [text_strip(TILE_WIDTH, lines) for lines in headers]
+    legend = legend_strip(2 * TILE_WIDTH + 4, "estimate", truth is not None, cam.name)
+    for k in shown:
+        image = cv2.resize(seq.image(k, view)[y0:y1, x0:x1], size, interpolation=cv2.INTER_AREA)
+        est, gt = outlines[k]
+        gt = None if gt is None else scale_polygons(gt, scale, (x0, y0))
+        tiles = []
+        for polys, err, head in zip(est, errors, heads):
+            tile = draw_estimate_and_truth(image, seq.model, scale_polygons(polys, scale, (x0, y0)), gt, 2)
+            tile = label(tile, f"frame {k}: " + (f"{err[k]:.0f} mm" if k in err else "given"), (4, 4), 0.45)
+            tiles.append(np.concatenate([head, tile]))
+        yield np.concatenate([legend, side_by_side(tiles)])
+
+
+def render_video(pick: Pick, seq, runs_dir: Path, labels: list[str], fps: float, cache: Path
+                 ) -> tuple[bytes, int, int]:
+    """``pick``'s video as MP4 bytes (H.264), its frame count and its frame step. The video is kept in the
+    folder ``cache`` under a hash of everything that determines its pictures (the two runs, their captions, the
+    video settings, the package version) and reused from there: x264 does not always encode the same frames
+    into the same bytes, and a rerun is to write the same page."""
+    import tracker
+    from tracker.app.experiment import config_hash
+    from tracker.app.visualize import write_video
+
+    frames, count, step = comparison_frames(pick, seq, runs_dir, labels)
+    ident = {"runs": [pick.best.run["run"]["key"], pick.worst.run["run"]["key"]],
+             "captions": [[_short_label(s.row, labels), round(s.mean_mm, 6), s.seeds] for s in (pick.best, pick.worst)],
+             "video": [TILE_WIDTH, VIDEO_FRAMES, VIDEO_CRF, float(fps)], "version": tracker.__version__}
+    path = cache / f"{config_hash(ident)}.mp4"
+    if not path.exists():
+        write_video(path, frames, fps, crf=VIDEO_CRF)  # atomically: an interrupted one is not kept
+    return path.read_bytes(), count, step
+
+
+# -- the page -----------------------------------------------------------------------------------------------------
+
+def compare_command(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str = "joblib",
+                    address: str | None = None, data_root: str | Path | None = None, videos: bool = True) -> str:
+    """The ``compare`` command line that writes this output folder."""
+    args = ["python", "-m", "tracker", "compare", str(experiment), "--out", str(out)]
+    if jobs != 1:
+        args += ["--jobs", str(jobs)]
+    if backend != "joblib":
+        args += ["--backend", backend]
+    if address:
+        args += ["--address", address]
+    if data_root is not None:
+        args += ["--data-root", str(data_root)]
+    if not videos:
+        args.append("--no-videos")
+    return shlex.join(args)
+
+
+def _inline(text: str) -> str:
+    """Markdown text to HTML: escaped, with ``code`` spans."""
+    return re.sub(r"`([^`]*)`", r"<code>\1</code>", html.escape(text))
+
+
+def markdown_sections(md: str) -> list[dict]:
+    """The sections of ``table.md``'s text (as :func:`tracker.app.report.write_report` writes it): the text
+    before the first table (title ``""``), then each ``## title`` with its paragraphs, header and rows."""
+    sections = [{"title": "", "text": [], "header": None, "rows": []}]
+    for line in md.splitlines():
+        if line.startswith("# "):
+            continue
+        if line.startswith("## "):
+            sections.append({"title": line[3:].strip(), "text": [], "header": None, "rows": []})
+        elif line.startswith("|"):
+            cells = [c.strip() for c in line.strip()[1:-1].split("|")]
+            if all(set(c) <= {"-", ":"} and c for c in cells):
+                continue
+            if sections[-1]["header"] is None:
+                sections[-1]["header"] = cells
+            else:
+                sections[-1]["rows"].append(cells)
+        elif line.strip():
+            sections[-1]["text"].append(line.strip())
+    return sections
+
+
+_MEAN = re.compile(r"^([-+]?\d+(?:\.\d+)?) ± ")
+_INTERVAL = re.compile(r"\[([-+]?\d+(?:\.\d+)?), ([-+]?\d+(?:\.\d+)?)\]$")
+
+
+def _cell_classes(section: dict, higher_is_better: bool) -> list[list[str]]:
+    """CSS classes of each body cell: ``best`` for the best mean of a column of ``mean ± std`` cells,
+    ``better``/``worse`` for a paired difference whose interval lies below/above zero."""
+    rows = section["rows"]
+    classes = [["" for _ in r] for r in rows]
+    for c in range(1, len(section["header"])):
+        means = {i: float(m.group(1)) for i, r in enumerate(rows) if c < len(r) and (m := _MEAN.match(r[c]))}
+        if len(means) > 1:
+            best = (max if higher_is_better else min)(means.values())
+            for i, v in means.items():
+                if v == best:
+                    classes[i][c] = "best"
+        for i, r in enumerate(rows):
+            m = _INTERVAL.search(r[c]) if c < len(r) else None
+            if m and _MEAN.match(r[c]) is None:
+                lo, hi = float(m.group(1)), float(m.group(2))
+                classes[i][c] = "better" if hi < 0 else "worse" if lo > 0 else ""
+    return classes
+
+
+def _table_html(section: dict, higher_is_better: bool) -> str:
+    classes = _cell_classes(section, higher_is_better)
+    head = "".join(f"<th>{_inline(h)}</th>" for h in section["header"])
+    body = "".join("<tr>" + "".join(f'<td class="{k}">{_inline(c)}</td>' if k else f"<td>{_inline(c)}</td>"
+                                    for c, k in zip(r, cl)) + "</tr>\n" for r, cl in zip(section["rows"], classes))
+    return f'<div class="scroll"><table>\n<thead><tr>{head}</tr></thead>\n<tbody>\n{body}</tbody></table></div>'
+
+
+def _slug(text: str, taken: set[str]) -> str:
+    base = re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-")[:48] or "section"
+    slug, i = base, 2
+    while slug in taken:
+        slug, i = f"{base}-{i}", i + 1
+    taken.add(slug)
+    return slug
+
+
+def _data_uri(kind: str, data: bytes) -> str:
+    return f"data:{kind};base64,{base64.b64encode(data).decode('ascii')}"
+
+
+PAGE = Template("""<!DOCTYPE html>
+<html lang="en">
+<head>
+<meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<title>$title</title>
+<style>
+body { font-family: system-ui, -apple-system, "Segoe UI", Roboto, sans-serif; margin: 0 auto; max-width: 1320px;
+       padding: 0 24px 48px; color: #1d2329; line-height: 1.45; }
+h1 { margin: 28px 0 4px; font-size: 1.7em; }
+h2 { margin-top: 40px; padding-top: 8px; border-top: 1px solid #dde2e7; font-size: 1.25em; }
+h3 { margin: 24px 0 8px; font-size: 1.05em; }
+.description { color: #47525d; max-width: 980px; }
+dl.meta { display: grid; grid-template-columns: max-content 1fr; gap: 2px 16px; margin: 16px 0; font-size: 0.92em; }
+dl.meta dt { color: #5d6873; }
+dl.meta dd { margin: 0; }
+code { font-family: ui-monospace, "SFMono-Regular", Menlo, Consolas, monospace; font-size: 0.9em;
+       background: #f1f3f5; padding: 1px 4px; border-radius: 3px; word-break: break-all; }
+nav { background: #f6f8fa; border: 1px solid #dde2e7; border-radius: 6px; padding: 10px 16px; margin: 16px 0; }
+nav ul { margin: 4px 0 0; padding-left: 20px; columns: 2; column-gap: 32px; }
+nav li { margin: 2px 0; }
+a { color: #0b5cad; text-decoration: none; }
+a:hover { text-decoration: underline; }
+.scroll { overflow-x: auto; }
+table { border-collapse: collapse; font-size: 0.9em; margin: 8px 0; }
+th, td { border: 1px solid #dde2e7; padding: 4px 10px; text-align: right; white-space: nowrap; }
+th { background: #f1f3f5; position: sticky; top: 0; }
+th:first-child, td:first-child { text-align: left; white-space: normal; min-width: 14em; }
+tbody tr:nth-child(even) { background: #fafbfc; }
+td.best { font-weight: 700; background: #e3f4e6; }
+td.better { background: #e3f4e6; }
+td.worse { background: #fbe5e3; }
+.note { color: #5d6873; font-size: 0.9em; }
+img.plot { max-width: 100%; height: auto; border: 1px solid #dde2e7; }
+figure { margin: 12px 0 28px; }
+figcaption { color: #47525d; font-size: 0.9em; margin-top: 4px; max-width: 980px; }
+video { display: block; max-width: 100%; height: auto; background: #000; }
+</style>
+</head>
+<body>
+<h1>$title</h1>
+<p class="description">$description</p>
+<dl class="meta">
+<dt>experiment file</dt><dd><code>$experiment</code></dd>
+<dt>package version</dt><dd>pose-tracker $version</dd>
+<dt>written</dt><dd><span class="date">$date</span></dd>
+<dt>command</dt><dd><code>$command</code></dd>
+<dt>runs</dt><dd>$runs</dd>
+</dl>
+<nav><strong>Contents</strong>
+<ul>
+$contents
+</ul>
+</nav>
+$intro
+$tables
+<h2 id="per-frame">Error per frame</h2>
+<p class="note">Each line is a row's mean over its runs with a band of &plusmn;1 standard deviation; one panel per
+sequence (<code>per_frame.png</code>).</p>
+<img class="plot" alt="error per frame of every row" src="$plot">
+<h2 id="videos">Best and worst prior, side by side</h2>
+$videos
+</body>
+</html>
+""")
+
+
+def _tables_html(tables_md: str, taken: set[str]) -> tuple[str, str, list[tuple[str, str]]]:
+    """The text before the tables, the tables (each under its heading) and their (anchor, title)."""
+    from tracker.app.report import METRICS
+
+    pck_titles = {title for key, _, title in METRICS if key.startswith("pck")}
+    sections = markdown_sections(tables_md)
+    intro = "".join(f"<p>{_inline(t)}</p>\n" for t in sections[0]["text"])
+    blocks, links = [], []
+    for s in sections[1:]:
+        anchor = _slug(s["title"], taken)
+        links.append((anchor, s["title"]))
+        block = [f'<h2 id="{anchor}">{_inline(s["title"])}</h2>']
+        block += [f'<p class="note">{_inline(t)}</p>' for t in s["text"]]
+        if s["header"]:
+            block.append(_table_html(s, s["title"] in pck_titles))
+        blocks.append("\n".join(block))
+    return intro, "\n".join(blocks), links
+
+
+def _videos_html(exp, results: list[dict], runs_dir: Path, taken: set[str], say: Callable[[str], None]
+                 ) -> tuple[str, list[tuple[str, str]], int]:
+    """The videos' section (:func:`pick_runs`, :func:`render_video`), the (anchor, title) of each video and
+    how many were made."""
+    from tracker.app.api import load_sequence
+
+    picks, notes = pick_runs(results)
+    labels = [p.label for p in exp.priors]
+    parts = [f"<p class=\"note\">For every sequence{' and grid variant' if any(p.variant for p in picks) else ''}: "
+             "the rows with the lowest (left) and the highest (right) marker error (the first table's metric), "
+             "mean over seeds. Each side shows one run, the seed whose own mean error is the closest to its row's "
+             "mean over seeds: its estimate (the mean pose; left segments red, right blue, centre yellow) with the "
+             f"ground truth in green, over the first camera of the view set, {TILE_WIDTH} px wide per side.</p>"]
+    links, sequences, made = [], {}, 0
+    for pick in picks:
+        title = pick.sequence + (f": {pick.variant}" if pick.variant else "")
+        anchor = _slug(f"video {title}", taken)
+        links.append((anchor, f"video: {title}"))
+        parts.append(f'<h3 id="{anchor}">{_inline(title)}</h3>')
+        try:
+            if pick.sequence not in sequences:
+                sequences[pick.sequence] = load_sequence(pick.best.run["run"]["sequence_path"])
+            seq = sequences[pick.sequence]
+            data, count, step = render_video(pick, seq, runs_dir, labels, seq.fps or exp.fps,
+                                             runs_dir.parent / "videos")
+        except InputError as exc:
+            note = f"{title}: no video ({exc})"
+            say(f"report.html: {note}")
+            parts.append(f'<p class="note">{_inline(note)}</p>')
+            continue
+        made += 1
+        shown = f"{count} frames" + (f", one sequence frame in {step} ({step}× speed)" if step > 1 else "")
+        best, worst = pick.best, pick.worst
+        parts.append(
+            f'<figure>\n<video controls loop muted autoplay playsinline src="{_data_uri("video/mp4", data)}">'
+            f"</video>\n<figcaption>Best: {_inline(best.row)}, {best.mean_mm:.1f} mm (seed "
+            f"{best.run['run']['seed_index']} shown, {best.run_mm:.1f} mm). Worst: {_inline(worst.row)}, "
+            f"{worst.mean_mm:.1f} mm (seed {worst.run['run']['seed_index']} shown, {worst.run_mm:.1f} mm). "
+            f"{shown}, {len(data) // 1024} KB.</figcaption>\n</figure>")
+    parts += [f'<p class="note">{_inline(n)}</p>' for n in notes]
+    return "\n".join(parts), links, made
+
+
+def write_html_report(exp, results: list[dict], out: Path, tables_md: str, meta: dict, command: str,
+                      videos: bool = True, say: Callable[[str], None] = print) -> dict:
+    """Write ``out/report.html`` (atomically) from the experiment ``exp``, its run ``results`` (each
+    ``result.json`` with ``run``; estimates in ``out/runs/<key>/estimates.npz``), ``table.md``'s tables
+    ``tables_md`` (without the line about the invocation), ``out/per_frame.png``, ``meta`` (``version``,
+    ``runs``) and the ``command`` that wrote them; ``videos=False`` leaves the videos out. A video that cannot
+    be made (a sequence folder moved away) is a note on the page, also passed to ``say``. Returns the number
+    of ``videos`` and the ``video_seconds`` they took."""
+    taken = {"per-frame", "videos"}
+    intro, tables, links = _tables_html(tables_md, taken)
+    links += [("per-frame", "Error per frame"), ("videos", "Best and worst prior, side by side")]
+    t0 = time.perf_counter()
+    made = 0
+    if videos:
+        video_html, video_links, made = _videos_html(exp, results, out / "runs", taken, say)
+        links += video_links
+    else:
+        video_html = ('<p class="note">Videos left out (<code>--no-videos</code>); run the command without it to '
+                      "add them.</p>")
+    seconds = time.perf_counter() - t0
+    page = PAGE.substitute(
+        title=html.escape(exp.path.stem), description=_inline(exp.description or ""),
+        experiment=html.escape(str(exp.path)), version=html.escape(str(meta["version"])),
+        date=datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"), command=html.escape(command),
+        runs=html.escape(f"{meta['runs']} ({exp.seeds} seed(s) per configuration, master seed {exp.seed})"),
+        contents="\n".join(f'<li><a href="#{a}">{_inline(t)}</a></li>' for a, t in links), intro=intro,
+        tables=tables, plot=_data_uri("image/png", (out / "per_frame.png").read_bytes()), videos=video_html)
+    write_text_atomic(out / "report.html", page)
+    if videos:
+        say(f"report.html: {made} video(s) in {seconds:.0f} s")
+    return {"videos": made, "video_seconds": seconds}
