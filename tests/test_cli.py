@@ -17,7 +17,7 @@ def test_help_lists_commands():
 def test_convert_writes_clip(mocap_dir, tmp_path, capsys):
     out = tmp_path / "clip.npz"
     assert main(["convert", "--mocap", str(mocap_dir / "07" / "07_02.amc"), "--fps", "30", "--out", str(out)]) == 0
-    line = capsys.readouterr().err.strip()  # what was read and written: a log line (convert's result is the file)
+    line = capsys.readouterr().out.strip()  # the result line: how the file was read and how well it fitted
     assert line.startswith("07_02.amc: CMU ASF names, lengths in ASF units of 56.44 mm, y up, 120 Hz; 83 frames at "
                            "30 fps, mean retarget residual") and line.count("\n") == 0
     with np.load(out) as d:

@@ -111,6 +111,14 @@ def test_train_reads_its_clips_before_it_announces_the_training(tmp_path, capsys
                               "--out", str(tmp_path / "m.pt")], capsys)
     assert str(bad) in refusal(code, err) and "training" not in err and out == ""
     assert not (tmp_path / "m.pt").exists()
+    # A setting the prior itself refuses (an FCRBM's labels, one per clip) is refused before the announcement too.
+    code, out, err = run_cli(["train", "--prior", "fcrbm", "--mocap", AMC, str(WALKS[0]), "--skeleton", str(ASF),
+                              "--labels", "walk", "--out", str(tmp_path / "m.pt")], capsys)
+    assert "1 label(s) given for 2 training clip(s)" in refusal(code, err) and "training a" not in err
+    code, out, err = run_cli(["train", "--prior", "crbm", "--mocap", AMC, "--skeleton", str(ASF), "--order", "1",
+                              "--hidden", "5", "--epochs", "1", "--out", str(tmp_path / "m.pt")], capsys)
+    assert code == 0 and f"-> {tmp_path / 'm.pt'}" in out  # how the training went: the result, on stdout
+    assert err.startswith("training a crbm prior on 1 clip(s), ") and "Traceback" not in err
 
 
 # -- log lines and results ------------------------------------------------------------------------------------

@@ -3,8 +3,9 @@
 
 The command line only parses arguments (:mod:`tracker.app.parser`) and calls the public API
 (:mod:`tracker.app.api`). Every bad input ends with a one-line reason on stderr, ``pose-tracker: error: ...``, and
-exit status 2. Informational lines go through :mod:`logging` (:mod:`tracker.app.console`: ``--quiet``,
-``--verbose``); the results a command exists to print go to stdout.
+exit status 2. Informational lines (what was read, chosen and written, timings, progress) go through
+:mod:`logging` (:mod:`tracker.app.console`: ``--quiet``, ``--verbose``); what says how well a command's job went
+goes to stdout: track's and demo's errors, compare's tables, train's fit, convert's retarget residual.
 """
 from __future__ import annotations
 
@@ -45,8 +46,8 @@ def cmd_convert(args: argparse.Namespace) -> int:
     clip, result = _convert_one(args.mocap, args.skeleton, args.fps, args.length_unit, out, args.joint_map)
     for note in clip.notes:
         log.info(f"note: {Path(args.mocap).name}: {note}")
-    log.info(f"{Path(args.mocap).name}: {clip.summary()}; {len(result.poses)} frames at {result.fps:g} fps, "
-             f"mean retarget residual {result.mean_residual:.2f} mm -> {out}")
+    print(f"{Path(args.mocap).name}: {clip.summary()}; {len(result.poses)} frames at {result.fps:g} fps, "
+          f"mean retarget residual {result.mean_residual:.2f} mm -> {out}")  # the residual: how well it went
     return 0
 
 
@@ -129,13 +130,15 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return run_demo(Path(args.out), args.frames)
 
 
-def _progress_bar(desc: str):
+def _progress_bar(desc: str, on_start=None):
     """A ``progress(done, total, metrics)`` callback drawing one tqdm bar (created on the first call; none under
-    ``--quiet``)."""
+    ``--quiet``); ``on_start()`` runs at the first call, when the work has passed every check and begun."""
     state = {}
 
     def progress(done: int, total: int, metrics: dict) -> None:
         if "bar" not in state:
+            if on_start is not None:
+                on_start()
             state["bar"] = progress_bar(total=total, desc=desc, unit="it")
         bar = state["bar"]
         bar.update(done - bar.n)
@@ -154,10 +157,10 @@ def cmd_train(args: argparse.Namespace) -> int:
 
     options = given_options(args, prior_entry(args.prior).train_options)
     clips = load_training_clips(args.mocap, args.skeleton, args.fps, args.joint_map)  # every file read, checked first
-    log.info(f"training a {args.prior} prior on {len(clips)} clip(s), {sum(len(c.poses) for c in clips)} frames at "
-             f"{clips[0].fps:g} fps")
     checkpoint = out.with_name(out.name + ".checkpoint")
-    progress = _progress_bar(f"training {args.prior}")
+    progress = _progress_bar(f"training {args.prior}", on_start=lambda: log.info(  # once every setting is checked
+        f"training a {args.prior} prior on {len(clips)} clip(s), {sum(len(c.poses) for c in clips)} frames at "
+        f"{clips[0].fps:g} fps"))
     try:
         model = train(args.prior, clips, skeletons=args.skeleton, fps=clips[0].fps, seed=args.seed,
                       progress=progress, checkpoint=checkpoint, resume=args.resume, **options)
@@ -173,7 +176,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         return 130
     with atomic_path(out) as tmp:
         model.save(tmp)
-    log.info(f"{model.summary()} -> {out}")
+    print(f"{model.summary()} -> {out}")  # how the training went: its result
     return 0
 
 

@@ -4,9 +4,10 @@ form of every refusal.
 The packages log through the standard :mod:`logging` module, one logger per module (``logging.getLogger(__name__)``),
 and never configure it: a program that imports them decides what is shown. The command line does so once
 (:func:`configure_logging`): informational lines (what was read, what was chosen, timings, summaries) at INFO,
-shown by default; ``--quiet`` shows warnings only, ``--verbose`` debug lines too. The results a command exists to
-print (``track``'s and ``demo``'s errors, ``compare``'s tables) go to stdout, apart from the log. Progress bars
-count as informational: they show exactly when INFO lines do (:func:`progress_bar`).
+shown by default; ``--quiet`` shows warnings only, ``--verbose`` debug lines too. What says how well a command's
+job went is its result and goes to stdout, apart from the log: ``track``'s and ``demo``'s errors, ``compare``'s
+tables, ``train``'s fit, ``convert``'s retarget residual. Progress bars count as informational: they show exactly
+when INFO lines do (:func:`progress_bar`).
 """
 from __future__ import annotations
 
