@@ -52,7 +52,7 @@ def interrupted_run(seq: Path, out: Path, capsys, monkeypatch) -> None:
 
 def test_an_unchanged_resume_reuses_the_cached_hashes_and_gives_the_uninterrupted_result(seq, tmp_path, capsys,
                                                                                           monkeypatch):
-    import tracker.app.fingerprints as fingerprints
+    import data_tools.fingerprints as fingerprints
 
     assert run_cli(track_args(seq, tmp_path / "whole", "--checkpoint-every", "1"), capsys)[0] == 0
     out = tmp_path / "cut"

@@ -2,7 +2,7 @@
 in one ``.npz`` written atomically, so an interrupted run resumes to the result an uninterrupted one gives.
 
 The file also holds a fingerprint of the run's settings and of its inputs (the content hash of every file of
-the sequence and of every model file, and the package version: :mod:`tracker.app.fingerprints`); resuming with
+the sequence and of every model file, and the package version: :mod:`data_tools.fingerprints`); resuming with
 other settings, or after an input changed, is refused with one line naming what changed.
 """
 from __future__ import annotations
@@ -51,9 +51,9 @@ def save_checkpoint(path: str | Path, state: FilterState, recording: Recording, 
 def input_fingerprint(sequence: str | Path, models: Iterable[str | Path], cache: Path | None = None) -> dict:
     """What a run read, by content: each file of the ``sequence`` folder, each model file (files that do not
     exist, e.g. models given in memory, are left out), and the package version. ``cache`` keeps the file
-    hashes for the next run (:func:`tracker.app.fingerprints.cached_file_hashes`)."""
+    hashes for the next run (:func:`data_tools.fingerprints.cached_file_hashes`)."""
     import tracker
-    from tracker.app.fingerprints import model_fingerprint, sequence_fingerprint
+    from data_tools.fingerprints import model_fingerprint, sequence_fingerprint
 
     return {"sequence": sequence_fingerprint(sequence, cache),
             "models": model_fingerprint([m for m in models if Path(m).is_file()], cache),
@@ -64,7 +64,7 @@ def check_inputs(saved: dict | None, now: dict | None, path: str | Path) -> None
     """Refuse to resume from the checkpoint ``path`` when an input in its fingerprint ``saved`` differs from
     ``now`` (:func:`input_fingerprint`): one line naming the changed files, model files or version. A
     checkpoint written without a fingerprint of its inputs is not checked."""
-    from tracker.app.fingerprints import changed_files
+    from data_tools.fingerprints import changed_files
 
     if not saved or now is None:
         return
@@ -179,7 +179,7 @@ def training_checkpoint(checkpoint: str | Path | None, sources: Iterable[str],
     read-only, no permission) is one line too, and the previous one is kept. The hashes are removed when the
     training finishes."""
     import tracker
-    from tracker.app.fingerprints import changed_files, model_fingerprint
+    from data_tools.fingerprints import changed_files, model_fingerprint
 
     if checkpoint is None or not (saving or resume):
         yield

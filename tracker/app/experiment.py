@@ -71,9 +71,7 @@ leaves every finished run valid.
 """
 from __future__ import annotations
 
-import hashlib
 import itertools
-import json
 import logging
 import os
 import sys
@@ -83,6 +81,7 @@ from typing import Any
 
 import numpy as np
 
+from data_tools.fingerprints import config_hash, file_hash
 from tracker.core.errors import InputError
 
 if sys.version_info >= (3, 11):
@@ -105,20 +104,6 @@ TRANSITION_KEYS = {"then", "then_skeleton", "switch_at", "fade", "joint_map", "t
 PRIOR_KEYS = {"label", "name", "options", "models", "train", "train_mocap", "train_seeds"}
 TRAIN_KEYS = {"mocap", "skeletons", "options", "seed"}
 LIKELIHOOD_KEYS = {"label", "name", "options"}
-
-
-def file_hash(path: Path) -> str:
-    """SHA-256 of a file's bytes (hex)."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
-def config_hash(obj: Any, length: int = 16) -> str:
-    """A short stable hash of a JSON-able object (keys sorted)."""
-    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:length]
 
 
 @dataclass(frozen=True)

@@ -284,7 +284,7 @@ def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, conf
         raise InputError("no checkpoint to resume from", checkpoint)
     if checkpoint is not None:  # what the run reads, by content: a resume refuses inputs that changed since
         from tracker.app.checkpoint import input_fingerprint
-        from tracker.app.fingerprints import CACHE_NAME
+        from data_tools.fingerprints import CACHE_NAME
 
         inputs = input_fingerprint(seq.root, fingerprint.get("prior_models", ()), Path(checkpoint).parent / CACHE_NAME)
     if resume:

@@ -1,7 +1,7 @@
 """Content fingerprints of a run's inputs (the sequence's files, model files, the package version), so that a
 resumed run refuses inputs that changed since it was interrupted and ``compare`` recognises its finished runs.
 
-A sequence is hashed file by file (SHA-256 of the bytes, :func:`tracker.app.experiment.file_hash`). Hashing
+A sequence is hashed file by file (SHA-256 of the bytes, :func:`file_hash`). Hashing
 hundreds of images takes a moment, so each file's hash is cached by its size and modification time in a small
 JSON file in the *output* folder (:data:`CACHE_NAME`): inputs are never written to (a sequence folder may be
 read-only or shared), and the output folder is where the next run that needs the hashes -- a resume, a rerun
@@ -10,18 +10,32 @@ missing, unreadable or of another layout is rebuilt.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from pathlib import Path
-from typing import Iterable
+from typing import Any, Iterable
 
 from data_tools.files import write_text_atomic
-from tracker.app.experiment import config_hash, file_hash
 from tracker.core.errors import InputError
 
 #: The cache of file hashes, in the output folder.
 CACHE_NAME = ".fingerprints.json"
 CACHE_FORMAT = "pose-tracker file hashes v1"
+
+
+def file_hash(path: Path) -> str:
+    """SHA-256 of a file's bytes (hex)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def config_hash(obj: Any, length: int = 16) -> str:
+    """A short stable hash of a JSON-able object (keys sorted)."""
+    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:length]
 
 
 def _load_cache(path: Path | None) -> dict:
