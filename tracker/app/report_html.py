@@ -222,7 +222,7 @@ def render_video(pick: Pick, seq, runs_dir: Path, labels: list[str], fps: float,
     video settings, the package version) and reused from there: x264 does not always encode the same frames
     into the same bytes, and a rerun is to write the same page."""
     import tracker
-    from tracker.app.experiment import config_hash
+    from data_tools.fingerprints import config_hash
     from tracker.app.visualize import write_video
 
     frames, count, step = comparison_frames(pick, seq, runs_dir, labels)
