@@ -234,3 +234,18 @@ def test_compare_tables_that_cannot_be_written_are_one_line(tmp_path, monkeypatc
     with pytest.raises(InputError, match="table.md: cannot write: disk quota exceeded"):
         compare(path, tmp_path / "out", say=lambda s: None, progress=False)
     assert len(list((tmp_path / "out" / "runs").iterdir())) == 1  # the finished run stays
+
+
+def test_results_that_cannot_be_written_leave_the_finished_run_resumable(seq, tmp_path, capsys, monkeypatch):
+    import tracker.app.tracking as tracking
+
+    assert run_cli(track_args(seq, tmp_path / "whole", "--checkpoint-every", "2"), capsys)[0] == 0
+    out = tmp_path / "cut"
+    monkeypatch.setattr(tracking, "write_estimates", failing(errno.ENOSPC)(tracking.write_estimates))
+    refused(*run_cli(track_args(seq, out, "--checkpoint-every", "2"), capsys), "estimates.npz", "no space left")
+    monkeypatch.undo()
+    assert (out / "checkpoint.npz").exists()  # the tracked frames are not lost with the result
+    assert run_cli(["track", "--resume", str(out)], capsys)[0] == 0
+    with np.load(out / "estimates.npz") as a, np.load(tmp_path / "whole" / "estimates.npz") as b:
+        assert np.array_equal(a["poses"], b["poses"])
+    assert not (out / "checkpoint.npz").exists() and not (tmp_path / "whole" / "checkpoint.npz").exists()

@@ -248,7 +248,7 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                    help="write into a non-empty output folder, replacing the results there")
     t.add_argument("--checkpoint-every", type=_non_negative_int, default=25, metavar="K",
                    help="save the filter's state to OUTDIR/checkpoint.npz every K frames (default 25; 0: only "
-                        "on Ctrl-C); removed when the run completes")
+                        "on Ctrl-C); removed once the results are written")
     t.add_argument("--resume", metavar="OUTDIR",
                    help="continue an interrupted run from OUTDIR/checkpoint.npz with its original settings "
                         "(give no other arguments)")

@@ -63,6 +63,9 @@ class TrackingResult:
     invocation: dict[str, Any] = field(default_factory=dict)
     started: str | None = None
     finished: str | None = None
+    #: The checkpoint the run kept, removed once :meth:`save` has written the result (so a result that cannot be
+    #: written, on a full disk say, leaves the run resumable); None without one.
+    checkpoint: Path | None = field(default=None, repr=False)
 
     @property
     def tracked_frames(self) -> list[int]:
@@ -146,7 +149,7 @@ class TrackingResult:
         summary (a style posterior, a pace) ``OUT/prior_summary.png``; returns the JSON content. A non-empty
         ``out`` is refused unless ``overwrite`` (then the files of this result replace those there), and so is
         the sequence's own folder or a folder inside it; a failed write (no space left, read-only, no permission)
-        is one line naming the file and the cause."""
+        is one line naming the file and the cause. The run's checkpoint is removed once everything is written."""
         from data_tools.files import check_not_inside, check_output_folder
 
         out = check_output_folder(out, empty=not overwrite, overwrite_flag="overwrite=True")
@@ -162,6 +165,8 @@ class TrackingResult:
             kind = "posterior" if self.summary_kind == "posterior" else "posterior mean"
             summary_plot(out / "prior_summary.png", self.prior_summary,
                          f"{self.settings.get('prior', 'prior')}: {kind} per frame")
+        if self.checkpoint is not None:  # complete and written: nothing to resume
+            Path(self.checkpoint).unlink(missing_ok=True)
         return result
 
 
@@ -256,7 +261,9 @@ def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, conf
     :class:`~tracker.engine.recording.FrameStep` and that frame's marker error (None without ground truth).
     With ``checkpoint`` the filter's state is written there every ``checkpoint_every`` frames and on Ctrl-C
     (which raises :class:`TrackingInterrupted` with the partial result); ``resume`` continues from it to the
-    result an uninterrupted run gives (its settings must match ``fingerprint``).
+    result an uninterrupted run gives (its settings must match ``fingerprint``, and the sequence's files, the
+    model files and the package version those of the interrupted run). The checkpoint stays until the result is
+    saved (:meth:`TrackingResult.save`), so a result that cannot be written leaves the run resumable.
     """
     from tracker.app.checkpoint import load_checkpoint, save_checkpoint
     from tracker.app.threads import configured_threads
@@ -317,9 +324,9 @@ def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, conf
             save_checkpoint(checkpoint, last["state"], recording, last["rng"], fingerprint, inputs=inputs)
         partial = _result(seq, known, n0, recording.result(), gt, T, summary) if done else None
         raise TrackingInterrupted(partial, checkpoint if last["state"] is not None else None) from None
-    if checkpoint is not None:
-        Path(checkpoint).unlink(missing_ok=True)  # complete: nothing to resume
-    return _result(seq, known, n0, records, gt, T, summary)
+    result = _result(seq, known, n0, records, gt, T, summary)
+    result.checkpoint = checkpoint  # kept until the result is saved (TrackingResult.save removes it)
+    return result
 
 
 def _result(seq: Sequence, known: np.ndarray, n0: int, records: dict, gt, T: int,
