@@ -826,9 +826,9 @@ def outputs_finite(paths: tuple[Path, ...]) -> str | None:
                         return f"{p.name}[{k}] has non-finite values"
         elif p.suffix == ".json":
             doc = json.loads(p.read_text())
-            err = doc.get("mean_error_mm")
+            err = doc.get("metrics", {}).get("mpjpe_abs", {}).get("mean")
             if err is not None and not math.isfinite(err):
-                return f"{p.name}: mean_error_mm = {err}"
+                return f"{p.name}: mpjpe_abs = {err}"
         elif p.suffix == ".pt":
             doc = torch.load(p, weights_only=True)
             if not isinstance(doc, dict):

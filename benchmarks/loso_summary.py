@@ -21,7 +21,7 @@ def read_fold(folder: Path) -> dict[str, dict[tuple[str, str], float]]:
     out: dict[str, dict[tuple[str, str], float]] = defaultdict(dict)
     with open(folder / "table.csv", newline="") as f:
         for row in csv.DictReader(f):
-            if row["metric"] != "mean_error_mm":
+            if row["metric"] not in ("mpjpe_abs", "mean_error_mm"):  # the latter in folders of versions before 0.16
                 continue
             label, sep, views = row["row"].rpartition(", views ")
             if not sep:

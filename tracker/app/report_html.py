@@ -16,6 +16,7 @@ closest to its row's mean over seeds (the lowest seed index on a tie): its estim
 from __future__ import annotations
 
 import base64
+import logging
 import html
 import math
 import re
@@ -31,6 +32,8 @@ import numpy as np
 
 from data_tools.files import write_text_atomic
 from tracker.core.errors import InputError
+
+log = logging.getLogger(__name__)
 
 #: Most frames in a video (a longer sequence shows every k-th frame).
 VIDEO_FRAMES = 150
@@ -456,13 +459,14 @@ def _videos_html(exp, results: list[dict], runs_dir: Path, taken: set[str], say:
 
 
 def write_html_report(exp, results: list[dict], out: Path, tables_md: str, meta: dict, command: str,
-                      videos: bool = True, say: Callable[[str], None] = print) -> dict:
+                      videos: bool = True, say: Callable[[str], None] | None = None) -> dict:
     """Write ``out/report.html`` (atomically) from the experiment ``exp``, its run ``results`` (each
     ``result.json`` with ``run``; estimates in ``out/runs/<key>/estimates.npz``), ``table.md``'s tables
     ``tables_md`` (without the line about the invocation), ``out/per_frame.png``, ``meta`` (``version``,
     ``runs``) and the ``command`` that wrote them; ``videos=False`` leaves the videos out. A video that cannot
-    be made (a sequence folder moved away) is a note on the page, also passed to ``say``. Returns the number
-    of ``videos`` and the ``video_seconds`` they took."""
+    be made (a sequence folder moved away) is a note on the page, also passed to ``say`` (default: this module's
+    logger). Returns the number of ``videos`` and the ``video_seconds`` they took."""
+    say = say or log.info
     taken = {"per-frame", "videos"}
     intro, tables, links = _tables_html(tables_md, taken)
     links += [("per-frame", "Error per frame"), ("videos", "Best and worst prior, side by side")]
