@@ -139,7 +139,7 @@ def main() -> None:
             errs, spf, wait, filt = [], [], [], []
             for seed in range(args.seeds):
                 run = track(seq, "zero-velocity", particles=P, seed=seed, step_std=std, device=where,
-                            annealing_layers=1)  # plain SIR, as docs/tracking.md's figures
+                            annealing_layers=1)  # plain SIR, as the figures in docs/reference/performance.md
                 errs.append(run.mean_error)
                 spf.append(run.seconds_per_frame)
                 wait.append(np.median(run.records["load_seconds"] + run.records["observe_seconds"]))
@@ -161,7 +161,7 @@ def main() -> None:
         errs, spf = [], []
         for seed in range(args.seeds):
             run = track(seq, "crbm", models=[model_path], particles=P, seed=seed, device=str(device),
-                        annealing_layers=1)  # plain SIR, as docs/tracking.md's figures
+                        annealing_layers=1)  # plain SIR, as the figures in docs/reference/performance.md
             errs.append(run.mean_error)
             spf.append(run.seconds_per_frame)
         print(f"| {P} | {', '.join(f'{e:.1f}' for e in errs)} | {statistics.median(spf):.4f} |")

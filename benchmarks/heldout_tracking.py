@@ -94,7 +94,7 @@ def main() -> None:
                     t0 = time.perf_counter()
                     run = track(seq, prior, particles=args.particles, seed=seed, views=views,
                                 bidirectional=bidir,
-                                annealing_layers=1)  # plain SIR, as docs/tracking.md's table was made
+                                annealing_layers=1)  # plain SIR, as the held-out tables were made
                     means.append(run.mean_error)
                     secs.append(run.seconds_per_frame)
                     print(f"  {prior_name}, {label}, seed {seed}: {run.mean_error:.1f} mm "

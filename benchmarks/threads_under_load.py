@@ -26,7 +26,7 @@ import sys, time, tracker
 if sys.argv[3] == "set":
     tracker.set_threads(None)
 run = tracker.track(sys.argv[1], "crbm", models=[sys.argv[2]], particles=int(sys.argv[4]), frames=int(sys.argv[5]),
-                    seed=0, annealing_layers=1)  # plain SIR, as docs/tracking.md's figures were measured
+                    seed=0, annealing_layers=1)  # plain SIR, as the figures in docs/reference/performance.md were measured
 print(run.seconds_per_frame)
 """
 

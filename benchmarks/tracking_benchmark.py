@@ -1,7 +1,7 @@
 """Tracking speed (run by hand: python benchmarks/tracking_benchmark.py).
 
 1. Synthetic 15-cone sequence (CMU 07_11 rendered into 4 views), 1000 particles, zero-velocity prior (1 and 2:
-   one layer, plain SIR, as the figures in docs/tracking.md were measured; track's default is 3 layers):
+   one layer, plain SIR, as the figures in docs/reference/performance.md were measured; track's default is 3 layers):
    frames per second of the whole loop (observations + prior + likelihood + resampling) and likelihood
    evaluations per second (particle-views per second), with a per-stage breakdown.
 2. The same sequence tracked with a CRBM-3 prior, 1000 particles x 4 views: frames per second at 30 Gibbs steps

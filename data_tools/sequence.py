@@ -212,7 +212,7 @@ def _decode(data: bytes, grey: bool) -> np.ndarray | None:
     while the calling thread decodes the next frame; libspng's Python binding
     (``pyspng``, tried and measured) decodes a PNG in 20-30% less time alone
     but holds the GIL, which made annealed CRBM tracking about a tenth slower
-    end to end (docs/tracking.md, "PNG decoding").
+    end to end (docs/reference/performance.md, "Tried and not kept").
     """
     with _stderr_silenced():
         try:

@@ -26,7 +26,7 @@ from tracker.engine.prior import PriorState
 from tracker.engine.registry import Option, PriorContext, register_prior
 
 #: Default Gibbs steps per sample of the CRBM prior. Chosen on the tuning folds of the leave-one-subject-out
-#: protocol (folds 2 and 7, CRBM-3, 1000 particles, 5 seeds; docs/tracking.md): 30, 10 and 5 steps gave the same
+#: protocol (folds 2 and 7, CRBM-3, 1000 particles, 5 seeds; docs/methods_report.md): 30, 10 and 5 steps gave the same
 #: error with 4 views and within the seeds' spread with one, and 5 steps sample about 5x faster than 30.
 GIBBS_STEPS = 5
 #: Default height spread (mm) of a CRBM trained with a pace input (one trained on the walks of several people):

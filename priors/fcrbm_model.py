@@ -71,7 +71,7 @@ GROUPED_STYLES_MAX = 16
 #: and moves weight between them (mixture tracking, :mod:`tracker.engine.mixture`); ``"particles"`` lets every
 #: particle carry and switch its own label, the posterior being the weighted histogram.
 #: Temperature of the labels' evidence in mixture inference (the likelihood to the power ``1 / T`` when the
-#: labels are weighed against each other). Chosen on a tuning fold (``docs/fcrbm.md``, "Mixture tracking").
+#: labels are weighed against each other). Chosen on a tuning fold (``docs/methods_report.md``).
 STYLE_TEMPERATURE = 10.0
 
 

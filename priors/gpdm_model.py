@@ -56,7 +56,7 @@ CHECKPOINT_FORMAT = "pose-tracker gpdm training checkpoint v1"
 DYNAMICS = ("linear", "rbf", "linear+rbf")
 #: Sparse approximations (:class:`_Sparse`): ``dtc`` (the default; deterministic training conditional, or
 #: projected process, Seeger et al. 2003), ``vfe`` (DTC plus Titsias' 2009 trace term: a lower bound on the
-#: evidence), ``fitc`` (Snelson & Ghahramani 2006). docs/gpdm.md compares them: DTC forecast best overall, VFE
+#: evidence), ``fitc`` (Snelson & Ghahramani 2006). docs/reference/priors.md compares them: DTC forecast best overall, VFE
 #: worst, and FITC learned a near-zero dynamics noise.
 SPARSE_METHODS = ("dtc", "vfe", "fitc")
 
@@ -65,7 +65,7 @@ SPARSE_METHODS = ("dtc", "vfe", "fitc")
 #: on one core; 1786 frames took 3 s per L-BFGS iteration), a sparse one O(N m^2) (2000 frames, m = 200: 0.1 s);
 #: the exact prior's step costs O(P N^2) for P particles (1000 particles, 500 frames: about 16 ms; 600: 23 ms).
 EXACT_MAX_FRAMES = 500
-#: Inducing frames of the auto setting (see docs/gpdm.md for the measurements behind it).
+#: Inducing frames of the auto setting (docs/reference/performance.md has the measurements behind it).
 AUTO_INDUCING = 200
 #: Fewest inducing frames a sparse model may have.
 MIN_INDUCING = 10

@@ -336,7 +336,7 @@ def model_name(model: str | Path | Any) -> str:
 #: Annealing layers per frame that :func:`track` (and the command line, and experiment files that leave
 #: ``annealing_layers`` unset) uses when none are asked for: 3 won in ``docs/methods_report.md`` ("the annealed
 #: filter") for the zero-velocity baseline and the paced CRBM on people the priors were not
-#: trained on, and the FCRBM's tuning fold with its style inferred by mixture tracking (``docs/fcrbm.md``).
+#: trained on, and the FCRBM's tuning fold with its style inferred by mixture tracking (``docs/methods_report.md``).
 #: The engine's own :class:`~tracker.engine.filter.FilterConfig` default stays plain SIR.
 TRACK_ANNEALING_LAYERS = 3
 

@@ -39,7 +39,7 @@ def exp_map_to_matrix_torch(v: torch.Tensor) -> torch.Tensor:
 def small_matmul(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     """``a @ b`` for stacks of small matrices ``(..., n, k) @ (..., k, m)`` (broadcast batch dimensions), as
     ``k`` broadcast multiply-adds. A GPU's batched matrix product is made for large matrices: on an H100 it
-    took half the likelihood's device time on these 3 x 3 products (``docs/tracking.md``, "GPU path")."""
+    took half the likelihood's device time on these 3 x 3 products (``docs/reference/performance.md``, "GPU path")."""
     if a.shape[-1] != b.shape[-2] or a.dtype != b.dtype:
         raise ValueError(f"small_matmul: {tuple(a.shape)} {a.dtype} @ {tuple(b.shape)} {b.dtype} do not multiply")
     out = a[..., :, 0:1] * b[..., 0:1, :]

@@ -5,7 +5,7 @@ fixed share of particles on every hypothesis (Vermaak, Doucet & Perez 2003, "Mai
 through mixture tracking"), with switches between hypotheses as in the interacting multiple model filter (Blom
 & Bar-Shalom 1988). Without it, one frame on which a particle of the wrong hypothesis happens to fit the
 images best takes nearly all the weight, resampling copies it everywhere, and the right hypothesis is gone
-(measured on an activity switch: ``docs/fcrbm.md``, "Mixture tracking").
+(measured on an activity switch: ``docs/methods_report.md``).
 
 The posterior is ``sum_c pi_c p_c(x)``: component weights ``pi`` ``(C,)`` and, within component ``c``, the
 particles at the positions where ``component == c`` with weights normalised within it. Each frame:
