@@ -1,19 +1,42 @@
-"""The README's Python block runs as written (on a tiny setting: fewer frames, epochs and particles)."""
+"""Every code block of the README runs as written, on a tiny setting (fewer frames, epochs and particles).
+
+The install and test commands are the ones CI runs (``.ci/run``); the experiment commands name files that
+exist; everything else is run here, in the order the README gives it.
+"""
+import os
 import re
+import shlex
+import subprocess
+import sys
 from pathlib import Path
 
 import torch
 
-README = Path(__file__).resolve().parents[1] / "README.md"
-#: What the test shrinks, and to what: each must appear in the block, so the block cannot drift from the test.
-TINY = {"frames=60": "frames=6", "epochs=100": "epochs=2", "particles=500": "particles=30"}
+REPO = Path(__file__).resolve().parents[1]
+README = REPO / "README.md"
+#: What the test shrinks, and to what: each must appear in its block, so the README cannot drift from the test.
+TINY_PYTHON = {"frames=60": "frames=6", "epochs=100": "epochs=2", "particles=500": "particles=30"}
+TINY_SHELL = {"pose-tracker demo": "pose-tracker demo --frames 6", "--frame 40": "--frame 4",
+              "--particles 2000": "--particles 200", "--frames 150": "--frames 6",
+              "--out crbm.pt": "--order 1 --epochs 2 --out crbm.pt"}
+#: The shared clips the README's own-mocap block names, linked into the folder it runs in.
+CLIPS = ("16/16_15.amc", "16/16.asf", "02/02_01.amc", "02/02.asf", "07/07_01.amc", "07/07.asf",
+         "91/91_straight_walk.amc", "91/91.asf")
+
+
+def blocks(language: str) -> list[str]:
+    return re.findall(rf"```{language}\n(.*?)```", README.read_text(), flags=re.S)
+
+
+def commands(block: str) -> list[str]:
+    """The block's command lines, comments and continuation lines joined."""
+    text = re.sub(r"\\\n\s*", " ", block)
+    return [line.split("  #")[0].strip() for line in text.splitlines() if line.strip()]
 
 
 def test_the_readme_python_block_runs(tmp_path, monkeypatch, capsys):
-    blocks = re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
-    assert len(blocks) == 1
-    code = blocks[0]
-    for big, small in TINY.items():
+    (code,) = blocks("python")
+    for big, small in TINY_PYTHON.items():
         assert big in code, big
         code = code.replace(big, small)
     torch.set_num_threads(1)
@@ -22,3 +45,48 @@ def test_the_readme_python_block_runs(tmp_path, monkeypatch, capsys):
     printed = capsys.readouterr().out.split()
     assert float(printed[0]) > 0 and float(printed[1]) > 0  # marker error (mm) and seconds per frame
     assert (tmp_path / "run" / "result.json").is_file() and (tmp_path / "crbm1.pt").is_file()
+
+
+def test_the_install_and_test_commands_are_what_ci_runs():
+    install, tests = blocks("")[:2]
+    ci = (REPO / ".ci" / "run").read_text()
+    for command in commands(install)[0].split(" && ") + commands(tests)[0].split(" && "):
+        ci_form = command.replace("pip install", "python -m pip install").replace("pose-tracker demo",
+                                                                                  "python -m tracker demo")
+        assert ci_form in ci or command in ci, command
+
+
+def test_the_experiment_commands_name_files_that_exist():
+    named = [word for block in blocks("") for line in commands(block) if "compare" in line or "bash " in line
+             for word in shlex.split(line) if word.startswith("benchmarks/")]
+    assert named
+    for path in named:
+        assert (REPO / path).is_file(), path
+
+
+def test_the_readme_shell_blocks_run(tmp_path, mocap_dir):
+    """The demo, then the first tracking runs on what it left, then the own-mocap block on shared clips."""
+    for clip in CLIPS:
+        (tmp_path / Path(clip).name).symlink_to(mocap_dir / clip)
+    runnable = [b for b in blocks("") if "pose-tracker" in b and "compare" not in b and "bash " not in b]
+    used = set()
+    script = []
+    for block in runnable:
+        for line in commands(block):
+            for part in line.split(" && "):
+                if part.startswith("pip install"):
+                    continue  # the install itself: what CI runs, checked above
+                for big, small in TINY_SHELL.items():
+                    if big in part:
+                        part, _ = part.replace(big, small), used.add(big)
+                script.append(part)
+    assert used == set(TINY_SHELL), set(TINY_SHELL) - used
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    for part in script:
+        argv = [sys.executable, "-m", "tracker", "--threads", "1"] + shlex.split(part)[1:]
+        done = subprocess.run(argv, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+        assert done.returncode == 0, f"{part}\n{done.stderr[-2000:]}"
+    for produced in ("runs/crbm/result.json", "frame40.png", "runs/zv/result.json", "walk16/cameras.json",
+                     "crbm.pt", "runs/mixture/result.json"):
+        assert (tmp_path / produced).exists(), produced
+
