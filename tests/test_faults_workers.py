@@ -31,8 +31,9 @@ def finished_numbers(out: Path) -> dict:
 
 
 class RunKiller(threading.Thread):
-    """Kills (SIGKILL) the worker process of the first run seen tracking in ``runs`` (its temporary folder is
-    named after the worker's process id), once it has tracked a frame."""
+    """Kills (SIGKILL) the worker process of the first run seen running in ``runs``: its temporary folder is named
+    after the worker's process id, and its log is open from the run's start to its end (reading the sequence and
+    building the prior take the run's first second)."""
 
     def __init__(self, runs: Path):
         super().__init__(daemon=True)
@@ -43,7 +44,7 @@ class RunKiller(threading.Thread):
             for d in self.runs.iterdir() if self.runs.is_dir() else ():
                 found = re.match(r"\..+\.tmp-(\d+)$", d.name)
                 log = d / "run.log"
-                if found and int(found.group(1)) != os.getpid() and log.exists() and "frame " in log.read_text():
+                if found and int(found.group(1)) != os.getpid() and log.exists():
                     os.kill(int(found.group(1)), signal.SIGKILL)
                     self.killed.append(int(found.group(1)))
                     return
