@@ -87,7 +87,7 @@ def available_likelihoods() -> list[str]:
 # -- data ---------------------------------------------------------------------------------------------------
 
 def load_sequence(path: str | Path) -> Sequence:
-    """A sequence folder in our layout or PARSEC bodytrack's (docs/reference/file_formats.md)."""
+    """A sequence folder in pose-tracker's layout or PARSEC bodytrack's (docs/reference/file_formats.md)."""
     return read_sequence(path)
 
 

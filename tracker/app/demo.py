@@ -1,7 +1,7 @@
-"""The built-in default job (``pose-tracker demo``): render a shipped walk, train a CRBM on the other,
-track with the zero-velocity prior, the CRBM prior and the mixture of the two, and write the error plot and an
-overlay video of the mixture's estimates -- all
-through the public API, as a user's script would.
+"""The demo (``pose-tracker demo``), a first run that needs no data of one's own: render a shipped walk, train a
+CRBM on the other, track with the zero-velocity prior, the CRBM prior and the mixture of the two, and write the
+error plot and an overlay video of the mixture's estimates -- all through the public API, as a user's script
+would.
 
 The output folder is the demo's own: a second demo replaces the files an earlier one wrote there (so running it
 twice just works), and a non-empty folder that holds no demo output is refused.

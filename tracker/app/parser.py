@@ -213,7 +213,7 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
         _plugin_group(r, f"training options of the {chosen} prior", prior_entry(chosen).train_options)
 
     t = sub.add_parser("track", parents=[plugin_flag], help="track a person through a sequence with a particle filter",
-                       description="Track a sequence (our layout or PARSEC bodytrack) with an SIR particle filter "
+                       description="Track a sequence (a pose-tracker sequence folder or PARSEC bodytrack's) with an SIR particle filter "
                                    "and an image likelihood; writes OUTDIR/result.json and OUTDIR/estimates.npz.")
     t.add_argument("sequence", metavar="DIR", nargs="?", help="sequence folder")
     t.add_argument("--prior", choices=available_priors(), metavar="NAME",
@@ -295,11 +295,11 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                    help="leave out report.html's overlay videos of the best and the worst prior (a few seconds "
                         "each: one per sequence and view set)")
 
-    d = sub.add_parser("demo", parents=[plugin_flag], help="render, track and score a shipped walk (the built-in default job)",
+    d = sub.add_parser("demo", parents=[plugin_flag], help="render, track and score a shipped walk: a first run that needs no data of your own",
                        description="Render 1.5 s of the shipped CMU walk 07_02 into 4 cameras, train a CRBM on "
-                                   "the other shipped walk, track with the zero-velocity and the CRBM prior (1000 "
-                                   "particles), print both errors and write the error-per-frame plot and an "
-                                   "overlay video.")
+                                   "the other shipped walk, track with the zero-velocity prior, the CRBM and the "
+                                   "mixture of the two (1000 particles each), print the three errors and write "
+                                   "the error-per-frame plot and an overlay video.")
     d.add_argument("--out", default="demo_output",
                    help="output folder (default ./demo_output); a second demo replaces the files an earlier one "
                         "wrote there, and a non-empty folder that holds no demo output is refused")
