@@ -37,13 +37,24 @@ def write_failure(path: str | Path, exc: OSError, kept: str = "") -> InputError:
 @contextmanager
 def writing(path: str | Path, kept: str = "") -> Iterator[None]:
     """A block that writes ``path`` (a file or a folder): a failed write in it (no space, read-only, no
-    permission) becomes the one-line :func:`write_failure` naming ``path``; other errors pass unchanged."""
+    permission) becomes the one-line :func:`write_failure` naming ``path``; other errors pass unchanged, and so
+    does an error that names a file outside ``path``'s folder (a file the block read, not one it wrote)."""
     try:
         yield
     except OSError as exc:
-        if not is_write_failure(exc):
+        if not is_write_failure(exc) or not _written_beside(exc.filename, Path(path)):
             raise
         raise write_failure(path, exc, kept) from None
+
+
+def _written_beside(filename: str | bytes | int | None, path: Path) -> bool:
+    """Whether an error's file (None: a write to an open file, which names none) lies in ``path``'s folder, where
+    ``path`` and its temporary files are written."""
+    if not isinstance(filename, (str, os.PathLike)):
+        return True
+    folder = path.resolve().parent
+    where = Path(filename).resolve()
+    return where == folder or folder in where.parents
 
 
 def current_umask() -> int:

@@ -249,3 +249,16 @@ def test_results_that_cannot_be_written_leave_the_finished_run_resumable(seq, tm
     with np.load(out / "estimates.npz") as a, np.load(tmp_path / "whole" / "estimates.npz") as b:
         assert np.array_equal(a["poses"], b["poses"])
     assert not (out / "checkpoint.npz").exists() and not (tmp_path / "whole" / "checkpoint.npz").exists()
+
+
+def test_an_unreadable_input_is_not_taken_for_a_failed_write(tmp_path):
+    """Permission denied on a file the block read (outside the output's folder) keeps its own error."""
+    from data_tools.files import writing
+
+    (tmp_path / "out").mkdir()
+    with pytest.raises(PermissionError):
+        with writing(tmp_path / "out" / "result.json"):
+            raise PermissionError(errno.EACCES, "Permission denied", str(tmp_path / "input.png"))
+    with pytest.raises(InputError, match="result.json: cannot write: permission denied"):
+        with writing(tmp_path / "out" / "result.json"):
+            raise PermissionError(errno.EACCES, "Permission denied", str(tmp_path / "out" / ".result.x.json"))
