@@ -76,10 +76,14 @@ def check_inputs(saved: dict | None, now: dict | None, path: str | Path) -> None
     for model in changed_files(saved.get("models", {}), now.get("models", {})):
         why.append(f"the model file {model} changed")
     if saved.get("version") != now.get("version"):
-        why.append(f"it was written by version {saved.get('version')} and this is {now.get('version')}")
+        why.append(_version_change(saved.get("version"), now.get("version")))
     if why:
-        raise InputError(f"cannot resume: {'; '.join(why)} since the checkpoint was written; start the run again",
+        raise InputError(f"cannot resume: since the checkpoint was written, {'; '.join(why)}; start the run again",
                          path)
+
+
+def _version_change(before: str | None, now: str | None) -> str:
+    return f"pose-tracker changed from version {before} to {now}"
 
 
 def _flat_state(state: Any, name: str) -> tuple[dict[str, np.ndarray], list[str]]:
@@ -195,9 +199,9 @@ def training_checkpoint(checkpoint: str | Path | None, sources: Iterable[str],
         if isinstance(saved, dict):
             why = [f"the training file {f} changed" for f in changed_files(saved.get("files", {}), now["files"])]
             if saved.get("version") != now["version"]:
-                why.append(f"it was written by version {saved.get('version')} and this is {now['version']}")
+                why.append(_version_change(saved.get("version"), now["version"]))
             if why:
-                raise InputError(f"cannot resume: {'; '.join(why)} since the checkpoint was written; start the "
+                raise InputError(f"cannot resume: since the checkpoint was written, {'; '.join(why)}; start the "
                                  "training again", checkpoint)
     elif not resume:
         write_text_atomic(side, json.dumps(now, indent=1))
