@@ -36,8 +36,10 @@ def test_track_refuses_a_non_empty_output_folder_unless_overwrite(seq, tmp_path,
     (out / "notes.txt").write_text("mine")
     one_line_refusal(*run_cli(track_args(seq, out), capsys), str(out), "not empty (pass --overwrite")
     assert [p.name for p in out.iterdir()] == ["notes.txt"]
+    (out / "prior_summary.png").write_bytes(b"an earlier run's plot")
     assert run_cli(track_args(seq, out, "--overwrite"), capsys)[0] == 0
     assert (out / "result.json").exists() and (out / "notes.txt").read_text() == "mine"
+    assert not (out / "prior_summary.png").exists()  # zero-velocity has no per-frame summary
 
 
 @pytest.mark.parametrize("where", ["seq", "seq/results"])

@@ -165,6 +165,8 @@ class TrackingResult:
             kind = "posterior" if self.summary_kind == "posterior" else "posterior mean"
             summary_plot(out / "prior_summary.png", self.prior_summary,
                          f"{self.settings.get('prior', 'prior')}: {kind} per frame")
+        else:  # an earlier result's plot would describe another run
+            (out / "prior_summary.png").unlink(missing_ok=True)
         if self.checkpoint is not None:  # complete and written: nothing to resume
             Path(self.checkpoint).unlink(missing_ok=True)
         return result
