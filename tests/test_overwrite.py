@@ -130,3 +130,13 @@ def test_the_demo_refuses_a_folder_that_holds_no_demo_output(tmp_path):
     with pytest.raises(InputError, match="holds no sequence or crbm1.pt"):
         run_demo(tmp_path, frames=8)
     assert [p.name for p in tmp_path.iterdir()] == ["notes.txt"]
+
+
+def test_the_demo_runs_twice_into_its_own_folder(tmp_path, capsys):
+    from tracker.app import cli
+
+    for _ in range(2):
+        assert cli.main(["demo", "--out", str(tmp_path / "demo"), "--frames", "6"]) == 0
+    assert sorted(p.name for p in (tmp_path / "demo").iterdir()) == [
+        "crbm1.pt", "error_per_frame.png", "overlay.mp4", "sequence", "track_crbm", "track_mixture",
+        "track_zero-velocity"]
