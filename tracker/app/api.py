@@ -271,7 +271,7 @@ def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
     a file whose joint names are recognised). Every clip is resampled to ``fps`` Hz. ``options`` are the
     prior's training options (see
     ``pose-tracker train --prior NAME --help``). Returns the trained model;
-    ``model.save(path)`` writes its file.
+    ``model.save(path)`` writes its file (an existing one only with ``overwrite=True``).
     With ``checkpoint`` (a file path) and the prior's ``checkpoint_every`` option, training state is saved as
     it goes; ``resume=True`` continues from it to the model an uninterrupted run gives.
     """
@@ -366,7 +366,8 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     from ``step_std`` or ``train_mocap`` (:func:`build_prior`). ``record`` chooses what is kept per frame
     (:mod:`tracker.engine.recording`; add ``"particles"`` and ``"weights"`` to keep those); ``on_frame(step,
     error_mm)`` sees every frame as it is tracked (``error_mm``: the frame's absolute MPJPE). ``result.save(dir)``
-    writes ``result.json`` and ``estimates.npz`` exactly as ``pose-tracker track`` does; ``result.json`` holds every
+    writes ``result.json`` and ``estimates.npz`` exactly as ``pose-tracker track`` does (into a non-empty folder only
+    with ``overwrite=True``, never into the sequence's folder); ``result.json`` holds every
     metric of :data:`tracker.core.metrics.METRICS` and records this call (``invocation``: the function and the
     arguments given) and when it ran (``started``, ``finished``; ISO 8601, UTC).
 
