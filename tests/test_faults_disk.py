@@ -94,8 +94,8 @@ def _no_temporary_files(folder: Path) -> None:
 
 
 def test_track_on_a_full_disk_is_one_line_and_leaves_no_half_written_file(seq, full_disk):
-    r = subprocess.run([sys.executable, "-m", "tracker", *track_args(seq, full_disk / "out", "--checkpoint-every", "1")],
-                       capture_output=True, text=True)
+    argv = track_args(seq, full_disk / "out", "--checkpoint-every", "1")
+    r = subprocess.run([sys.executable, "-m", "tracker", *argv], capture_output=True, text=True)
     refused(r.returncode, r.stderr, str(full_disk / "out"), "no space left on the device")
     _no_temporary_files(full_disk)
 

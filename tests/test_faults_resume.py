@@ -107,7 +107,8 @@ def test_a_resume_after_the_model_file_was_replaced_is_refused(seq, crbm_files, 
     with pytest.raises(TrackingInterrupted):
         tracker.track(seq, "crbm", on_frame=stop, checkpoint_every=1, **settings)
     shutil.copy(crbm_files / "c1.pt", model)  # another training, same path
-    with pytest.raises(InputError, match=rf"cannot resume: since the checkpoint was written, the model file {model} changed; start"):
+    with pytest.raises(InputError, match=rf"cannot resume: since the checkpoint was written, the model file {model} "
+                                         "changed; start"):
         tracker.track(seq, "crbm", resume=True, **settings)
     shutil.copy(crbm_files / "c0.pt", model)
     assert tracker.track(seq, "crbm", resume=True, **settings).first_tracked == 2
@@ -124,7 +125,8 @@ def test_a_resume_by_another_version_is_refused(seq, tmp_path, monkeypatch):
         tracker.track(seq, "zero-velocity", particles=10, annealing_layers=1, checkpoint=checkpoint,
                       checkpoint_every=1, on_frame=stop)
     monkeypatch.setattr(tracker, "__version__", "99.0")
-    with pytest.raises(InputError, match=r"since the checkpoint was written, pose-tracker changed from version .* to 99.0"):
+    with pytest.raises(InputError, match=r"since the checkpoint was written, pose-tracker changed from version .* "
+                                         "to 99.0"):
         tracker.track(seq, "zero-velocity", particles=10, annealing_layers=1, checkpoint=checkpoint, resume=True)
 
 
@@ -145,7 +147,8 @@ def test_train_resume_after_a_training_clip_changed_is_refused(tmp_path):
         tracker.train("crbm", [amc], checkpoint=checkpoint, progress=stop, **settings)
     original = amc.read_text()
     amc.write_text(original + "\n")  # one more byte: another file, the same motion
-    with pytest.raises(InputError, match=rf"cannot resume: since the checkpoint was written, the training file {amc} changed; start the training"):
+    with pytest.raises(InputError, match=rf"cannot resume: since the checkpoint was written, the training file {amc} "
+                                         "changed; start the training"):
         tracker.train("crbm", [amc], checkpoint=checkpoint, resume=True, **settings)
     amc.write_text(original)
     resumed = tracker.train("crbm", [amc], checkpoint=checkpoint, resume=True, **settings)
