@@ -259,3 +259,20 @@ def test_experiment_sequences_take_joint_maps(walk, tmp_path):
     path.write_text(text.replace('joint_map = "map.toml"', 'then_joint_map = "map.toml"'))
     with pytest.raises(InputError, match="then_joint_map applies to a transition"):
         load_experiment(path)
+
+
+def test_experiment_training_clips_take_joint_maps(walk, reference, tmp_path):
+    from tracker.app.compare import load_clips
+    from tracker.app.experiment import load_experiment
+
+    bvh, mapping = foreign_names(walk, tmp_path)
+    (tmp_path / "map.toml").write_text(toml_text(mapping))
+    seq = write(walk, tmp_path / "mixamo.bvh", VARIANTS["Mixamo, 30 Hz"][0])
+    path = tmp_path / "exp.toml"
+    path.write_text(f'[[sequence]]\nname = "walk"\nmocap = "{seq}"\nframes = 6\n\n'
+                    f'[[prior]]\nname = "crbm"\ntrain = [{{ mocap = [{{ path = "{bvh}", joint_map = "map.toml" }}, '
+                    f'"{seq}"], options = {{ order = 1 }} }}]\n')
+    clips = load_experiment(path).priors[0].train[0].mocap
+    assert clips[0].joint_map == mapping and clips[1].joint_map is None  # its content: part of the model's key
+    loaded = load_clips(clips, 30.0)
+    assert gap_mm(loaded[0].markers, reference(30.0).markers) < TOLERANCE_MM and len(loaded[1].poses) > 3

@@ -73,7 +73,8 @@ def prepare_models(exp: Experiment, out: Path, version: str, say: Callable[[str]
     for p in exp.priors:
         files = list(p.models)
         for t in p.train:
-            ident = {"prior": p.name, "mocap": [[file_hash(m.path), m.start, m.frames] for m in t.mocap],
+            ident = {"prior": p.name, "mocap": [[file_hash(m.path), m.start, m.frames]
+                                                + ([] if m.joint_map is None else [m.joint_map]) for m in t.mocap],
                      "skeletons": None if t.skeletons is None else [file_hash(m) for m in t.skeletons],
                      "options": t.options, "seed": t.seed, "fps": exp.fps, "version": version}
             path = out / "models" / f"{config_hash(ident)}.pt"
@@ -96,7 +97,9 @@ def load_clips(clips, fps: float, skeletons=None) -> list:
     (``skeletons``: one ASF for all AMC clips or one per clip; default the one beside each)."""
     from data_tools.load import load_training_clips
 
-    loaded = load_training_clips([m.path for m in clips], skeletons, fps)
+    maps = [m.joint_map for m in clips]
+    loaded = load_training_clips([m.path for m in clips], skeletons, fps,
+                                 None if all(j is None for j in maps) else [j or "none" for j in maps])
     cut = [slice(m.start, None if m.frames is None else m.start + m.frames) for m in clips]
     out = [replace(c, poses=c.poses[k], markers=c.markers[k], model_markers=c.model_markers[k])
            for c, k in zip(loaded, cut)]

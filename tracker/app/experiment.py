@@ -45,6 +45,7 @@ File layout (every key is checked, unknown ones refused)::
     models = ["crbm3.pt"]                    # model files, or models the runner trains (and caches):
     train = [{ mocap = ["a.amc", "b.amc"], options = { order = 1 } },
              { mocap = ["a.amc", { path = "c.amc", start = 0, frames = 600 }], options = { order = 3 } }]
+                                             # (a clip's table may also give joint_map = "map.toml")
     [[prior]]
     label = "CRBM-3"                         # the same training repeated with several training seeds: one row
     name = "crbm"                            # per model ("CRBM-3, training seed 0", ...), and the report's
@@ -118,11 +119,13 @@ class SequenceSpec:
 @dataclass(frozen=True)
 class ClipSpec:
     """A training clip: a mocap file, optionally only ``frames`` frames from ``start`` (at the experiment's
-    frame rate)."""
+    frame rate), and the joint map of a file whose joint names are not recognised (as read: body point -> the
+    file's joint name)."""
 
     path: Path
     start: int = 0
     frames: int | None = None
+    joint_map: dict | None = None
 
 
 @dataclass(frozen=True)
@@ -217,12 +220,15 @@ class _Where:
 
 
 def _clip(w: "_Where", value: Any, entry: str) -> ClipSpec:
-    """A training clip entry: a path, or ``{ path = "...", start = 0, frames = 600 }``."""
+    """A training clip entry: a path, or ``{ path = "...", start = 0, frames = 600, joint_map = "map.toml" }``."""
+    from data_tools.skeleton_points import read_joint_map
+
     if isinstance(value, dict):
-        w.keys(value, {"path", "start", "frames"}, entry)
+        w.keys(value, {"path", "start", "frames", "joint_map"}, entry)
         frames = value.get("frames")
+        joint_map = None if "joint_map" not in value else read_joint_map(w.file(value["joint_map"], entry))
         return ClipSpec(w.file(value.get("path"), entry), w.int_(value.get("start", 0), entry + " start", 0),
-                        None if frames is None else w.int_(frames, entry + " frames", 3))
+                        None if frames is None else w.int_(frames, entry + " frames", 3), joint_map)
     return ClipSpec(w.file(value, entry))
 
 
