@@ -20,7 +20,7 @@ from __future__ import annotations
 import logging
 import os
 from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping, Sequence as Seq
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping, Sequence as Seq
 
 import numpy as np
 
@@ -28,7 +28,6 @@ from data_tools.load import load_mocap, load_training_clips
 from data_tools.retarget import RetargetResult, retarget
 from data_tools.samples import sample_walks
 from data_tools.sequence import Sequence, read_sequence
-from data_tools.synth import SynthConfig, synthesize as render_sequence
 from tracker.app.plugins import load_plugins
 from tracker.app.threads import configured_threads
 from tracker.app.tracking import (
@@ -45,6 +44,9 @@ from tracker.engine.registry import (
     LIKELIHOODS, PRIORS, LikelihoodContext, LikelihoodEntry, PriorContext, PriorEntry, TrainingData,
     resolve_options,
 )
+
+if TYPE_CHECKING:  # the renderer (trimesh) is imported by synthesize, not by every command
+    from data_tools.synth import SynthConfig
 
 SeedLike = int | np.random.SeedSequence | np.random.Generator
 
@@ -116,6 +118,7 @@ def synthesize(mocap: str | Path | RetargetResult, out: str | Path, *, skeleton:
     output rate, before ``start``/``frames`` cut the result), cross-faded over ``fade`` frames into ``then``
     (:func:`data_tools.transition.cross_fade`; e.g. a walk into a run of the same subject). ``joint_map`` and
     ``then_joint_map`` name the files' joints as :func:`load_clip`'s does."""
+    from data_tools.synth import SynthConfig, synthesize as render_sequence
     from data_tools.transition import cross_fade
 
     if "views" in settings:

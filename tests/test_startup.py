@@ -1,0 +1,50 @@
+"""What the command line imports: help and tracking do not load the libraries only other commands need.
+
+Each case runs the command line's ``main`` in a fresh interpreter and lists which of the heavy libraries ended
+up in ``sys.modules`` (an import check, not a timing).
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+#: Libraries that only rendering (trimesh), plots (matplotlib) and videos (av) need.
+RENDERING = ("trimesh", "matplotlib", "av")
+
+_PROGRAM = """
+import json, sys
+from tracker.app.cli import main
+try:
+    status = main({args!r})
+except SystemExit as exc:
+    status = exc.code
+print(json.dumps({{"status": status, "loaded": sorted(m for m in {modules!r} if m in sys.modules)}}))
+"""
+
+
+def loaded_by(args: list[str], modules: tuple[str, ...], cwd: Path) -> list[str]:
+    """Which of ``modules`` a fresh interpreter has imported after ``main(args)`` (which must succeed)."""
+    out = subprocess.run([sys.executable, "-c", _PROGRAM.format(args=args, modules=modules)], capture_output=True,
+                         text=True, cwd=cwd)
+    assert out.returncode == 0, out.stderr
+    report = json.loads(out.stdout.strip().splitlines()[-1])
+    assert report["status"] in (0, None), out.stderr
+    return report["loaded"]
+
+
+@pytest.mark.parametrize("args", [["--help"], ["track", "--help"], ["track", "--prior", "crbm", "--help"],
+                                  ["train", "--help"]])
+def test_help_loads_no_renderer(args, tmp_path):
+    assert loaded_by(args, RENDERING, tmp_path) == []
+
+
+def test_zero_velocity_track_loads_no_renderer(bodytrack_dir, tmp_path):
+    out = tmp_path / "run"
+    args = ["track", str(bodytrack_dir), "--prior", "zero-velocity", "--frames", "1", "--particles", "50",
+            "--out", str(out), "--quiet"]
+    assert loaded_by(args, RENDERING, tmp_path) == []
+    assert (out / "result.json").is_file()
