@@ -30,21 +30,21 @@ from dataclasses import dataclass
 from functools import lru_cache
 from queue import Empty, SimpleQueue
 from threading import Event
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
-from likelihoods.cost_lookup import mean_costs
-from likelihoods.observations import DEFAULT_OBSERVATION, BackgroundPlate, ObservationConfig, Observations, observe
 from tracker.core.arrays import device as device_of, namespace, torch_device
 from tracker.core.blas import serial_blas
 from tracker.core.body import BodyModel
 from tracker.core.cameras import CameraRig
 from tracker.core.cones import contour_corners
 from tracker.core.errors import InputError
-from tracker.core.kinematics import forward_kinematics
 from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood
 from tracker.engine.registry import LikelihoodContext, Option, register_likelihood
+
+if TYPE_CHECKING:  # the image code (OpenCV, numba) loads when a likelihood is built, not when it registers
+    from likelihoods.observations import BackgroundPlate, ObservationConfig, Observations
 
 
 @dataclass(frozen=True)
@@ -80,12 +80,16 @@ class EdgeSilhouetteLikelihood(Likelihood):
     score a batch of poses, one block of particles at a time each; 1 when built directly, the run's threads
     (``--threads``, :func:`tracker.set_threads`, default the available cores) when built by
     ``tracker.build_likelihood`` or ``track``, fixed when built (assign ``threads`` to change it).
+    ``observation`` (None: :data:`likelihoods.observations.DEFAULT_OBSERVATION`) derives a frame's silhouettes and
+    edge maps.
     """
 
     name = "edge-silhouette"
 
     def __init__(self, model: BodyModel, rig: CameraRig, config: EdgeSilhouetteConfig = EdgeSilhouetteConfig(),
-                 observation: ObservationConfig = DEFAULT_OBSERVATION, device: str | None = None, threads: int = 1):
+                 observation: ObservationConfig | None = None, device: str | None = None, threads: int = 1):
+        from likelihoods.observations import DEFAULT_OBSERVATION
+
         if config.n_along < 2 or config.n_across < 1 or not config.sharpness > 0:
             raise InputError(f"need n_along >= 2, n_across >= 1 and a positive sharpness, got {config}")
         self.threads = threads
@@ -93,7 +97,7 @@ class EdgeSilhouetteLikelihood(Likelihood):
         self.model = model
         self.rig = rig
         self.config = config
-        self.observation = observation
+        self.observation = DEFAULT_OBSERVATION if observation is None else observation
         self.centres = np.array([c.centre for c in rig.cameras])
         self.n_contour = 2 * config.n_along
         self.weights = _sample_weights(config.n_along, config.n_across)  # 4 x N
@@ -120,12 +124,16 @@ class EdgeSilhouetteLikelihood(Likelihood):
         A sequence hands the same background plate (array) with every frame: its statistics are derived
         once per view and kept while the plate stays the same object.
         """
+        from likelihoods.observations import observe
+
         plates = None if frame.backgrounds is None else [self._plate(v, b) for v, b in enumerate(frame.backgrounds)]
         return self.prepare_observations(observe(list(frame.images), plates,
                                                  None if frame.masks is None else list(frame.masks),
                                                  self.observation))
 
     def _plate(self, view: int, background: np.ndarray | None) -> BackgroundPlate | None:
+        from likelihoods.observations import BackgroundPlate
+
         if background is None:
             return None
         plate = self._plates.get(view)
@@ -203,6 +211,8 @@ class EdgeSilhouetteLikelihood(Likelihood):
         """Segment rotations ``p x S x 3 x 3`` and origins ``p x S x 3`` (mm) of poses ``p x D``: the compiled
         kinematics for numpy arrays, :mod:`tracker.core.torch_kinematics` for torch tensors."""
         if isinstance(poses, np.ndarray):
+            from tracker.core.kinematics import forward_kinematics
+
             return forward_kinematics(self.model, poses).segment_rotations()
         from tracker.core.torch_kinematics import torch_kinematics
 
@@ -235,6 +245,8 @@ class EdgeSilhouetteLikelihood(Likelihood):
         y = xp.reshape(xp.reshape(v, (-1, 4)) @ weights, (V, p, S, -1))
         nc = self.n_contour
         if isinstance(x, np.ndarray):  # the CPU path: lookups and means in one compiled loop
+            from likelihoods.cost_lookup import mean_costs
+
             edge, sil = np.empty((p, V)), np.empty((p, V))
             mean_costs(x, y, maps.edge, maps.silhouette, maps.view_offset, maps.Hp, maps.Wp, float(PAD), nc,
                        edge, sil)

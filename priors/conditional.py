@@ -11,16 +11,18 @@ priors are this step with their own model.
 from __future__ import annotations
 
 from abc import abstractmethod
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import torch
 
 from priors.common import torch_generator
 from priors.parts import GroundDiffusion, GrowingModels, HeightOffset, PaceInput, PostureOffset, shift_height
 from tracker.core.errors import InputError
 from tracker.core.representation import STEP_FEATURES, next_poses, pending_step, posture_features, poses_to_invariant
 from tracker.engine.prior import MotionPrior, PriorState
+
+if TYPE_CHECKING:  # torch loads when a prior is built, not when the priors register
+    import torch
 
 
 class ConditionalPrior(MotionPrior):
@@ -37,6 +39,8 @@ class ConditionalPrior(MotionPrior):
     def __init__(self, models: GrowingModels, *, device: str | torch.device = "cpu",
                  ground: GroundDiffusion = GroundDiffusion(), pace: PaceInput | None = None,
                  height: HeightOffset | None = None, posture: PostureOffset | None = None):
+        import torch
+
         paced = getattr(models.first, "pace_label", None) is not None
         if any((getattr(m, "pace_label", None) is not None) != paced for m in models):
             raise InputError(f"{models.kind} models for one prior must all have a pace input or none")
@@ -134,6 +138,8 @@ class ConditionalPrior(MotionPrior):
         if self.pace is not None:  # the model is told each particle's pace, which drifts first
             pace = new["pace"] = self.pace.advance(state["pace"], rng)
             z = np.concatenate([model.pace_input(pace), z], axis=1)
+        import torch
+
         conditioning = torch.tensor(z, dtype=torch.float32, device=self.device)
         v = self.draw(model, conditioning, torch_generator(rng, self.device), state)
         f_next = model.normaliser.inverse(v.cpu().double().numpy())

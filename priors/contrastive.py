@@ -1,5 +1,5 @@
 """Contrastive-divergence helpers shared by the CRBM, the FCRBM and the deep (two-layer) CRBM: the training settings
-they share (:class:`ContrastiveConfig`), shuffled mini-batches of windows, the momentum update with weight decay,
+they share (:class:`priors.settings.ContrastiveConfig`), shuffled mini-batches of windows, the momentum update with weight decay,
 and the label-balanced window list.
 
 Every random draw comes from the ``torch.Generator`` passed in (derived from the caller's numpy generator with
@@ -8,51 +8,11 @@ Every random draw comes from the ``torch.Generator`` passed in (derived from the
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from numbers import Integral
-from typing import Callable, ClassVar, Iterable, Iterator
+from typing import Callable, Iterable, Iterator
 
 import torch
 
 from tracker.core.errors import InputError
-
-
-@dataclass
-class ContrastiveConfig:
-    """The training settings of every conditional RBM trained here by contrastive divergence (learning rates per
-    mini-batch of averaged statistics). A model's config subclasses it, changing defaults and adding its own."""
-
-    order: int = 3
-    hidden: int = 150
-    epochs: int = 500
-    cd_k: int = 10
-    batch_size: int = 100
-    learning_rate: float = 1e-3
-    autoregressive_learning_rate: float = 1e-5
-    momentum: float = 0.9
-    weight_decay: float = 2e-4
-
-    #: What messages call the model.
-    KIND: ClassVar[str] = "CRBM"
-    #: The settings that count something and must be whole numbers of at least 1.
-    COUNTS: ClassVar[tuple[str, ...]] = ("order", "hidden", "epochs", "cd_k", "batch_size")
-
-    def check(self):
-        """The config itself, checked: counts whole and at least 1, rates and weight decay in [0, 1), momentum in
-        [0, 1), and a ``history_noise`` (where the model has one) 'auto' or a non-negative number. A bad setting is
-        an :class:`InputError` naming it."""
-        for name in self.COUNTS:
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, Integral) or value < 1:
-                raise InputError(f"{self.KIND} {name} must be an integer of at least 1, got {value!r}")
-        for name in ("learning_rate", "autoregressive_learning_rate", "weight_decay", "momentum"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 <= value < 1:
-                raise InputError(f"{self.KIND} {name} must lie in [0, 1), got {value!r}")
-        noise = getattr(self, "history_noise", "auto")
-        if noise != "auto" and (isinstance(noise, bool) or not isinstance(noise, (int, float)) or not noise >= 0):
-            raise InputError(f"history noise must be 'auto' or a non-negative number, got {noise!r}")
-        return self
 
 
 def minibatches(starts: torch.Tensor, batch_size: int, generator: torch.Generator) -> Iterator[torch.Tensor]:

@@ -9,21 +9,23 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
-import torch
 
 from priors.common import gibbs_steps_option, loaded, source_of
 from priors.conditional import ConditionalPrior
-from priors.crbm_file import load_crbm
-from priors.crbm_model import CRBM, CRBMModel
-from priors.crbm_training import CRBM_TRAIN_OPTIONS, train_crbm_prior
 from priors.ensemble import EnsemblePrior
 from priors.parts import GroundDiffusion, GrowingModels, HeightOffset, PaceInput, PostureOffset
+from priors.settings import CRBM_TRAIN_OPTIONS
 from tracker.core.errors import InputError
 from tracker.engine.prior import PriorState
-from tracker.engine.registry import Option, PriorContext, register_prior
+from tracker.engine.registry import Option, PriorContext, TrainingData, register_prior
+
+if TYPE_CHECKING:  # the model and torch load when the prior is built or trained, not when it registers
+    import torch
+
+    from priors.crbm_model import CRBMModel
 
 #: Default Gibbs steps per sample of the CRBM prior. Chosen on the tuning folds of the leave-one-subject-out
 #: protocol (folds 2 and 7, CRBM-3, 1000 particles, 5 seeds; docs/methods_report.md): 30, 10 and 5 steps gave the same
@@ -56,6 +58,8 @@ class CRBMPrior(ConditionalPrior):
     def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = GIBBS_STEPS, *, device: str = "cpu",
                  mode: str = "gibbs", ground: GroundDiffusion = GroundDiffusion(), pace: PaceInput | None = None,
                  height: HeightOffset | None = None, posture: PostureOffset | None = None):
+        from priors.crbm_model import CRBM
+
         grown = GrowingModels(models, "CRBM")
         first = grown.first
         if isinstance(gibbs_steps, bool) or not isinstance(gibbs_steps, (int, np.integer)) or gibbs_steps < 1:
@@ -73,6 +77,8 @@ class CRBMPrior(ConditionalPrior):
 
     def draw(self, model: CRBMModel, conditioning: torch.Tensor, generator: torch.Generator,
              state: PriorState) -> torch.Tensor:
+        import torch
+
         if self.mode == "free-energy":  # the deterministic best guess (eq. 4.19)
             return model.crbm.best_guess(conditioning)
         with torch.no_grad():
@@ -122,10 +128,19 @@ HEIGHT_SPREAD, HEIGHT_DRIFT = HeightOffset.OPTIONS
 PACE_OPTIONS = tuple(replace(o, default=None, default_note=f"{o.default:g}") for o in PaceInput.OPTIONS)
 
 
+def train_crbm_from_data(data: TrainingData, options: dict, rng: np.random.Generator,
+                         progress: Callable[[int, int, dict], None] | None = None, checkpoint: Path | None = None,
+                         resume: bool = False) -> CRBMModel:
+    """``train --prior crbm``: :func:`priors.crbm_training.train_crbm_prior` (imported, with torch, when called)."""
+    from priors.crbm_training import train_crbm_prior
+
+    return train_crbm_prior(data, options, rng, progress, checkpoint, resume)
+
+
 @register_prior(
     "crbm", summary="Conditional RBM (Taylor 2009); several model files of increasing order grow the history, "
                     "several of one order form an ensemble",
-    model_files="several", train=train_crbm_prior, train_options=CRBM_TRAIN_OPTIONS, resumable=True,
+    model_files="several", train=train_crbm_from_data, train_options=CRBM_TRAIN_OPTIONS, resumable=True,
     options=(gibbs_steps_option(GIBBS_STEPS),
              *GroundDiffusion.OPTIONS,
              *PACE_OPTIONS,
@@ -135,6 +150,9 @@ PACE_OPTIONS = tuple(replace(o, default=None, default_note=f"{o.default:g}") for
 def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> CRBMPrior | EnsemblePrior:
     """The CRBM prior of ``model_files``: models of increasing order grow the history; several files all of one
     order (each with the growth models it carries) form an ensemble, each drawing its share of the particles."""
+    from priors.crbm_file import load_crbm
+    from priors.crbm_model import CRBMModel
+
     models = [loaded(m, load_crbm, CRBMModel, "CRBM", device=context.device) for m in model_files]
     for given, m in zip(model_files, models):
         m.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, source_of(given))

@@ -31,8 +31,7 @@ import numpy as np
 import torch
 
 from priors.common import TrainedModel
-from priors.contrastive import ContrastiveConfig
-from tracker.core.errors import InputError
+from priors.settings import CRBMConfig
 from tracker.core.representation import PACE_FLOOR_MM
 
 FORMAT = "pose-tracker crbm v1"
@@ -40,31 +39,6 @@ FORMAT = "pose-tracker crbm v1"
 CHECKPOINT_FORMAT = "pose-tracker crbm training checkpoint v1"
 
 
-@dataclass
-class CRBMConfig(ContrastiveConfig):
-    """Training settings of a CRBM: :class:`~priors.contrastive.ContrastiveConfig`'s, and the CRBM's own."""
-
-    history_noise: float | str = "auto"
-    sparsity_target: float | None = None
-    sparsity_cost: float = 0.1
-    #: Condition on each frame's pace (:func:`~tracker.core.representation.clip_log_pace`, one extra input before
-    #: the history), so that one model walks at every pace it was shown, at the pace the tracker gives it.
-    pace_input: bool = False
-    #: Fraction of each clip (its last frames) held out to choose the epoch: every ``validation_every`` epochs the
-    #: one-step prediction error (free-energy best guess, normalised units) on the held-out windows is measured and
-    #: the weights of the best check are kept (Taylor 2009 held out 10%). 0: no validation, the last epoch's weights.
-    validation: float = 0.0
-    validation_every: int = 10
-
-    def check(self) -> "CRBMConfig":
-        super().check()
-        if self.sparsity_target is not None and not 0 < self.sparsity_target < 1:
-            raise InputError(f"sparsity target must lie in (0, 1), got {self.sparsity_target}")
-        if not 0 <= self.validation <= 0.5:
-            raise InputError(f"validation fraction must lie in [0, 0.5], got {self.validation}")
-        if int(self.validation_every) < 1:
-            raise InputError(f"validation_every must be at least 1, got {self.validation_every}")
-        return self
 
 
 #: The training settings that change what a model's inputs mean (name: what it is, for messages): the growth

@@ -23,9 +23,10 @@ from priors.common import read_model_file, torch_generator, torch_save_atomic
 from priors.contrastive import finish_epoch, minibatches, momentum_step
 from priors.crbm_file import model_from_document
 from priors.crbm_model import CHECKPOINT_FORMAT, CRBM, INPUT_SETTINGS, CRBMConfig, CRBMModel, bernoulli
+from priors.settings import PACE_SPREAD_FOR_INPUT
 from tracker.core.errors import InputError
 from tracker.core.representation import FeatureNormaliser, clip_features, clip_log_pace, step_rms
-from tracker.engine.registry import Option, TrainingData
+from tracker.engine.registry import TrainingData
 
 
 @dataclass
@@ -205,11 +206,6 @@ def split_validation(starts: torch.Tensor, clip_lengths: Sequence[int], order: i
     return starts[torch.from_numpy(~held)], starts[torch.from_numpy(held)]
 
 
-#: Least spread (std of the training frames' log pace) for which ``train`` gives a CRBM a pace input by default:
-#: a 10% spread of paces. One person's walks vary by less (subject 7's four walks: 0.07; one walk: 0.01), and a
-#: model trained on them could not learn what the input means; the walks of three or more of the shared subjects
-#: vary by 0.14-0.58 (set a priori from these spreads, not from tracking results).
-PACE_SPREAD_FOR_INPUT = 0.1
 
 
 def paces_vary(clips: Sequence[np.ndarray], fps: float) -> bool:
@@ -310,29 +306,4 @@ def growth_orders(text: str, order: int) -> list[int]:
     return [o for o in orders if o < order]
 
 
-CRBM_TRAIN_OPTIONS = (
-    Option("order", int, CRBMConfig.order, "CRBM order N (default 3)", minimum=1, maximum=100),
-    Option("hidden", int, CRBMConfig.hidden, "hidden units (default 150)", minimum=1, maximum=100000),
-    Option("epochs", int, CRBMConfig.epochs, "passes through the data (default 500)", minimum=1,
-           maximum=1000000),
-    Option("cd_k", int, CRBMConfig.cd_k, "Gibbs steps of contrastive divergence (default 10)", minimum=1,
-           maximum=10000),
-    Option("batch_size", int, CRBMConfig.batch_size, "windows per mini-batch (default 100)", minimum=1,
-           maximum=1000000),
-    Option("history_noise", str, "auto",
-           "std of the noise added to the history in training (normalised units), or 'auto' (default)"),
-    Option("sparsity", float, None, "target mean activation of the hidden units (default: no sparsity term)"),
-    Option("checkpoint_every", int, None, "also save the training state every this many epochs, for train --resume",
-           minimum=1, default_note="never"),
-    Option("grow_from", str, "1", "lower orders trained alongside and saved in the same file, which grow the "
-                                  "history from the known frames (Taylor 2009, Sec. 6.4); 'none' to skip (default 1)"),
-    Option("pace_input", bool, None, "condition the model on each frame's pace (log ground speed averaged over one "
-                                     "second), which each particle carries while tracking (default: on when the "
-                                     f"clips' paces vary, std of log pace >= {PACE_SPREAD_FOR_INPUT:g}, e.g. the "
-                                     "walks of several people; --no-pace-input to turn it off)"),
-    Option("validation", float, CRBMConfig.validation,
-           "fraction of each clip (its last frames) held out to choose the epoch: the weights of the epoch with the "
-           "least held-out one-step error, checked every 10 epochs, are kept (default 0: the last epoch's)",
-           minimum=0.0, maximum=0.5),
-)
 

@@ -26,28 +26,29 @@ from __future__ import annotations
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Callable, ClassVar, Sequence
+from typing import TYPE_CHECKING, Callable, ClassVar, Sequence
 
 import numpy as np
-import torch
 
 from priors.common import gibbs_steps_option, loaded, read_model_file, source_of, torch_generator, torch_save_atomic
-from priors.contrastive import ContrastiveConfig, finish_epoch, minibatches, momentum_step, window_index
 from priors.crbm import CRBMPrior, learned_parts
-from priors.crbm_file import model_from_document
-from priors.crbm_model import CRBM, CRBMModel, bernoulli, bernoulli_
-from priors.crbm_training import CRBM_TRAIN_OPTIONS, growth_orders, make_windows, train_crbm_prior
 from priors.parts import GroundDiffusion, HeightOffset, PostureOffset
+from priors.settings import CRBM_TRAIN_OPTIONS, ContrastiveConfig
 from tracker.core.errors import InputError
 from tracker.engine.prior import PriorState
 from tracker.engine.registry import Option, PriorContext, TrainingData, register_prior, resolve_options
+
+if TYPE_CHECKING:  # torch and the first layer's model load when the prior is built or trained, not when it registers
+    import torch
+
+    from priors.crbm_model import CRBM, CRBMModel
 
 FORMAT = "pose-tracker deep-crbm v1"
 
 
 @dataclass
 class TopConfig(ContrastiveConfig):
-    """Settings of the second layer: :class:`~priors.contrastive.ContrastiveConfig`'s, with a smaller second layer."""
+    """Settings of the second layer: :class:`~priors.settings.ContrastiveConfig`'s, with a smaller second layer."""
 
     order: int = 2
     hidden: int = 100
@@ -60,6 +61,11 @@ def first_layer_activations(model: CRBMModel, clips: Sequence[np.ndarray]) -> tu
     """Mean-field hidden probabilities ``M x H1`` of the first layer driven by the clips (one row per frame with
     ``N`` frames of history, clips concatenated), and a bool ``(M,)`` that is true where a row continues the
     previous row's clip (the next frame of the same clip)."""
+    import torch
+
+    from priors.contrastive import window_index
+    from priors.crbm_training import make_windows
+
     data = make_windows(clips, model.order, model.dof_names, model.normaliser)
     crbm, N, K = model.crbm, model.order, model.crbm.n_visible
     idx = window_index(data.starts, N + 1).to(crbm.W.device)
@@ -76,6 +82,10 @@ def deep_gibbs(bottom: CRBM, top: CRBM, history: torch.Tensor, steps: int, gener
                ) -> torch.Tensor:
     """Next frames ``B x K`` from histories ``B x ((N + M) K)`` (oldest first) by the up-pass, the second layer's
     Gibbs sampling and the down-pass of the module docstring."""
+    import torch
+
+    from priors.crbm_model import bernoulli_
+
     B, N, M, K, H1 = len(history), bottom.order, top.order, bottom.n_visible, bottom.n_hidden
     frames = history.reshape(B, N + M, K)
     win = torch.stack([frames[:, j:N + j + 1] for j in range(M)], dim=1)  # B x M x (N+1) x K
@@ -96,6 +106,11 @@ def train_top(acts: torch.Tensor, follows: torch.Tensor, config: TopConfig, rng:
     """The second layer: a CRBM with binary visible units on the activations ``M x H1`` (windows of ``order + 1``
     consecutive rows of one clip), trained with CD-k (binary hidden samples drive the reconstructions, hidden
     probabilities in both phases' statistics); returns it and the reconstruction error per epoch."""
+    import torch
+
+    from priors.contrastive import finish_epoch, minibatches, momentum_step, window_index
+    from priors.crbm_model import CRBM, bernoulli
+
     cfg = config.check()
     device = acts.device
     g = torch_generator(rng, device)
@@ -185,6 +200,11 @@ class DeepCRBMModel:
 def load_deep_crbm(path: str | Path, device: str = "cpu") -> DeepCRBMModel:
     """A deep CRBM model file, every part checked (the first layer as a CRBM model file is); a damaged file is an
     :class:`InputError` naming it."""
+    import torch
+
+    from priors.crbm_file import model_from_document
+    from priors.crbm_model import CRBM
+
     path = Path(path)
     doc = read_model_file(path, FORMAT, "deep CRBM")
     try:
@@ -229,6 +249,8 @@ class DeepCRBMPrior(CRBMPrior):
     def __init__(self, model: DeepCRBMModel, gibbs_steps: int = 30, *, device: str = "cpu",
                  ground: GroundDiffusion = GroundDiffusion(), height: HeightOffset | None = None,
                  posture: PostureOffset | None = None):
+        from priors.crbm_model import CRBM
+
         super().__init__([model.bottom], gibbs_steps, device=device, ground=ground, height=height, posture=posture)
         self.deep = model
         for k in CRBM.PARAMS:
@@ -247,6 +269,8 @@ class DeepCRBMPrior(CRBMPrior):
              state: PriorState) -> torch.Tensor:
         if model is not self.deep:
             return super().draw(model, conditioning, generator, state)
+        import torch
+
         with torch.no_grad():
             return deep_gibbs(self.deep.bottom.crbm, self.deep.top, conditioning, self.gibbs_steps, generator)
 
@@ -261,6 +285,8 @@ def train_deep_crbm_prior(data: TrainingData, options: dict, rng: np.random.Gene
                           checkpoint: Path | None = None) -> DeepCRBMModel:
     """``train --prior deep-crbm``: the first layer as ``train --prior crbm`` trains it, then the second layer on
     its hidden activations."""
+    from priors.crbm_training import growth_orders, train_crbm_prior
+
     t0 = time.perf_counter()
     crbm_options = {o.name for o in CRBM_TRAIN_OPTIONS}
     bottom_options = resolve_options("training crbm", CRBM_TRAIN_OPTIONS,

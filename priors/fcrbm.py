@@ -10,22 +10,23 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
-import torch
 
 from priors.common import gibbs_steps_option, loaded, source_of
 from priors.conditional import ConditionalPrior
-from priors.crbm_training import CRBM_TRAIN_OPTIONS, growth_orders, parse_history_noise
-from priors.fcrbm_model import (
-    STYLE_TEMPERATURE, FCRBMConfig, FCRBMModel, load_fcrbm, parse_labels, train_fcrbm,
-)
 from priors.parts import GroundDiffusion, GrowingModels
+from priors.settings import CRBM_TRAIN_OPTIONS, STYLE_TEMPERATURE, FCRBMConfig
 from tracker.core.errors import InputError
 from tracker.engine.mixture import Mixture, switching
 from tracker.engine.prior import PriorState
 from tracker.engine.registry import Option, PriorContext, TrainingData, register_prior
+
+if TYPE_CHECKING:  # the model and torch load when the prior is built or trained, not when it registers
+    import torch
+
+    from priors.fcrbm_model import FCRBMModel
 
 
 def transition_styles(n_labels: int, first: int, second: int, frames: int, start: int, length: int) -> np.ndarray:
@@ -133,6 +134,8 @@ class FCRBMPrior(ConditionalPrior):
     def draw(self, model: FCRBMModel, conditioning: torch.Tensor, generator: torch.Generator,
              state: PriorState) -> torch.Tensor:
         """The FCRBM's Gibbs samples with the label rows ``state["style_rows"]`` ``P x L`` clamped."""
+        import torch
+
         rows = torch.as_tensor(np.asarray(state["style_rows"]), dtype=torch.float32, device=self.device)
         with torch.no_grad():
             return model.fcrbm.gibbs(conditioning, rows, self.gibbs_steps, generator)
@@ -196,6 +199,9 @@ def train_fcrbm_prior(data: TrainingData, options: dict, rng: np.random.Generato
                       checkpoint: Path | None = None) -> FCRBMModel:
     """``train --prior fcrbm``: an FCRBM of ``options['order']`` (and the lower orders it grows from) on the clips
     of ``data``, labelled by ``options['labels']`` (one per clip, in clip order)."""
+    from priors.crbm_training import growth_orders, parse_history_noise
+    from priors.fcrbm_model import parse_labels, train_fcrbm
+
     if options["labels"] is None:
         raise InputError("the FCRBM needs one label per training clip: --labels walk,walk,run (labels = "
                          "\"walk,walk,run\" in an experiment's train options)")
@@ -261,6 +267,8 @@ FCRBM_TRAIN_OPTIONS = (
                     f"to 1/T when the labels are weighed (default {STYLE_TEMPERATURE:g})", minimum=1.0,
                     maximum=1e6)))
 def build_fcrbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> FCRBMPrior:
+    from priors.fcrbm_model import FCRBMModel, load_fcrbm
+
     model = loaded(model_files[0], load_fcrbm, FCRBMModel, "FCRBM", device=context.device)
     model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps,
                            source_of(model_files[0]))

@@ -53,10 +53,11 @@ from priors.common import (
     TrainedModel, check_weights, checked_model_data, read_model_file, torch_generator,
 )
 from priors.contrastive import (
-    ContrastiveConfig, balanced_starts, finish_epoch, minibatches, momentum_step, window_index,
+    balanced_starts, finish_epoch, minibatches, momentum_step, window_index,
 )
 from priors.crbm_model import below_, bernoulli, uniform16
 from priors.crbm_training import history_noise_scale, make_windows
+from priors.settings import FCRBMConfig
 from tracker.core.errors import InputError
 from tracker.core.representation import step_rms
 
@@ -70,26 +71,8 @@ GROUPED_STYLES_MAX = 16
 #: How the FCRBM prior infers an unknown style: ``"mixture"`` keeps a fixed share of the particles on every label
 #: and moves weight between them (mixture tracking, :mod:`tracker.engine.mixture`); ``"particles"`` lets every
 #: particle carry and switch its own label, the posterior being the weighted histogram.
-#: Temperature of the labels' evidence in mixture inference (the likelihood to the power ``1 / T`` when the
-#: labels are weighed against each other). Chosen on a tuning fold (``docs/methods_report.md``).
-STYLE_TEMPERATURE = 10.0
 
 
-@dataclass
-class FCRBMConfig(ContrastiveConfig):
-    """Training settings of an FCRBM (Taylor & Hinton 2009, Sec. 4.2): :class:`~priors.contrastive.ContrastiveConfig`'s
-    with the paper's defaults, and the factors, style features, history noise and label balance."""
-
-    epochs: int = 300
-    learning_rate: float = 1e-2
-    autoregressive_learning_rate: float = 1e-3
-    factors: int = 100
-    features: int = 20
-    history_noise: float | str = "auto"
-    balance: bool = True
-
-    KIND: ClassVar[str] = "FCRBM"
-    COUNTS: ClassVar[tuple[str, ...]] = ContrastiveConfig.COUNTS + ("factors", "features")
 
 
 def parse_labels(text: str | Sequence[str], sources: Sequence[str]) -> list[str]:

@@ -4,24 +4,23 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
-import torch
 
 from priors.common import loaded, read_model_file, source_of, torch_save_atomic
-from priors.gpdm_model import (
-    AUTO_INDUCING, CHECKPOINT_FORMAT, DYNAMICS, EXACT_MAX_FRAMES, GPDM, MAX_LATENT_NOISE, GPDMConfig,
-)
-from priors.gpdm_predict import prepare
-from priors.gpdm_training import (
-    GPDMCheckpoint, GPDMPriorModel, gpdm_document, gpdm_from_document, load_gpdm_prior, train_gpdm_prior,
-)
+from priors.settings import AUTO_INDUCING, DYNAMICS, EXACT_MAX_FRAMES, MAX_LATENT_NOISE, GPDMConfig
 from priors.parts import GroundDiffusion, HeightOffset, shift_height
 from tracker.core.errors import InputError
 from tracker.core.representation import STEP_FEATURES, next_poses, pending_step, poses_to_invariant
 from tracker.engine.prior import MotionPrior, PriorState
 from tracker.engine.registry import Option, PriorContext, TrainingData, register_prior
+
+if TYPE_CHECKING:  # the model and torch load when the prior is built or trained, not when it registers
+    import torch
+
+    from priors.gpdm_model import GPDM
+    from priors.gpdm_training import GPDMCheckpoint, GPDMPriorModel
 
 
 #: Default height spread (mm) of the GPDM prior: each particle's own root-height offset, Gaussian with this std at
@@ -49,7 +48,11 @@ class GPDMPrior(MotionPrior):
 
     def __init__(self, model: GPDMPriorModel, noise_scale: float = 1.0, *,
                  ground: GroundDiffusion = GroundDiffusion(), height: HeightOffset | None = None,
-                 dtype: torch.dtype = torch.float32):
+                 dtype: torch.dtype | None = None):
+        import torch
+
+        from priors.gpdm_predict import prepare
+
         if not noise_scale >= 0:
             raise InputError("GPDM latent noise must be non-negative")
         self.ground = ground
@@ -59,7 +62,7 @@ class GPDMPrior(MotionPrior):
             self.summary_names, self.summary_kind = (HeightOffset.SUMMARY,), "quantity"
         self.model = model
         self.predictor = prepare(model.gpdm)
-        self.sampler = self.predictor.sampler(dtype)
+        self.sampler = self.predictor.sampler(torch.float32 if dtype is None else dtype)
         self.latent_order = model.gpdm.config.order
         self.noise_scale = float(noise_scale)
 
@@ -71,6 +74,8 @@ class GPDMPrior(MotionPrior):
         """The latent state ``P x (o d)`` (newest first, ``o`` the latent order) of pose sequences ``P x n x D``
         (oldest first): the projections of their last ``o`` poses' features, the earliest pose repeated when
         ``n < o``."""
+        import torch
+
         o, P = self.latent_order, len(poses)
         recent = poses[:, -o:] if poses.shape[1] >= o else \
             np.concatenate([np.repeat(poses[:, :1], o - poses.shape[1], axis=1), poses], axis=1)
@@ -107,6 +112,8 @@ class GPDMPrior(MotionPrior):
                 ) -> tuple[np.ndarray, PriorState]:
         """The step of :meth:`sample` for given noise (:meth:`draw`): deterministic, and row by row the same
         for any batch of particles."""
+        import torch
+
         step = list(STEP_FEATURES)
         x, pose_features = self.sampler.step(torch.from_numpy(np.ascontiguousarray(state["latent"])),
                                              torch.from_numpy(noise["latent"]), self.noise_scale)
@@ -151,6 +158,9 @@ def train_gpdm_from_data(data: TrainingData, options: dict, rng: np.random.Gener
     With ``checkpoint`` (a file) and the ``checkpoint_every`` option the training state is saved there in the
     checkpoint format (never taken for a model file), atomically; ``resume`` continues from it to the model an
     uninterrupted run gives. The checkpoint is removed when training finishes."""
+    from priors.gpdm_model import CHECKPOINT_FORMAT
+    from priors.gpdm_training import gpdm_document, train_gpdm_prior
+
     config = GPDMConfig(latent_dim=options["latent_dim"], dynamics=options["dynamics"], order=options["order"],
                         balance=options["balance"], iterations=options["iterations"],
                         inducing=options.get("inducing")).check()
@@ -173,6 +183,9 @@ def train_gpdm_from_data(data: TrainingData, options: dict, rng: np.random.Gener
 
 def read_training_checkpoint(path: Path | None) -> GPDMCheckpoint:
     """A GPDM training checkpoint written by ``train --checkpoint-every``, checked like a model file."""
+    from priors.gpdm_model import CHECKPOINT_FORMAT
+    from priors.gpdm_training import GPDMCheckpoint, gpdm_from_document
+
     if path is None or not path.exists():
         raise InputError("no training checkpoint to resume from", path)
     doc = read_model_file(path, CHECKPOINT_FORMAT, "GPDM training checkpoint")
@@ -208,6 +221,8 @@ GPDM_TRAIN_OPTIONS = (
              replace(HeightOffset.OPTIONS[0], default=HEIGHT_SPREAD),
              HeightOffset.OPTIONS[1]))
 def build_gpdm(context: PriorContext, model_files: Sequence[Path], options: dict) -> GPDMPrior:
+    from priors.gpdm_training import GPDMPriorModel, load_gpdm_prior
+
     model = loaded(model_files[0], load_gpdm_prior, GPDMPriorModel, "GPDM")
     model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps,
                            source_of(model_files[0]))

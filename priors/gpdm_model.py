@@ -47,70 +47,19 @@ from typing import Sequence
 import numpy as np
 import torch
 
+from priors.settings import (  # the settings (priors.settings), read from here too
+    AUTO_INDUCING, EXACT_MAX_FRAMES, MIN_INDUCING, SPARSE_METHODS, GPDMConfig,
+)
 from tracker.core.errors import InputError
 
 
 FORMAT = "pose-tracker gpdm v1"
 #: Training checkpoints have their own format, so a half-trained model is never taken for a model file.
 CHECKPOINT_FORMAT = "pose-tracker gpdm training checkpoint v1"
-DYNAMICS = ("linear", "rbf", "linear+rbf")
-#: Sparse approximations (:class:`_Sparse`): ``dtc`` (the default; deterministic training conditional, or
-#: projected process, Seeger et al. 2003), ``vfe`` (DTC plus Titsias' 2009 trace term: a lower bound on the
-#: evidence), ``fitc`` (Snelson & Ghahramani 2006). docs/reference/priors.md compares them: DTC forecast best overall, VFE
-#: worst, and FITC learned a near-zero dynamics noise.
-SPARSE_METHODS = ("dtc", "vfe", "fitc")
-
-#: Largest training set (frames) on which ``inducing=None`` (auto) keeps the exact model; above it the GPs are
-#: sparse with :data:`AUTO_INDUCING` inducing frames. An exact objective evaluation costs O(N^3) (600 frames: 0.09 s
-#: on one core; 1786 frames took 3 s per L-BFGS iteration), a sparse one O(N m^2) (2000 frames, m = 200: 0.1 s);
-#: the exact prior's step costs O(P N^2) for P particles (1000 particles, 500 frames: about 16 ms; 600: 23 ms).
-EXACT_MAX_FRAMES = 500
-#: Inducing frames of the auto setting (docs/reference/performance.md has the measurements behind it).
-AUTO_INDUCING = 200
-#: Fewest inducing frames a sparse model may have.
-MIN_INDUCING = 10
-#: Largest latent noise (multiples of the predictive standard deviation) of the tracking prior: far beyond any
-#: useful setting, and larger values throw particles kilometres away.
-MAX_LATENT_NOISE = 100.0
 #: Jitter added to the inducing kernel matrix ``K_uu``, relative to its mean diagonal.
 JITTER = 1e-6
 
 
-@dataclass
-class GPDMConfig:
-    latent_dim: int = 3
-    dynamics: str = "linear+rbf"
-    order: int = 1
-    balance: float = 1.0
-    iterations: int = 300
-    w_update_every: int = 10
-    #: ``None``: exact up to :data:`EXACT_MAX_FRAMES` frames, else :data:`AUTO_INDUCING` inducing frames;
-    #: ``0``: always exact; ``m > 0``: sparse with ``min(m, N)`` inducing frames (see :func:`inducing_frames`).
-    inducing: int | None = None
-    sparse_method: str = "dtc"
-
-    def check(self) -> "GPDMConfig":
-        if self.latent_dim < 1:
-            raise InputError(f"latent dimension must be at least 1, got {self.latent_dim}")
-        if self.dynamics not in DYNAMICS:
-            raise InputError(f"dynamics kernel must be one of {', '.join(DYNAMICS)}, got {self.dynamics!r}")
-        if self.order not in (1, 2):
-            raise InputError(f"GPDM order must be 1 or 2, got {self.order}")
-        if not self.balance > 0:
-            raise InputError(f"the balance M must be positive, got {self.balance}")
-        if self.iterations < 1 or self.w_update_every < 1:
-            raise InputError("iterations and the W update interval must be at least 1")
-        if self.inducing is not None and self.inducing != 0 and self.inducing < MIN_INDUCING:
-            raise InputError(f"inducing frames must be 0 (exact) or at least {MIN_INDUCING}, got {self.inducing}")
-        if self.sparse_method not in SPARSE_METHODS:
-            raise InputError(f"sparse method must be one of {', '.join(SPARSE_METHODS)}, got {self.sparse_method!r}")
-        return self
-
-    def inducing_count(self, n_frames: int) -> int:
-        """Inducing frames for a training set of ``n_frames`` frames (0: the exact model)."""
-        if self.inducing is None:
-            return 0 if n_frames <= EXACT_MAX_FRAMES else AUTO_INDUCING
-        return min(self.inducing, n_frames)
 
 
 def n_dynamics_params(cfg: GPDMConfig) -> int:

@@ -14,6 +14,9 @@ import pytest
 
 #: Libraries that only rendering (trimesh), plots (matplotlib) and videos (av) need.
 RENDERING = ("trimesh", "matplotlib", "av")
+#: What the help texts do without: the above, torch (the learned priors' models load when one is built), and the
+#: compiled and image code of tracking (numba, OpenCV, scipy).
+NOT_FOR_HELP = ("torch", "numba", "cv2", "scipy", *RENDERING)
 
 _PROGRAM = """
 import json, sys
@@ -38,8 +41,8 @@ def loaded_by(args: list[str], modules: tuple[str, ...], cwd: Path) -> list[str]
 
 @pytest.mark.parametrize("args", [["--help"], ["track", "--help"], ["track", "--prior", "crbm", "--help"],
                                   ["train", "--help"]])
-def test_help_loads_no_renderer(args, tmp_path):
-    assert loaded_by(args, RENDERING, tmp_path) == []
+def test_help_loads_no_model_tracking_or_rendering_library(args, tmp_path):
+    assert loaded_by(args, NOT_FOR_HELP, tmp_path) == []
 
 
 def test_zero_velocity_track_loads_no_renderer(bodytrack_dir, tmp_path):
@@ -48,3 +51,22 @@ def test_zero_velocity_track_loads_no_renderer(bodytrack_dir, tmp_path):
             "--out", str(out), "--quiet"]
     assert loaded_by(args, RENDERING, tmp_path) == []
     assert (out / "result.json").is_file()
+
+
+@pytest.mark.parametrize("package", ["priors", "likelihoods"])
+def test_support_modules_register_nothing(package):
+    """The modules that load_plugins skips exist and register no prior or likelihood (a registering module left
+    in the list would vanish from the command line)."""
+    import importlib
+    import pkgutil
+
+    from tracker.engine.registry import LIKELIHOODS, PRIORS
+
+    pkg = importlib.import_module(package)
+    modules = {info.name for info in pkgutil.iter_modules(pkg.__path__)}
+    assert set(pkg.SUPPORT_MODULES) <= modules
+    for name in modules:
+        importlib.import_module(f"{package}.{name}")
+    origins = {e.build.__module__ for e in [*PRIORS.entries.values(), *LIKELIHOODS.entries.values()]}
+    assert origins & {f"{package}.{name}" for name in pkg.SUPPORT_MODULES} == set()
+    assert {o for o in origins if o.startswith(f"{package}.")}, "the package registers nothing at all"

@@ -28,7 +28,10 @@ from data_tools.load import load_mocap, load_training_clips
 from data_tools.retarget import RetargetResult, retarget
 from data_tools.samples import sample_walks
 from data_tools.sequence import Sequence, read_sequence
-from tracker.app.plugins import load_plugins
+from tracker.app.defaults import TRACK_ANNEALING_LAYERS
+from tracker.app.plugins import (  # the discovery functions of the API
+    available_likelihoods, available_priors, likelihood_entry, prior_entry,
+)
 from tracker.app.threads import configured_threads
 from tracker.app.tracking import (
     TrackingInterrupted, TrackingResult, check_frames, check_views, records_call, run_tracking, seed_description,
@@ -40,10 +43,7 @@ from tracker.engine.filter import FilterConfig
 from tracker.engine.likelihood import Likelihood
 from tracker.engine.prior import MotionPrior
 from tracker.engine.recording import DEFAULT_RECORD, FrameStep
-from tracker.engine.registry import (
-    LIKELIHOODS, PRIORS, LikelihoodContext, LikelihoodEntry, PriorContext, PriorEntry, TrainingData,
-    resolve_options,
-)
+from tracker.engine.registry import PRIORS, LikelihoodContext, PriorContext, TrainingData, resolve_options
 
 if TYPE_CHECKING:  # the renderer (trimesh) is imported by synthesize, not by every command
     from data_tools.synth import SynthConfig
@@ -60,30 +60,6 @@ def make_rng(seed: SeedLike) -> np.random.Generator:
     if isinstance(seed, (int, np.integer)) and not 0 <= int(seed) < 2 ** 63:
         raise InputError(f"seed must lie in 0..2^63-1, got {seed}")
     return np.random.default_rng(seed)
-
-
-# -- discovery ----------------------------------------------------------------------------------------------
-
-def prior_entry(name: str) -> PriorEntry:
-    load_plugins()
-    return PRIORS.get(name)
-
-
-def likelihood_entry(name: str) -> LikelihoodEntry:
-    load_plugins()
-    return LIKELIHOODS.get(name)
-
-
-def available_priors() -> list[str]:
-    """Names of the registered priors (built-in and plugins)."""
-    load_plugins()
-    return PRIORS.names()
-
-
-def available_likelihoods() -> list[str]:
-    """Names of the registered likelihoods."""
-    load_plugins()
-    return LIKELIHOODS.names()
 
 
 # -- data ---------------------------------------------------------------------------------------------------
@@ -334,14 +310,6 @@ def split_options(prior: str | MotionPrior, likelihood: str | Likelihood, option
 def model_name(model: str | Path | Any) -> str:
     """How ``result.json`` names a prior's model: its file, or the kind of a model given in memory."""
     return str(model) if isinstance(model, (str, os.PathLike)) else f"{type(model).__name__} (in memory)"
-
-
-#: Annealing layers per frame that :func:`track` (and the command line, and experiment files that leave
-#: ``annealing_layers`` unset) uses when none are asked for: 3 won in ``docs/methods_report.md`` ("the annealed
-#: filter") for the zero-velocity baseline and the paced CRBM on people the priors were not
-#: trained on, and the FCRBM's tuning fold with its style inferred by mixture tracking (``docs/methods_report.md``).
-#: The engine's own :class:`~tracker.engine.filter.FilterConfig` default stays plain SIR.
-TRACK_ANNEALING_LAYERS = 3
 
 
 @records_call

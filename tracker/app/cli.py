@@ -19,10 +19,9 @@ from typing import Sequence
 import numpy as np
 
 from data_tools.files import atomic_path, check_not_inside, check_output_file, check_output_folder
-from tracker.app.api import likelihood_entry, load_sequence, prior_entry, track, train
 from tracker.app.console import PROG, configure_logging, error_line, progress_bar, shows_progress, verbosity
 from tracker.app.parser import build_parser, given_options, parse_arguments
-from tracker.app.plugins import import_plugin
+from tracker.app.plugins import import_plugin, likelihood_entry, prior_entry
 from tracker.app.threads import set_threads
 from tracker.core.errors import InputError
 
@@ -150,6 +149,20 @@ def _progress_bar(desc: str, on_start=None):
     return progress
 
 
+def train(*args, **kwargs):
+    """:func:`tracker.app.api.train`, the API imported on the first call (help texts do without it)."""
+    from tracker.app.api import train as train_prior
+
+    return train_prior(*args, **kwargs)
+
+
+def track(*args, **kwargs):
+    """:func:`tracker.app.api.track`, the API imported on the first call (help texts do without it)."""
+    from tracker.app.api import track as track_sequence
+
+    return track_sequence(*args, **kwargs)
+
+
 def cmd_train(args: argparse.Namespace) -> int:
     out = check_output_file(args.out, "the model file", new=not args.overwrite)
     check_not_inside(out, {f"training file {i + 1}": f for i, f in enumerate([*args.mocap, *(args.skeleton or [])])})
@@ -221,6 +234,7 @@ def _track_arguments(args: argparse.Namespace) -> argparse.Namespace:
 def cmd_track(args: argparse.Namespace) -> int:
     from data_tools.estimates import read_poses_file
     from data_tools.files import write_text_atomic
+    from tracker.app.api import load_sequence
     from tracker.app.tracking import TrackingInterrupted, check_frames, metrics_line
     from tracker.app.visualize import overlay_frames, write_video
 

@@ -15,9 +15,8 @@ from typing import Sequence
 import numpy as np
 
 from data_tools.checks import MAX_FPS, MAX_IMAGE_SIDE, MAX_MM_PER_UNIT, MAX_VIEWS, MIN_FPS, MIN_MM_PER_UNIT
-from tracker.app.api import (
-    TRACK_ANNEALING_LAYERS, available_likelihoods, available_priors, likelihood_entry, prior_entry,
-)
+from tracker.app.defaults import TRACK_ANNEALING_LAYERS
+from tracker.app.plugins import available_likelihoods, available_priors, likelihood_entry, prior_entry
 from tracker.app.console import PROG, error_line
 from tracker.core.errors import InputError
 from tracker.engine.registry import Option

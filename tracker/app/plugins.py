@@ -13,6 +13,7 @@ from importlib.metadata import entry_points
 from pathlib import Path
 
 from tracker.core.errors import InputError
+from tracker.engine.registry import LIKELIHOODS, PRIORS, LikelihoodEntry, PriorEntry
 
 #: Entry-point group through which an installed package adds priors or likelihoods.
 ENTRY_POINT_GROUP = "pose_tracker.plugins"
@@ -21,15 +22,18 @@ _loaded = False
 
 
 def load_plugins() -> None:
-    """Import every module of the built-in plugin packages and every ``pose_tracker.plugins`` entry point
+    """Import every module of the built-in plugin packages but their ``SUPPORT_MODULES`` (the models and shared
+    parts, which the plugins import when they build or train) and every ``pose_tracker.plugins`` entry point
     (once per process)."""
     global _loaded
     if _loaded:
         return
     for package in _BUILTIN_PACKAGES:
         pkg = importlib.import_module(package)
+        support = set(getattr(pkg, "SUPPORT_MODULES", ()))
         for info in pkgutil.iter_modules(pkg.__path__):
-            importlib.import_module(f"{package}.{info.name}")
+            if info.name not in support:
+                importlib.import_module(f"{package}.{info.name}")
     for ep in entry_points(group=ENTRY_POINT_GROUP):
         try:
             ep.load()
@@ -37,6 +41,30 @@ def load_plugins() -> None:
             raise InputError(f"plugin entry point {ep.name} ({ep.value}) failed to load: "
                              f"{type(exc).__name__}: {exc}") from None
     _loaded = True
+
+
+def prior_entry(name: str) -> PriorEntry:
+    """The registered prior ``name`` (an :class:`InputError` naming the available ones if none is)."""
+    load_plugins()
+    return PRIORS.get(name)
+
+
+def likelihood_entry(name: str) -> LikelihoodEntry:
+    """The registered likelihood ``name`` (an :class:`InputError` naming the available ones if none is)."""
+    load_plugins()
+    return LIKELIHOODS.get(name)
+
+
+def available_priors() -> list[str]:
+    """Names of the registered priors (built-in and plugins)."""
+    load_plugins()
+    return PRIORS.names()
+
+
+def available_likelihoods() -> list[str]:
+    """Names of the registered likelihoods."""
+    load_plugins()
+    return LIKELIHOODS.names()
 
 
 def import_plugin(spec: str) -> None:

@@ -40,9 +40,6 @@ from typing import Sequence
 import numpy as np
 
 from tracker.core.errors import InputError
-from tracker.core.rotations import (
-    continuous_exp_maps, exp_map_to_matrix, matrix_to_exp_map, matrix_to_yaw_pitch_roll, yaw_pitch_roll_to_matrix,
-)
 
 ROOT_FEATURE_NAMES = ("forward_velocity", "lateral_velocity", "height", "pitch", "roll", "yaw_rate")
 N_ROOT = 6
@@ -75,12 +72,16 @@ def _check(poses: np.ndarray, what: str) -> np.ndarray:
 
 def heading(poses: np.ndarray) -> np.ndarray:
     """Unwrapped heading (yaw, rad) ``(..., T)`` of poses ``(..., T, D)``."""
+    from tracker.core.rotations import exp_map_to_matrix, matrix_to_yaw_pitch_roll  # numba: loaded when first used
+
     yaw, _, _ = matrix_to_yaw_pitch_roll(exp_map_to_matrix(poses[..., 3:6]))
     return np.unwrap(yaw, axis=-1)
 
 
 def poses_to_invariant(poses: np.ndarray) -> np.ndarray:
     """Invariant features ``(..., T, D)`` of pose sequences ``(..., T, D)`` (see module docstring)."""
+    from tracker.core.rotations import exp_map_to_matrix, matrix_to_yaw_pitch_roll
+
     poses = _check(poses, "poses")
     R = exp_map_to_matrix(poses[..., 3:6])
     yaw, pitch, roll = matrix_to_yaw_pitch_roll(R)
@@ -106,6 +107,8 @@ def invariant_to_poses(features: np.ndarray, start_xy: np.ndarray, start_yaw: np
     continuous in time, starting from the branch nearest ``reference_exp_map``
     ``(..., 3)`` when given (the pose before frame 0), else from the principal one.
     """
+    from tracker.core.rotations import continuous_exp_maps, matrix_to_exp_map, yaw_pitch_roll_to_matrix
+
     f = np.asarray(features, dtype=float)
     if f.ndim < 2 or f.shape[-1] < N_ROOT + 1:
         raise InputError(f"features must have shape (..., T, D) with D > 6, got {f.shape}")
