@@ -31,7 +31,7 @@ from typing import Sequence
 import numpy as np
 
 from tracker.core.errors import InputError
-from tracker.engine.mixture import Mixture, switching
+from tracker.engine.mixture import Mixture
 from tracker.engine.prior import MotionPrior, PriorState, reindex_state, scatter_state
 from tracker.engine.registry import PRIORS, Option, PriorContext, register_prior, resolve_options
 

@@ -156,7 +156,7 @@ def test_model_and_sequence_mismatch_is_refused(crbm3, tmp_path):
     with pytest.raises(InputError, match="body model 'bodytrack-10-cone'"):
         crbm3.check_compatible("bodytrack-10-cone", [f"d{i}" for i in range(31)], None)
     (tmp_path / "junk.pt").write_bytes(b"not a model")
-    with pytest.raises(InputError, match="cannot read model file"):
+    with pytest.raises(InputError, match="not a CRBM model file"):
         load_crbm(tmp_path / "junk.pt")
 
 

@@ -416,7 +416,7 @@ def test_foreign_and_corrupt_model_files_are_refused(small_gpdm_file, tmp_path):
     text.write_text("not a model\n")
     cut.write_bytes(small_gpdm_file.read_bytes()[:2000])
     torch.save({"format": "pose-tracker crbm v1"}, other)
-    for path, expected in ((text, "cannot read model file"), (cut, "cannot read model file"),
+    for path, expected in ((text, "not a GPDM model file"), (cut, "not a GPDM model file"),
                            (other, "not a GPDM model file")):
         with pytest.raises(InputError, match=expected) as err:
             load_gpdm_prior(path)
