@@ -274,8 +274,10 @@ def cmd_track(args: argparse.Namespace) -> int:
                     known_frames=args.known_frames, init=init, train_mocap=args.train_mocap, device=args.device,
                     on_frame=on_frame, checkpoint=out / "checkpoint.npz", checkpoint_every=args.checkpoint_every,
                     resume=bool(args.resume))
-    except InputError:  # refused before any frame was tracked (a bad model file, say): nothing stays behind
-        if not args.resume and not (out / "checkpoint.npz").exists():  # a full disk later keeps it resumable
+    except (InputError, KeyboardInterrupt):  # refused, or Ctrl-C, before the filter's first frame (a bad model
+        # file, say, or while the priors are being prepared): nothing stays behind; a full disk later, or Ctrl-C
+        # once the filter runs, keeps the run resumable (the filter answers Ctrl-C itself from its first frame on)
+        if not args.resume and not (out / "checkpoint.npz").exists():
             (out / TRACK_ARGS).unlink(missing_ok=True)
         raise
     except TrackingInterrupted as stop:
@@ -339,6 +341,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except InputError as exc:
         print(error_line(str(exc)), file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C where a command has nothing to keep (those that do answer it themselves)
+        log.warning("interrupted; nothing was written that a rerun would not write again")
+        return 130
     except (MemoryError, RuntimeError) as exc:  # sizes within the checked ranges that this machine cannot hold
         if isinstance(exc, RuntimeError) and "can't allocate memory" not in str(exc):  # torch's allocator says so
             raise
