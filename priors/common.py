@@ -3,6 +3,7 @@
 and the torch generator each sample draws from. The per-particle parts of the priors are :mod:`priors.parts`."""
 from __future__ import annotations
 
+import logging
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -13,6 +14,8 @@ import numpy as np
 from tracker.core.errors import InputError
 from tracker.core.representation import FeatureNormaliser
 from tracker.engine.registry import Option
+
+log = logging.getLogger(__name__)
 
 if TYPE_CHECKING:
     import torch
@@ -137,6 +140,9 @@ def check_model_fits(kind: str, trained: tuple[str, Sequence[str], float], body_
         problems.append(f"{fps:g} fps (trained at {t_fps:g} fps; velocities are per frame)")
     if problems:
         raise InputError(f"{kind} model does not fit this sequence: " + "; ".join(problems), source)
+    if fps is None:  # a sequence that states no frame rate (meta.json's fps, groundtruth.npz): said, not assumed
+        log.warning(f"the sequence states no frame rate; the {kind} model was trained at {t_fps:g} fps and "
+                    "predicts per frame at that rate (give fps in the sequence's meta.json to have it checked)")
 
 
 def loaded(item, load: Callable, model_type: type, kind: str, **load_args):
