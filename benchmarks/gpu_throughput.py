@@ -97,7 +97,7 @@ def main() -> None:
     cpu = EdgeSilhouetteLikelihood(seq.model, seq.rig).prepare(frame)
     dev_lik = EdgeSilhouetteLikelihood(seq.model, seq.rig, device=str(device))
     dev = dev_lik.prepare(frame)
-    compiled = torch.compile(dev_lik._block_costs, dynamic=True) if args.compile else None
+    compiled = torch.compile(dev_lik.array_costs, dynamic=True) if args.compile else None
     print("| particles | device, whole call | device work alone | CPU path (1 thread) | max abs difference of "
           "log-likelihoods |" + (" device work, torch.compile |" if compiled else ""))
     print("|---|---|---|---|---|" + ("---|" if compiled else ""))
@@ -106,7 +106,7 @@ def main() -> None:
         on_device = torch.as_tensor(poses, device=device)
         t_call = timed(lambda: dev(poses), 10, sync)
         with torch.no_grad():
-            t_work = timed(lambda: dev_lik._block_costs(on_device, dev.maps), 10, sync)
+            t_work = timed(lambda: dev_lik.array_costs(on_device, dev.maps), 10, sync)
         t_cpu = timed(lambda: cpu(poses), 3 if P > 4000 else 10, lambda: None)
         a, b = cpu(poses), dev(poses)
         ok = np.isfinite(a)

@@ -102,6 +102,7 @@ class EdgeSilhouetteLikelihood(Likelihood):
         self.n_contour = 2 * config.n_along
         self.weights = _sample_weights(config.n_along, config.n_across)  # 4 x N
         self._plates: dict[int, BackgroundPlate] = {}  # per view: the last plate seen, prepared once
+        self._cone_tables = None
 
     @property
     def threads(self) -> int:
@@ -163,19 +164,46 @@ class EdgeSilhouetteLikelihood(Likelihood):
         def score(block: slice) -> None:
             ok = valid[block]
             if ok.any():
-                e, s, c = self._block_costs(poses[block][ok], maps)
+                e, s, c = self._compiled_block_costs(poses[block][ok], maps)
                 edge[block][ok], sil[block][ok] = e, s
                 if cover is not None:
                     cover[block][ok] = c
 
-        # Blocks of particles keep the intermediates in cache: 256 at a time measured 1.5x faster than all
-        # 4000 at once (each block is still one batched pass over particles, views and points). With several
-        # threads this one and threads - 1 helpers take the blocks in turn (the compiled kinematics and lookups
-        # run without the GIL).
-        blocks = [slice(start, start + BLOCK) for start in range(0, P, BLOCK)]
+        # This thread and threads - 1 helpers take blocks of particles in turn; the compiled kinematics and
+        # costs run without the interpreter lock, so the threads score in parallel. Two blocks a thread
+        # balance the load; more would hand the lock back and forth for nothing.
+        block = min(MAX_BLOCK, max(MIN_BLOCK, -(-P // (2 * self.threads))))
+        if self.config.bidirectional:
+            block = min(block, BLOCK_BIDIRECTIONAL)
+        blocks = [slice(start, start + block) for start in range(0, P, block)]
         with serial_blas():
             _share_blocks(score, blocks, self.threads)
         return self._combine(valid, edge, sil, cover)
+
+    def _compiled_block_costs(self, poses: np.ndarray, maps: "_CostMaps"):
+        """Edge, silhouette and (optional) coverage costs ``p x V`` of poses ``p x D`` within the limits: the CPU
+        path, the compiled kinematics and :func:`likelihoods.compiled_costs.cone_costs`, in float64."""
+        from likelihoods.compiled_costs import cone_costs
+        from tracker.core.kinematics import forward_kinematics
+
+        p, V = len(poses), len(self.rig)
+        edge, sil = np.empty((p, V)), np.empty((p, V))
+        corners = None
+        if self.config.bidirectional:
+            S = len(self.model.segments)
+            corners = (np.empty((V, p, S, 4)), np.empty((V, p, S, 4)))
+        cone_costs(forward_kinematics(self.model, poses), self._tables(), maps.edge, maps.silhouette,
+                   maps.view_offset, maps.Hp, maps.Wp, float(PAD), self.n_contour, edge, sil, corners)
+        cover = None if corners is None else _uncovered(*corners, maps.foreground)
+        return edge, sil, cover
+
+    def _tables(self):
+        """The compiled loop's tables of this model, rig and sample pattern (made on first use)."""
+        if self._cone_tables is None:
+            from likelihoods.compiled_costs import ConeCostTables
+
+            self._cone_tables = ConeCostTables.of(self.model, self.rig, self.weights)
+        return self._cone_tables
 
     def _combine(self, valid, edge, sil, cover) -> LikelihoodTerms:
         """The terms from costs ``P x V`` (numpy arrays or tensors; 1 where a pose is outside the limits)."""
@@ -200,7 +228,7 @@ class EdgeSilhouetteLikelihood(Likelihood):
             x = torch.as_tensor(np.asarray(poses, float)).to(self.device, non_blocking=True)
             valid = self.model.within_limits(x)
             x = torch.where(valid[:, None], x, torch.as_tensor(self.model.rest_pose(), device=self.device))
-            parts = [self._block_costs(x[i:i + block], maps) for i in range(0, P, block)]
+            parts = [self.array_costs(x[i:i + block], maps) for i in range(0, P, block)]
             edge, sil, cover = (None if part[0] is None else torch.where(valid[:, None], torch.cat(part), 1.0)
                                 for part in zip(*parts))
             terms = self._combine(valid, edge.double(), sil.double(), None if cover is None else cover.double())
@@ -218,18 +246,19 @@ class EdgeSilhouetteLikelihood(Likelihood):
 
         return torch_kinematics(self.model, poses.device, poses.dtype)(poses)
 
-    def _block_costs(self, poses, maps: "_CostMaps"):
-        """Edge, silhouette and (optional) coverage costs ``p x V`` of poses ``p x D`` within the limits.
+    def array_costs(self, poses, maps: "_CostMaps", dtype=None):
+        """Edge, silhouette and (optional) coverage costs ``p x V`` of poses ``p x D`` within the limits: the
+        device path, written against the array API (torch tensors with ``maps`` on their device, or numpy
+        arrays).
 
-        One implementation for numpy arrays (the CPU path) and torch tensors on a device (``maps`` there too)
-        up to the sample points' pixels; then the CPU path's compiled lookups and means
-        (:func:`likelihoods.cost_lookup.mean_costs`) or the same steps as tensor operations. float32 from the
-        camera frames on (sub-pixel error about 1e-4 px), components on the leading axis and the views next, so
-        every step runs over long contiguous arrays ``V x p x S (x 4 or N)``.
+        Computed in ``dtype`` from the camera frames on (default float32: sub-pixel error about 1e-4 px),
+        components on the leading axis and the views next, so every step runs over long contiguous arrays
+        ``V x p x S (x 4 or N)``. The CPU path (:func:`likelihoods.compiled_costs.cone_costs`) runs the same
+        steps in one compiled loop in float64.
         """
         rotations, origins = self._segment_frames(poses)  # p S 3 3, p S 3
         xp = namespace(rotations)
-        axes, origins = self.rig.frames_in_cameras(rotations, origins, xp.float32)  # 3 3 V p S, 3 V p S
+        axes, origins = self.rig.frames_in_cameras(rotations, origins, xp.float32 if dtype is None else dtype)
         X, Y, Z = contour_corners(self.model, axes, origins)  # each V p S 4: line 0 proximal, distal; line 1
         u, v = self.rig.pixels(X, Y, Z)
         behind = xp.any(Z <= 0, axis=-1)
@@ -240,17 +269,10 @@ class EdgeSilhouetteLikelihood(Likelihood):
         # each projected line (a ruling projects to a straight segment; with lens distortion a sub-pixel
         # approximation on a limb), then the grid between the lines. One matrix product per coordinate.
         V, p, S = Z.shape[:3]
-        weights = xp.asarray(self.weights, device=device_of(u))
+        weights = xp.asarray(self.weights, dtype=u.dtype, device=device_of(u))
         x = xp.reshape(xp.reshape(u, (-1, 4)) @ weights, (V, p, S, -1))
         y = xp.reshape(xp.reshape(v, (-1, 4)) @ weights, (V, p, S, -1))
         nc = self.n_contour
-        if isinstance(x, np.ndarray):  # the CPU path: lookups and means in one compiled loop
-            from likelihoods.cost_lookup import mean_costs
-
-            edge, sil = np.empty((p, V)), np.empty((p, V))
-            mean_costs(x, y, maps.edge, maps.silhouette, maps.view_offset, maps.Hp, maps.Wp, float(PAD), nc,
-                       edge, sil)
-            return edge, sil, cover
         flat = maps.flat_index(x, y)
         edge = xp.mean(xp.reshape(maps.edge[flat[..., :nc]], (V, p, -1)), axis=-1)
         sil = xp.mean(xp.reshape(maps.silhouette[flat[..., nc:]], (V, p, -1)), axis=-1)
@@ -282,8 +304,13 @@ def _sample_weights(n_along: int, n_across: int) -> np.ndarray:
     return np.array(rows, np.float32).T
 
 
-#: Particles per block (see ``terms``).
-BLOCK = 256
+#: The fewest particles per block on the CPU path (see ``terms``).
+MIN_BLOCK = 64
+MAX_BLOCK = 512
+
+
+#: The most with the bidirectional term, whose point-in-quadrilateral test holds ``p x S x 4 x F`` arrays.
+BLOCK_BIDIRECTIONAL = 256
 #: Particles per block on a device: about 1.5 GB of intermediates at 15 cones x 4 views, so that a GPU of 4 GB
 #: holds a block.
 DEVICE_BLOCK = 32768
@@ -374,8 +401,8 @@ class _CostMaps:
     def flat_index(self, x, y):
         """Flat int64 indices ``V x ...`` into the maps of the nearest pixels to the points ``(x, y)`` (float32
         pixels of the unpadded images, views leading; clamped to the padded maps; ``x`` and ``y`` are used as
-        scratch): the device path's lookup. The CPU path's, :func:`likelihoods.cost_lookup.mean_costs`, computes
-        the same pixels in its loop."""
+        scratch): the device path's lookup. The CPU path's, :func:`likelihoods.compiled_costs.cone_costs`,
+        computes the same pixels in its loop."""
         xp = namespace(x)
         x += PAD + 0.5
         y += PAD + 0.5

@@ -218,13 +218,13 @@ def test_the_likelihood_scores_the_same_on_several_threads(walk_32_frames, monke
 
     seq = walk_32_frames
     truth = seq.groundtruth.poses[7]
-    poses = truth + np.random.default_rng(0).normal(0, 0.05, (1100, truth.size))  # 5 blocks, the last short
+    poses = truth + np.random.default_rng(0).normal(0, 0.05, (1100, truth.size))  # 6 blocks, the last short
     poses[3, seq.model.dof_index("left_knee_flexion")] = -1.0  # outside the limits
     config = EdgeSilhouetteConfig(bidirectional=True)
     one = EdgeSilhouetteLikelihood(seq.model, seq.rig, config).prepare(seq.frame(7, range(4))).terms(poses)
     shared = EdgeSilhouetteLikelihood(seq.model, seq.rig, config, threads=3)
     workers = set()
-    block_costs = shared._block_costs
+    block_costs = shared._compiled_block_costs
     together = threading.Barrier(3, timeout=20)  # the first three blocks are scored by three threads at once
 
     def recorded(*args):
@@ -233,7 +233,7 @@ def test_the_likelihood_scores_the_same_on_several_threads(walk_32_frames, monke
             together.wait()
         return block_costs(*args)
 
-    monkeypatch.setattr(shared, "_block_costs", recorded)
+    monkeypatch.setattr(shared, "_compiled_block_costs", recorded)
     three = shared.prepare(seq.frame(7, range(4))).terms(poses)
     caller = threading.current_thread().name
     assert caller in workers and len(workers) == 3 and all(w.startswith("likelihood") for w in workers - {caller})

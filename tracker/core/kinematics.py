@@ -71,6 +71,13 @@ class Kinematics:
         return out.reshape(batch + out.shape[1:]), self.origins[..., link, :]
 
 
+def segment_tables(model: BodyModel) -> tuple[np.ndarray, np.ndarray]:
+    """Each segment's link ``(S,)`` (int64) and its frame's rotation in that link's ``S x 3 x 3``: segment ``s``
+    has rotation ``R_link[link[s]] @ in_link[s]`` and origin at its link's joint centre."""
+    tables = _tables(model)
+    return tables["seg_link"], tables["seg_in_link"]
+
+
 def _tables(model: BodyModel) -> dict:
     """Index tables derived once per model (cached on the model)."""
     cache = model._cache
