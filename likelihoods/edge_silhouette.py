@@ -24,13 +24,8 @@ and its cost maps once; the returned :class:`PreparedFrame` scores pose batches.
 """
 from __future__ import annotations
 
-import os
-from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import dataclass
-from functools import lru_cache
-from queue import Empty, SimpleQueue
-from threading import Event
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -40,6 +35,7 @@ from tracker.core.body import BodyModel
 from tracker.core.cameras import CameraRig
 from tracker.core.cones import contour_corners
 from tracker.core.errors import InputError
+from tracker.core.workers import share
 from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood
 from tracker.engine.registry import LikelihoodContext, Option, register_likelihood
 
@@ -130,7 +126,7 @@ class EdgeSilhouetteLikelihood(Likelihood):
         plates = None if frame.backgrounds is None else [self._plate(v, b) for v, b in enumerate(frame.backgrounds)]
         return self.prepare_observations(observe(list(frame.images), plates,
                                                  None if frame.masks is None else list(frame.masks),
-                                                 self.observation))
+                                                 self.observation, self.threads))
 
     def _plate(self, view: int, background: np.ndarray | None) -> BackgroundPlate | None:
         from likelihoods.observations import BackgroundPlate
@@ -148,7 +144,7 @@ class EdgeSilhouetteLikelihood(Likelihood):
         if obs.n_views != V:
             raise InputError(f"observations have {obs.n_views} views but the rig has {V} cameras")
         n_fg = self.config.n_foreground if self.config.bidirectional else 0
-        maps = _CostMaps.of(obs, n_fg)
+        maps = _CostMaps.of(obs, n_fg, self.threads)
         return PreparedFrame(self, maps if self.device is None else maps.to(self.device))
 
     def terms(self, poses: np.ndarray, maps: "_CostMaps") -> LikelihoodTerms:
@@ -177,7 +173,7 @@ class EdgeSilhouetteLikelihood(Likelihood):
             block = min(block, BLOCK_BIDIRECTIONAL)
         blocks = [slice(start, start + block) for start in range(0, P, block)]
         with serial_blas():
-            _share_blocks(score, blocks, self.threads)
+            share(score, blocks, self.threads)
         return self._combine(valid, edge, sil, cover)
 
     def _compiled_block_costs(self, poses: np.ndarray, maps: "_CostMaps"):
@@ -319,50 +315,6 @@ DEVICE_BLOCK = 32768
 DEVICE_BLOCK_BIDIRECTIONAL = 4096
 
 
-def _share_blocks(score: Callable[[slice], None], blocks: list[slice], threads: int) -> None:
-    """``score(block)`` for every block, on ``threads`` threads: the calling one and ``threads - 1`` helpers
-    take the next block in turn until none is left (so at most ``threads`` threads work, and a short last block
-    does not hold up the others). An exception raised by any of them stops the others after their current
-    block and is raised here."""
-    todo = SimpleQueue()
-    for block in blocks:
-        todo.put(block)
-    failed = Event()
-
-    def drain() -> None:
-        try:
-            while not failed.is_set():
-                try:
-                    block = todo.get_nowait()
-                except Empty:
-                    return
-                score(block)
-        except BaseException:
-            failed.set()
-            raise
-
-    n_helpers = min(threads, len(blocks)) - 1
-    helpers = [_helpers(threads - 1).submit(drain) for _ in range(n_helpers)]
-    try:
-        drain()
-    finally:
-        wait(helpers)  # the blocks' arrays are not left to helpers still writing them
-    for helper in helpers:
-        helper.result()
-
-
-def _helpers(n: int) -> ThreadPoolExecutor:
-    """This process's pool of ``n`` helper threads that score blocks of particles (one per count)."""
-    return _process_helpers(n, os.getpid())
-
-
-@lru_cache(maxsize=None)
-def _process_helpers(n: int, pid: int) -> ThreadPoolExecutor:
-    """One pool per count and process: a child forked from a process that had a pool inherits the pool but not
-    its threads, and its work would wait for them forever."""
-    return ThreadPoolExecutor(n, thread_name_prefix="likelihood")
-
-
 #: Border (pixels) of cost 1 around the cost maps, so that lookups need no bounds test.
 PAD = 32
 
@@ -377,16 +329,23 @@ class _CostMaps:
         self.view_offset, self.Hp, self.Wp = view_offset, Hp, Wp
 
     @classmethod
-    def of(cls, obs: Observations, n_foreground: int = 0) -> "_CostMaps":
-        def padded(m: np.ndarray) -> np.ndarray:
-            V, H, W = m.shape
-            out = np.ones((V, H + 2 * PAD, W + 2 * PAD), np.float32)
-            inner = out[:, PAD:PAD + H, PAD:PAD + W]
-            np.square(np.subtract(1.0, m, out=inner), out=inner)
-            return out
+    def of(cls, obs: Observations, n_foreground: int = 0, threads: int = 1) -> "_CostMaps":
+        """The cost maps of ``obs``, the views made on ``threads`` threads in turn."""
+        V, H, W = obs.edges.shape
+        Hp, Wp = H + 2 * PAD, W + 2 * PAD
+        edge, sil = np.empty((V, Hp, Wp), np.float32), np.empty((V, Hp, Wp), np.float32)
+
+        def view(v: int) -> None:
+            for padded, m in ((edge[v], obs.edges[v]), (sil[v], obs.silhouettes[v])):
+                padded[:PAD] = 1.0
+                padded[PAD + H:] = 1.0
+                padded[PAD:PAD + H, :PAD] = 1.0
+                padded[PAD:PAD + H, PAD + W:] = 1.0
+                inner = padded[PAD:PAD + H, PAD:PAD + W]
+                np.square(np.subtract(1.0, m, out=inner), out=inner)
+
+        share(view, range(V), threads)
         fg = [foreground_sample(sil, n_foreground) for sil in obs.silhouettes] if n_foreground else []
-        edge, sil = padded(obs.edges), padded(obs.silhouettes)
-        V, Hp, Wp = edge.shape
         return cls(edge.reshape(-1), sil.reshape(-1), fg, np.arange(V, dtype=np.int64) * (Hp * Wp), Hp, Wp)
 
     def to(self, device) -> "_CostMaps":

@@ -40,6 +40,8 @@ import cv2
 import numpy as np
 from numba import njit
 
+from tracker.core.workers import share
+
 
 @dataclass(frozen=True)
 class ObservationConfig:
@@ -268,18 +270,31 @@ class Observations:
 
 
 def observe(images: list[np.ndarray], backgrounds: list[np.ndarray | BackgroundPlate | None] | None = None,
-            masks: list[np.ndarray | None] | None = None, config: ObservationConfig = DEFAULT_OBSERVATION) -> Observations:
+            masks: list[np.ndarray | None] | None = None, config: ObservationConfig = DEFAULT_OBSERVATION,
+            threads: int = 1) -> Observations:
     """Observations of one frame: per view a silhouette (the given mask if any, else background subtraction)
     and an edge map. Every view needs a mask or a background plate (a uint8 image, or a
-    :class:`BackgroundPlate` prepared once for the sequence)."""
-    sils, edges = [], []
+    :class:`BackgroundPlate` prepared once for the sequence); the views' images share one size. ``threads``
+    threads take the views in turn (OpenCV and the compiled steps release the interpreter lock); the result does
+    not depend on it."""
+    V = len(images)
+    H, W = images[0].shape[:2] if V else (0, 0)
     for v, img in enumerate(images):
+        if img.shape[:2] != (H, W):
+            raise ValueError(f"view {v}: image of {img.shape[0]} x {img.shape[1]} pixels, view 0's is {H} x {W}")
+    silhouettes = np.empty((V, H, W), np.float32)
+    edges = np.empty((V, H, W), np.float32)
+
+    def view(v: int) -> None:
+        img = images[v]
         mask = None if masks is None else masks[v]
         if mask is None:
             bg = None if backgrounds is None else backgrounds[v]
             if bg is None:
                 raise ValueError(f"view {v}: neither a foreground mask nor a background plate")
             mask = silhouette(img, bg, config)
-        sils.append(mask.astype(np.float32))
-        edges.append(edge_map(img, mask, config))
-    return Observations(np.stack(sils), np.stack(edges))
+        silhouettes[v] = mask
+        edges[v] = edge_map(img, mask, config)
+
+    share(view, range(V), threads)
+    return Observations(silhouettes, edges)

@@ -236,7 +236,7 @@ def test_the_likelihood_scores_the_same_on_several_threads(walk_32_frames, monke
     monkeypatch.setattr(shared, "_compiled_block_costs", recorded)
     three = shared.prepare(seq.frame(7, range(4))).terms(poses)
     caller = threading.current_thread().name
-    assert caller in workers and len(workers) == 3 and all(w.startswith("likelihood") for w in workers - {caller})
+    assert caller in workers and len(workers) == 3 and all(w.startswith("helper") for w in workers - {caller})
     for name in ("edge", "silhouette", "coverage", "log_likelihood"):
         assert np.array_equal(getattr(one, name), getattr(three, name)), name
     assert one.log_likelihood[3] == -np.inf
@@ -274,7 +274,7 @@ def test_a_forked_child_scores_on_its_own_threads(walk_32_frames):
 def test_a_block_that_fails_on_any_thread_stops_the_others_and_is_raised():
     import time
 
-    from likelihoods.edge_silhouette import _share_blocks
+    from tracker.core.workers import share
 
     blocks = [slice(k, k + 1) for k in range(200)]
     for failing in (0, 57):  # the first block (this thread's) and one a helper takes
@@ -287,7 +287,7 @@ def test_a_block_that_fails_on_any_thread_stops_the_others_and_is_raised():
             scored.append(block.start)
 
         with pytest.raises(RuntimeError, match=f"block {failing}"):
-            _share_blocks(score, blocks, threads=3)
+            share(score, blocks, threads=3)
         assert len(scored) < len(blocks) - 1  # the others stopped early
 
 
