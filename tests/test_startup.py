@@ -45,11 +45,11 @@ def test_help_loads_no_model_tracking_or_rendering_library(args, tmp_path):
     assert loaded_by(args, NOT_FOR_HELP, tmp_path) == []
 
 
-def test_zero_velocity_track_loads_no_renderer(bodytrack_dir, tmp_path):
+def test_zero_velocity_track_loads_no_renderer_and_no_torch(bodytrack_dir, tmp_path):
     out = tmp_path / "run"
     args = ["track", str(bodytrack_dir), "--prior", "zero-velocity", "--frames", "1", "--particles", "50",
             "--out", str(out), "--quiet"]
-    assert loaded_by(args, RENDERING, tmp_path) == []
+    assert loaded_by(args, ("torch", *RENDERING), tmp_path) == []
     assert (out / "result.json").is_file()
 
 
@@ -70,3 +70,25 @@ def test_support_modules_register_nothing(package):
     origins = {e.build.__module__ for e in [*PRIORS.entries.values(), *LIKELIHOODS.entries.values()]}
     assert origins & {f"{package}.{name}" for name in pkg.SUPPORT_MODULES} == set()
     assert {o for o in origins if o.startswith(f"{package}.")}, "the package registers nothing at all"
+
+
+
+def test_a_learned_prior_built_after_set_threads_gets_the_run_threads(walk_32_frames, tmp_path):
+    """Torch is imported only when a learned prior is built, after the command line gave the run its threads:
+    building the prior gives torch that count (torch's own default is one thread per core)."""
+    model = Path(__file__).parent / "data" / "crbm3_paced_v0.13.pt"
+    program = f"""
+import sys
+import tracker
+from tracker.app.api import build_prior
+sequence = tracker.load_sequence({str(walk_32_frames.root)!r})
+tracker.set_threads(1)
+assert "torch" not in sys.modules
+import torch
+torch.set_num_threads(2)  # what torch would start with on a machine of two cores or more
+build_prior("crbm", sequence, [{str(model)!r}])
+print(torch.get_num_threads())
+"""
+    out = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["1"]

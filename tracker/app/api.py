@@ -32,11 +32,11 @@ from tracker.app.defaults import TRACK_ANNEALING_LAYERS
 from tracker.app.plugins import (  # the discovery functions of the API
     available_likelihoods, available_priors, likelihood_entry, prior_entry,
 )
-from tracker.app.threads import configured_threads
+from tracker.app.threads import configured_threads, sync_torch_threads
 from tracker.app.tracking import (
     TrackingInterrupted, TrackingResult, check_frames, check_views, records_call, run_tracking, seed_description,
 )
-from tracker.core.arrays import torch_device
+from tracker.core.arrays import device_name
 from tracker.core.errors import InputError
 from tracker.core.representation import step_rms
 from tracker.engine.filter import FilterConfig
@@ -219,8 +219,10 @@ def build_prior(name: str, sequence: Sequence, models: Seq[str | Path | Any] = (
         raise InputError(f"prior {name} takes one model file, got {len(models)}")
     resolved = resolve_options(f"prior {name}", entry.options, options)
     source = (lambda: step_std) if step_std is not None else (lambda: random_walk_scale(sequence, train_mocap))
-    context = PriorContext(sequence.model, sequence.fps, str(torch_device(device)), str(sequence.root), source)
-    return entry.build(context, models, resolved)
+    context = PriorContext(sequence.model, sequence.fps, device_name(device), str(sequence.root), source)
+    prior = entry.build(context, models, resolved)
+    sync_torch_threads()  # a learned prior has imported torch by now
+    return prior
 
 
 def build_likelihood(name: str, sequence: Sequence, views: Iterable[int] | None = None, *, device: str = "cpu",
@@ -231,9 +233,11 @@ def build_likelihood(name: str, sequence: Sequence, views: Iterable[int] | None 
     entry = likelihood_entry(name)
     views = check_views(views, sequence.n_views, sequence.root)
     resolved = resolve_options(f"likelihood {name}", entry.options, options)
-    device = str(torch_device(device))
+    device = device_name(device)
     context = LikelihoodContext(sequence.model, sequence.rig.subset(views), device, configured_threads())
-    return entry.build(context, resolved)
+    likelihood = entry.build(context, resolved)
+    sync_torch_threads()  # the GPU path has imported torch
+    return likelihood
 
 
 # -- training -------------------------------------------------------------------------------------------------
@@ -281,6 +285,9 @@ def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
         extra["resume"] = True
     from tracker.app.checkpoint import training_checkpoint
 
+    import torch  # noqa: F401  (every learned prior trains with torch: imported here, given the run's threads)
+
+    sync_torch_threads()
     with training_checkpoint(checkpoint, sources, skeletons, resume, bool(resolved.get("checkpoint_every"))):
         return entry.train(data, resolved, make_rng(seed), progress,
                            None if checkpoint is None else Path(checkpoint), **extra)
@@ -377,7 +384,7 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
         "prior_models": [model_name(m) for m in models],
         "likelihood": likelihood if isinstance(likelihood, str) else lik_obj.name,
         "likelihood_options": likelihood_options, "likelihood_settings": lik_obj.settings(),
-        "device": str(torch_device(device)),
+        "device": device_name(device),
     }
     log.debug(f"tracking settings: {settings}")
     try:

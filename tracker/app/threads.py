@@ -6,6 +6,7 @@ times over; parallel runs split the cores between them (:func:`share_of_cores`).
 from __future__ import annotations
 
 import os
+import sys
 
 from tracker.core.errors import InputError
 
@@ -33,7 +34,7 @@ def configured_threads() -> int:
 
 
 def set_threads(n: int | None) -> int:
-    """Limit BLAS (through threadpoolctl), OpenCV and torch to ``n`` threads (default: the available cores);
+    """Limit BLAS (through threadpoolctl), OpenCV and torch (now or once it is imported) to ``n`` threads (default: the available cores);
     with ``n`` of 2 or more, tracking steps the filter in a background thread while the calling thread reads the
     next frame, and prepares frames further ahead in ``n - 2`` more (:func:`configured_threads`); the
     likelihood scores its blocks of particles on ``n`` threads (the filter's and ``n - 1`` helpers), while a run
@@ -51,8 +52,13 @@ def set_threads(n: int | None) -> int:
     import cv2
 
     cv2.setNumThreads(n)
-    import torch
-
-    if torch.get_num_threads() != n:
-        torch.set_num_threads(n)
+    sync_torch_threads()
     return n
+
+
+def sync_torch_threads() -> None:
+    """Give torch the count of :func:`set_threads`, if it was called and torch has been imported by now (torch is
+    imported only by what needs it: the learned priors, training, the GPU path; each calls this once it has)."""
+    torch = sys.modules.get("torch")
+    if torch is not None and _configured is not None and torch.get_num_threads() != _configured:
+        torch.set_num_threads(_configured)

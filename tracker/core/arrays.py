@@ -8,17 +8,32 @@ get ``array_api_compat``'s torch namespace, which supplies the standard's names 
 """
 from __future__ import annotations
 
+import re
+
 import numpy as np
 from array_api_compat import array_namespace, device, is_torch_array
 
 from tracker.core.errors import InputError
 
-__all__ = ["namespace", "device", "is_torch_array", "torch_device"]
+__all__ = ["namespace", "device", "is_torch_array", "torch_device", "device_name"]
 
 
 def namespace(x):
     """The array API namespace of ``x``: ``numpy`` for numpy arrays, else ``array_api_compat``'s."""
     return np if isinstance(x, np.ndarray) else array_namespace(x)
+
+
+def device_name(name: str) -> str:
+    """The canonical name of the torch device ``name`` (as ``str(torch_device(name))``), checked as
+    :func:`torch_device` checks it; the CPU's names (``cpu``, ``cpu:N``) without importing torch."""
+    if isinstance(name, str) and re.fullmatch(r"cpu(:(0|[1-9][0-9]*))?", name):
+        return name
+    return str(torch_device(name))
+
+
+def is_cpu(name: str) -> bool:
+    """Whether the device ``name`` (checked as :func:`device_name` checks it) is the CPU."""
+    return device_name(name).split(":")[0] == "cpu"
 
 
 def torch_device(name: str):
