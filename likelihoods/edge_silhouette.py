@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tracker.core.arrays import device as device_of, namespace, torch_device
+from tracker.core.arrays import device as device_of, is_cpu, namespace, torch_device
 from tracker.core.blas import serial_blas
 from tracker.core.body import BodyModel
 from tracker.core.cameras import CameraRig
@@ -410,6 +410,6 @@ def _uncovered(u, v, foreground: list):
                     "also penalise foreground the model does not cover (for monocular tracking)")))
 def build_edge_silhouette(context: LikelihoodContext, options: dict) -> EdgeSilhouetteLikelihood:
     config = EdgeSilhouetteConfig(sharpness=options["sharpness"], bidirectional=options["bidirectional"])
-    # On the CPU the numpy path (faster there); "cpu:0" too.
-    device = None if torch_device(context.device).type == "cpu" else context.device
+    # On the CPU the compiled path (faster there than torch); "cpu:0" too.
+    device = None if is_cpu(context.device) else context.device
     return EdgeSilhouetteLikelihood(context.body_model, context.rig, config, device=device, threads=context.threads)
