@@ -62,18 +62,17 @@ class ConeCostTables:
 
 
 def cone_costs(kinematics: Kinematics, tables: ConeCostTables, edge_map: np.ndarray, silhouette_map: np.ndarray,
-               view_offset: np.ndarray, height: int, width: int, pad: float, n_contour: int,
+               view_offset: np.ndarray, height: int, width: int, n_contour: int,
                edge_out: np.ndarray, silhouette_out: np.ndarray,
                corners_out: tuple[np.ndarray, np.ndarray] | None = None) -> None:
     """Mean edge and silhouette costs of every particle in every view, written into ``edge_out`` and
     ``silhouette_out`` (float64, ``p x V``).
 
     ``kinematics``: the particles' link frames (:func:`tracker.core.kinematics.forward_kinematics` of ``p``
-    poses). ``edge_map`` and ``silhouette_map`` (float32, flat) are the views' padded cost maps of ``height x
-    width`` pixels each (the padded size: the image with a border of ``pad`` pixels of cost 1), one after the
-    other (view ``k`` starts at ``view_offset[k]``). A point reads the nearest pixel, clamped to the padded map
-    (one that is not a number reads the border); a cone with a corner at or behind a camera's plane reads the
-    border with all its points. ``corners_out``, when given, receives the corners' pixels ``(u, v)``, each
+    poses). ``edge_map`` and ``silhouette_map`` (float32, flat) are the views' cost maps of ``height x width``
+    pixels each, one after the other (view ``k`` starts at ``view_offset[k]``). A point reads its nearest pixel;
+    a point off the image (or one that is not a number) costs 1, and so do all the points of a cone with a
+    corner at or behind a camera's plane (as the array path's maps padded with cost 1 give). ``corners_out``, when given, receives the corners' pixels ``(u, v)``, each
     float64 ``V x p x S x 4`` (those of a cone behind the camera set to -1e6). The shapes and dtypes are
     checked here: the compiled loop reads and writes without bounds checks.
     """
@@ -108,24 +107,23 @@ def cone_costs(kinematics: Kinematics, tables: ConeCostTables, edge_map: np.ndar
                          f"{edge_out.shape} and {silhouette_out.shape}, {n_contour} contour points of {N})")
     _cone_costs(np.ascontiguousarray(R), np.ascontiguousarray(o), tables.seg_link, tables.seg_in_link, tables.cone,
                 tables.camera_R, tables.camera_t, tables.intrinsics, tables.distortion, tables.has_distortion,
-                tables.weights, edge_map, silhouette_map, view_offset, height, width, pad, n_contour, edge_out,
+                tables.weights, edge_map, silhouette_map, view_offset, height, width, n_contour, edge_out,
                 silhouette_out, u_out, v_out)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _cone_costs(R, o, seg_link, seg_in_link, cone, camera_R, camera_t, intrinsics, distortion, has_distortion,
-                weights, edge_map, silhouette_map, view_offset, height, width, pad, n_contour, edge_out,
+                weights, edge_map, silhouette_map, view_offset, height, width, n_contour, edge_out,
                 silhouette_out, u_out, v_out):
     """:func:`cone_costs`'s loop over views, particles and cones: the array path's formulas one scalar at a time
     (:func:`tracker.core.cones.contour_corners`, :meth:`tracker.core.cameras.CameraRig.pixels`,
     :meth:`likelihoods.edge_silhouette._CostMaps.flat_index`). A cone's sample points get their pixel indices
-    in one loop, then the maps are read in another: twice as fast as one loop doing both, as the first
-    compiles to vector instructions."""
+    in one loop (-1 off the image), then the maps are read in another: twice as fast as one loop doing both, as
+    the first compiles to vector instructions."""
     P = R.shape[0]
     V, S, N = camera_R.shape[0], seg_link.shape[0], weights.shape[1]
     keep_corners = u_out.shape[0] > 0
-    shift = pad + 0.5
-    x_max, y_max = float(width - 1), float(height - 1)
+    x_end, y_end = float(width), float(height)
     row = np.int32(width)
     n_edge, n_sil = S * n_contour, S * (N - n_contour)
     w0, w1, w2, w3 = weights[0].copy(), weights[1].copy(), weights[2].copy(), weights[3].copy()
@@ -221,16 +219,13 @@ def _cone_costs(R, o, seg_link, seg_in_link, cone, camera_R, camera_t, intrinsic
                     sil_sum += N - n_contour
                     continue
                 for n in range(N):
-                    px = (cu[0] * w0[n] + cu[1] * w1[n] + cu[2] * w2[n] + cu[3] * w3[n]) + shift
-                    py = (cv[0] * w0[n] + cv[1] * w1[n] + cv[2] * w2[n] + cv[3] * w3[n]) + shift
-                    px = px if px >= 0.0 else 0.0  # NaN too: the border, never a read outside the maps
-                    px = px if px <= x_max else x_max
-                    py = py if py >= 0.0 else 0.0
-                    py = py if py <= y_max else y_max
-                    index[n] = np.int32(py) * row + np.int32(px)
+                    px = (cu[0] * w0[n] + cu[1] * w1[n] + cu[2] * w2[n] + cu[3] * w3[n]) + 0.5
+                    py = (cv[0] * w0[n] + cv[1] * w1[n] + cv[2] * w2[n] + cv[3] * w3[n]) + 0.5
+                    on = (px >= 0.0) & (px < x_end) & (py >= 0.0) & (py < y_end)  # False for NaN too
+                    index[n] = np.int32(py) * row + np.int32(px) if on else -1
                 for n in range(n_contour):
-                    edge_sum += edge_map[offset + index[n]]
+                    edge_sum += edge_map[offset + index[n]] if index[n] >= 0 else 1.0
                 for n in range(n_contour, N):
-                    sil_sum += silhouette_map[offset + index[n]]
+                    sil_sum += silhouette_map[offset + index[n]] if index[n] >= 0 else 1.0
             edge_out[p, k] = edge_sum / n_edge
             silhouette_out[p, k] = sil_sum / n_sil

@@ -189,7 +189,7 @@ class EdgeSilhouetteLikelihood(Likelihood):
             S = len(self.model.segments)
             corners = (np.empty((V, p, S, 4)), np.empty((V, p, S, 4)))
         cone_costs(forward_kinematics(self.model, poses), self._tables(), maps.edge, maps.silhouette,
-                   maps.view_offset, maps.Hp, maps.Wp, float(PAD), self.n_contour, edge, sil, corners)
+                   maps.view_offset, maps.height, maps.width, self.n_contour, edge, sil, corners)
         cover = None if corners is None else _uncovered(*corners, maps.foreground)
         return edge, sil, cover
 
@@ -252,6 +252,7 @@ class EdgeSilhouetteLikelihood(Likelihood):
         ``V x p x S (x 4 or N)``. The CPU path (:func:`likelihoods.compiled_costs.cone_costs`) runs the same
         steps in one compiled loop in float64.
         """
+        maps = maps.padded() if isinstance(maps.edge, np.ndarray) else maps  # (on a device: padded when moved)
         rotations, origins = self._segment_frames(poses)  # p S 3 3, p S 3
         xp = namespace(rotations)
         axes, origins = self.rig.frames_in_cameras(rotations, origins, xp.float32 if dtype is None else dtype)
@@ -315,59 +316,72 @@ DEVICE_BLOCK = 32768
 DEVICE_BLOCK_BIDIRECTIONAL = 4096
 
 
-#: Border (pixels) of cost 1 around the cost maps, so that lookups need no bounds test.
+#: Border (pixels) of cost 1 around the array path's cost maps, so that its lookups need no bounds test.
 PAD = 32
 
 
 class _CostMaps:
-    """Per-frame cost maps ``(1 - edge)^2`` and ``(1 - silhouette)^2``, padded with cost 1, flattened, and
-    (for the bidirectional term) a fixed sample of foreground pixels per view: numpy arrays, or torch tensors
-    on a device after :meth:`to`."""
+    """Per-frame cost maps ``(1 - edge)^2`` and ``(1 - silhouette)^2`` (float32, flat, the views one after the
+    other: view ``k`` starts at ``view_offset[k]``, each ``height x width``), and (for the bidirectional term) a
+    fixed sample of foreground pixels per view. The CPU path reads them as they are (a point off the image costs
+    1); the array path reads them :meth:`padded` with ``pad`` pixels of cost 1 (numpy arrays, or torch tensors
+    on a device after :meth:`to`)."""
 
-    def __init__(self, edge, silhouette, foreground: list, view_offset, Hp: int, Wp: int):
+    def __init__(self, edge, silhouette, foreground: list, view_offset, height: int, width: int, pad: int = 0):
         self.edge, self.silhouette, self.foreground = edge, silhouette, foreground
-        self.view_offset, self.Hp, self.Wp = view_offset, Hp, Wp
+        self.view_offset, self.height, self.width, self.pad = view_offset, height, width, pad
 
     @classmethod
     def of(cls, obs: Observations, n_foreground: int = 0, threads: int = 1) -> "_CostMaps":
         """The cost maps of ``obs``, the views made on ``threads`` threads in turn."""
         V, H, W = obs.edges.shape
-        Hp, Wp = H + 2 * PAD, W + 2 * PAD
-        edge, sil = np.empty((V, Hp, Wp), np.float32), np.empty((V, Hp, Wp), np.float32)
+        edge, sil = np.empty((V, H, W), np.float32), np.empty((V, H, W), np.float32)
 
         def view(v: int) -> None:
-            for padded, m in ((edge[v], obs.edges[v]), (sil[v], obs.silhouettes[v])):
-                padded[:PAD] = 1.0
-                padded[PAD + H:] = 1.0
-                padded[PAD:PAD + H, :PAD] = 1.0
-                padded[PAD:PAD + H, PAD + W:] = 1.0
-                inner = padded[PAD:PAD + H, PAD:PAD + W]
-                np.square(np.subtract(1.0, m, out=inner), out=inner)
+            for cost, m in ((edge[v], obs.edges[v]), (sil[v], obs.silhouettes[v])):
+                np.square(np.subtract(1.0, m, out=cost), out=cost)
 
         share(view, range(V), threads)
         fg = [foreground_sample(sil, n_foreground) for sil in obs.silhouettes] if n_foreground else []
-        return cls(edge.reshape(-1), sil.reshape(-1), fg, np.arange(V, dtype=np.int64) * (Hp * Wp), Hp, Wp)
+        return cls(edge.reshape(-1), sil.reshape(-1), fg, np.arange(V, dtype=np.int64) * (H * W), H, W)
+
+    def padded(self) -> "_CostMaps":
+        """The same maps (numpy) with a border of :data:`PAD` pixels of cost 1."""
+        if self.pad:
+            return self
+        V, H, W = len(self.view_offset), self.height, self.width
+        Hp, Wp = H + 2 * PAD, W + 2 * PAD
+
+        def pad(m: np.ndarray) -> np.ndarray:
+            out = np.ones((V, Hp, Wp), np.float32)
+            out[:, PAD:PAD + H, PAD:PAD + W] = m.reshape(V, H, W)
+            return out.reshape(-1)
+        return _CostMaps(pad(self.edge), pad(self.silhouette), self.foreground,
+                         np.arange(V, dtype=np.int64) * (Hp * Wp), Hp, Wp, PAD)
 
     def to(self, device) -> "_CostMaps":
-        """The same maps as torch tensors on ``device``."""
+        """The :meth:`padded` maps as torch tensors on ``device``."""
         import torch
 
         def move(a: np.ndarray):
             return torch.as_tensor(a).to(device)
-        return _CostMaps(move(self.edge), move(self.silhouette), [move(f) for f in self.foreground],
-                         move(self.view_offset), self.Hp, self.Wp)
+        padded = self.padded()
+        return _CostMaps(move(padded.edge), move(padded.silhouette), [move(f) for f in padded.foreground],
+                         move(padded.view_offset), padded.height, padded.width, padded.pad)
 
     def flat_index(self, x, y):
-        """Flat int64 indices ``V x ...`` into the maps of the nearest pixels to the points ``(x, y)`` (float32
-        pixels of the unpadded images, views leading; clamped to the padded maps; ``x`` and ``y`` are used as
-        scratch): the device path's lookup. The CPU path's, :func:`likelihoods.compiled_costs.cone_costs`,
-        computes the same pixels in its loop."""
+        """Flat int64 indices ``V x ...`` into the :meth:`padded` maps of the nearest pixels to the points
+        ``(x, y)`` (float32 pixels of the unpadded images, views leading; clamped to the padded maps; ``x`` and
+        ``y`` are used as scratch): the array path's lookup. The CPU path's,
+        :func:`likelihoods.compiled_costs.cone_costs`, computes the same pixels in its loop."""
+        if not self.pad:
+            raise ValueError("flat_index reads padded cost maps (see _CostMaps.padded)")
         xp = namespace(x)
-        x += PAD + 0.5
-        y += PAD + 0.5
-        ix = xp.astype(xp.clip(x, 0, self.Wp - 1), xp.int64)  # torch indexes with int64
-        iy = xp.astype(xp.clip(y, 0, self.Hp - 1), xp.int64)
-        iy *= self.Wp
+        x += self.pad + 0.5
+        y += self.pad + 0.5
+        ix = xp.astype(xp.clip(x, 0, self.width - 1), xp.int64)  # torch indexes with int64
+        iy = xp.astype(xp.clip(y, 0, self.height - 1), xp.int64)
+        iy *= self.width
         iy += ix
         iy += xp.reshape(self.view_offset, (-1,) + (1,) * (iy.ndim - 1))
         return iy

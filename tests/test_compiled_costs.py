@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from likelihoods.compiled_costs import ConeCostTables, cone_costs
-from likelihoods.edge_silhouette import PAD, EdgeSilhouetteConfig, EdgeSilhouetteLikelihood
+from likelihoods.edge_silhouette import EdgeSilhouetteConfig, EdgeSilhouetteLikelihood
 from tracker.core.cameras import CameraRig
 from tracker.core.kinematics import forward_kinematics
 
@@ -47,6 +47,8 @@ def test_compiled_costs_equal_the_array_path_on_a_synthetic_frame(walk_32_frames
     seq = walk_32_frames
     k = 12
     poses = _poses(seq.model, seq.groundtruth.poses[k], rng, 300, 100)
+    # across the right and the left edge of camera 0's image (6 m away, focal length 600 px: 3.2 m is 320 px)
+    poses[:20, :3] += np.linspace(-3400.0, 3400.0, 20)[:, None] * seq.rig[0].R[0]
     poses[-1, :3] = seq.rig[0].centre - 3000.0 * seq.rig[0].R[2]  # behind camera 0: every cone reads cost 1
     likelihood = EdgeSilhouetteLikelihood(seq.model, seq.rig, EdgeSilhouetteConfig(bidirectional=bidirectional))
     _assert_same_costs(likelihood, seq.frame(k, range(4)), poses)
@@ -78,16 +80,16 @@ def test_cone_costs_refuses_inconsistent_shapes_and_dtypes(walk_32_frames, rng):
     tables = ConeCostTables.of(seq.model, seq.rig, likelihood.weights)
     P, V = 5, 4
     good = dict(kinematics=kinematics, tables=tables, edge_map=maps.edge, silhouette_map=maps.silhouette,
-                view_offset=maps.view_offset, height=maps.Hp, width=maps.Wp, pad=float(PAD),
+                view_offset=maps.view_offset, height=maps.height, width=maps.width,
                 n_contour=likelihood.n_contour, edge_out=np.empty((P, V)), silhouette_out=np.empty((P, V)))
     cone_costs(**good)
     assert np.all((0 < good["edge_out"]) & (good["edge_out"] <= 1))
     bad = {"outputs the wrong way round": dict(edge_out=np.empty((V, P))),
            "float32 outputs": dict(edge_out=np.empty((P, V), np.float32)),
            "too few offsets": dict(view_offset=maps.view_offset[:2]),
-           "an offset past the maps": dict(view_offset=maps.view_offset + maps.Hp * maps.Wp),
+           "an offset past the maps": dict(view_offset=maps.view_offset + maps.height * maps.width),
            "no contour points": dict(n_contour=0),
-           "maps of another size": dict(height=maps.Hp + 1),
+           "maps of another size": dict(height=maps.height + 1),
            "float64 maps": dict(edge_map=maps.edge.astype(float)),
            "frames of another model": dict(kinematics=dataclasses.replace(
                kinematics, rotations=kinematics.rotations[:, :3], origins=kinematics.origins[:, :3])),
