@@ -303,3 +303,23 @@ def test_numpy_blas_runs_on_one_thread_while_the_filter_runs_and_is_restored_aft
             pf.run(np.zeros((1, 2)), [Frame(k, ()) for k in range(4)], workers=workers)
             assert len(seen) == 8 and all(s == {1} for s in seen), (workers, seen)
             assert blas_threads() == {2}
+
+
+def test_a_run_keeps_no_frame_s_particles_once_it_has_moved_on(walk_32_frames, random_walk_std):
+    """What a run records of each frame (the estimates, timings, ...) holds none of that frame's particle
+    arrays: memory grows with the frames by the recorded numbers only."""
+    import gc
+    import weakref
+
+    from tracker import track
+
+    refs, kept = [], []
+
+    def on_frame(step, err) -> None:  # the particles of frames two or more back, still held by anything
+        gc.collect()
+        kept.append(sum(ref() is not None for ref in refs[:-1]))
+        refs.append(weakref.ref(step.particles))
+
+    track(walk_32_frames, "zero-velocity", particles=200, frames=20, seed=0, step_std=random_walk_std,
+          on_frame=on_frame)
+    assert len(kept) == 18 and max(kept) == 0

@@ -199,7 +199,8 @@ class ParticleFilter:
         proposal = self._propose(state)
         weighed = self._weigh(state, proposal, frame_lik)
         W = weighed.normalised
-        mean, best, ess = W @ weighed.x, weighed.x[int(np.argmax(W))], effective_sample_size(W)
+        # (best a copy: a row of the particles would keep all of them alive in a recording of every frame)
+        mean, best, ess = W @ weighed.x, weighed.x[int(np.argmax(W))].copy(), effective_sample_size(W)
         summary = self.prior.summarize(weighed.prior_state, W)
         new_state, resampled = self._resample(state, weighed, mean, ess)
         t2 = time.perf_counter()
