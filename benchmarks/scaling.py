@@ -1,11 +1,14 @@
-"""How the cost of tracking grows (run by hand: python benchmarks/scaling.py [--frames 60] [--out DIR]).
+"""How the cost of tracking grows (run by hand: python benchmarks/scaling.py [--frames 60] [--lengths ...]).
 
-CMU 07_11 (from ../shared) rendered once into 8 cameras; the zero-velocity prior, one annealing layer, one
-thread. Each configuration runs in a process of its own, so its peak resident memory is its own:
+CMU 07_11 (from ../shared) rendered once into 8 cameras (``--frames`` frames); the zero-velocity prior, one
+annealing layer, one thread. Each configuration runs in a process of its own, so its peak resident memory is its
+own:
 
 * particles 250 to 16,000 with 4 views,
 * views 1 to 8 with 1000 particles,
-* sequence lengths (tracked frames) up to ``--frames`` with 1000 particles and 4 views,
+* sequence lengths of 100 to 2,000 frames (``--lengths``) with 1000 particles and 4 views: the rendered frames
+  played forwards and backwards in turn (their files linked, the ground truth likewise), so that the motion
+  stays continuous at any length without rendering thousands of frames,
 
 and prints the median time per tracked frame (the time between two frames' callbacks, so the first frame's
 compiling is left out) and the peak resident memory. The fitted exponents are the slopes of log(time) against
@@ -38,7 +41,7 @@ def one(sequence: str, particles: int, views: int, frames: int) -> dict:
     tracker.set_threads(1)
     stamps: list[float] = []
     tracker.track(sequence, "zero-velocity", particles=particles, views=list(range(views)), frames=frames, seed=0,
-                  annealing_layers=1, record=(), on_frame=lambda step, err: stamps.append(time.perf_counter()))
+                  annealing_layers=1, on_frame=lambda step, err: stamps.append(time.perf_counter()))
     steps = np.diff(stamps)
     return {"particles": particles, "views": views, "frames": frames,
             "seconds_per_frame": float(np.median(steps)),
@@ -51,6 +54,34 @@ def run(sequence: Path, particles: int, views: int, frames: int) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
+def looped(sequence: Path, out: Path, frames: int) -> Path:
+    """A sequence of ``frames`` frames at ``out``: those of ``sequence`` forwards, backwards, forwards, ...
+    (image files hard-linked, or copied where links cannot be made; ground truth in the same order)."""
+    import shutil
+
+    n = len(list((sequence / "images" / "cam0").glob("*.png")))
+    cycle = list(range(n)) + list(range(n - 2, 0, -1))
+    order = [cycle[k % len(cycle)] for k in range(frames)]
+    if (out / "meta.json").exists() and json.loads((out / "meta.json").read_text())["frames"] == frames:
+        return out
+    shutil.rmtree(out, ignore_errors=True)
+    for camera in sorted((sequence / "images").iterdir()):
+        (out / "images" / camera.name).mkdir(parents=True)
+        for k, src in enumerate(order):
+            source, target = camera / f"{src:06d}.png", out / "images" / camera.name / f"{k:06d}.png"
+            try:
+                target.hardlink_to(source)
+            except OSError:
+                shutil.copyfile(source, target)
+    shutil.copytree(sequence / "background", out / "background")
+    shutil.copyfile(sequence / "cameras.json", out / "cameras.json")
+    truth = np.load(sequence / "groundtruth.npz")
+    np.savez(out / "groundtruth.npz", poses=truth["poses"][order], markers=truth["markers"][order], fps=truth["fps"])
+    meta = json.loads((sequence / "meta.json").read_text())
+    (out / "meta.json").write_text(json.dumps({**meta, "frames": frames}))
+    return out
+
+
 def slope(x, y) -> float:
     return float(np.polyfit(np.log(x), np.log(y), 1)[0])
 
@@ -58,6 +89,8 @@ def slope(x, y) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=60, help="frames rendered; the longest run tracks them all")
+    parser.add_argument("--lengths", type=int, nargs="+", default=[100, 500, 1000, 2000],
+                        help="sequence lengths (frames) measured with 1000 particles and 4 views")
     parser.add_argument("--out", type=Path, default=None, help="keep the rendered sequence here")
     parser.add_argument("--one", nargs=4, help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -75,8 +108,8 @@ def main() -> None:
     short = min(22, args.frames)  # 20 tracked frames after the 2 known ones
     by_particles = [run(sequence, p, 4, short) for p in PARTICLES]
     by_views = [run(sequence, 1000, v, short) for v in VIEWS]
-    lengths = sorted({short, args.frames // 2, args.frames})
-    by_length = [run(sequence, 1000, 4, f) for f in lengths]
+    lengths = sorted(args.lengths)
+    by_length = [run(looped(sequence, root / f"walk_{f}_frames", f), 1000, 4, f) for f in lengths]
     for title, rows in (("particles, 4 views", by_particles), ("views, 1000 particles", by_views),
                         ("frames, 1000 particles, 4 views", by_length)):
         print(f"\n{title}")
@@ -90,7 +123,8 @@ def main() -> None:
         b1, b0 = np.polyfit([r[key] for r in rows], [r["seconds_per_frame"] for r in rows], 1)
         print(f"time per frame = {1000 * b0:.1f} ms + {1e6 * b1:.2f} us per {name} (least squares)")
     print(f"peak memory from {lengths[0]} to {lengths[-1]} frames: "
-          f"{by_length[0]['peak_rss_mb']:.0f} -> {by_length[-1]['peak_rss_mb']:.0f} MB")
+          f"{by_length[0]['peak_rss_mb']:.0f} -> {by_length[-1]['peak_rss_mb']:.0f} MB; time per frame "
+          f"{1000 * by_length[0]['seconds_per_frame']:.1f} -> {1000 * by_length[-1]['seconds_per_frame']:.1f} ms")
 
 
 if __name__ == "__main__":
