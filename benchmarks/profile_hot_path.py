@@ -8,7 +8,8 @@ Two fixed workloads, each profiled with cProfile (the table sorted by cumulative
    particles, zero-velocity prior.
 
 Then the likelihood's stages, timed one by one on the synthetic frame (median of 20 calls, milliseconds per
-1000 particles x 4 views, one block): kinematics, camera frames, contour solve, projection, whole call.
+1000 particles x 4 views, one thread): reading, observations, kinematics, the compiled cones-to-costs loop,
+whole call.
 """
 from __future__ import annotations
 
@@ -50,8 +51,8 @@ def profile(label: str, fn, top: int) -> None:
 
 def stage_times(seq, P: int = 1000, repeats: int = 20) -> None:
     """Median milliseconds of each likelihood stage for ``P`` poses near frame 10's ground truth."""
+    from likelihoods.compiled_costs import cone_costs
     from likelihoods.edge_silhouette import EdgeSilhouetteLikelihood
-    from tracker.core.cones import contour_corners
     from tracker.core.kinematics import forward_kinematics
 
     V = seq.n_views
@@ -60,21 +61,18 @@ def stage_times(seq, P: int = 1000, repeats: int = 20) -> None:
     scorer = lik.prepare(frame)
     rng = np.random.default_rng(0)
     poses = seq.groundtruth.poses[10] + rng.normal(0, 0.02, (P, seq.model.n_dofs))
-    model, rig = seq.model, seq.rig
-    rotations, origins = forward_kinematics(model, poses).segment_rotations()
-    axes, cam_origins = rig.frames_in_cameras(rotations, origins, np.float32)
-    X, Y, Z = contour_corners(model, axes, cam_origins)
+    kinematics = forward_kinematics(seq.model, poses)
+    maps, edge, sil = scorer.maps, np.empty((P, V)), np.empty((P, V))
     stages = {
-        "observations (decode 4 views)": lambda: seq.frame(10, range(V)),
-        "observations (silhouettes + edge maps)": lambda: lik.prepare(frame),
-        "kinematics (forward_kinematics + segment_rotations)":
-            lambda: forward_kinematics(model, poses).segment_rotations(),
-        "segment frames in the cameras (frames_in_cameras)": lambda: rig.frames_in_cameras(rotations, origins, np.float32),
-        "contour solve and end points (contour_corners)": lambda: contour_corners(model, axes, cam_origins),
-        "projection (pixels)": lambda: rig.pixels(X, Y, Z),
+        "observations (read and decode 4 views)": lambda: seq.frame(10, range(V)),
+        "observations (silhouettes, edge maps, cost maps)": lambda: lik.prepare(frame),
+        "kinematics (forward_kinematics)": lambda: forward_kinematics(seq.model, poses),
+        "cones to costs (compiled_costs.cone_costs)": lambda: cone_costs(
+            kinematics, lik._tables(), maps.edge, maps.silhouette, maps.view_offset, maps.height, maps.width,
+            lik.n_contour, edge, sil),
         "whole likelihood": lambda: scorer(poses),
     }
-    print(f"\n=== likelihood stages, {P} particles x {V} views (median of {repeats}, ms) ===")
+    print(f"\n=== likelihood stages, {P} particles x {V} views, one thread (median of {repeats}, ms) ===")
     for name, fn in stages.items():
         med, lo, hi = median_ms(fn, repeats)
         print(f"{name:55s} {med:8.2f}  (min {lo:.2f}, max {hi:.2f})")

@@ -7,8 +7,8 @@
 2. The same sequence tracked with a CRBM-3 prior, 1000 particles x 4 views: frames per second at 30 Gibbs steps
    and at the default, with one layer and with track's default annealing (the speed target: 20), and the
    CRBM's sampling time alone at orders 1, 3, 6.
-3. The real PARSEC bodytrack frame with its 10-cone model: 4000 particles x 5 annealing layers,
-   milliseconds per frame, against PARSEC's ~100 ms (2 threads, C++).
+
+PARSEC bodytrack's own frame, beside the C++ program, is benchmarks/bodytrack_side_by_side.py.
 """
 from __future__ import annotations
 
@@ -31,10 +31,8 @@ from likelihoods.edge_silhouette import EdgeSilhouetteLikelihood  # noqa: E402
 from priors.random_walk import ZeroVelocityPrior  # noqa: E402
 from tracker import track  # noqa: E402
 from tracker.core.representation import step_rms  # noqa: E402
-from tracker.engine.filter import FilterConfig, ParticleFilter  # noqa: E402
 
 SHARED = REPO.parent / "shared"
-PARSEC_MS = 100.0
 
 
 def synthetic(tmp: Path) -> None:
@@ -118,32 +116,8 @@ def crbm_sampling() -> None:
               f"{model.training_seconds:.1f} s): {ms:.1f} ms to sample 1000 particles")
 
 
-def bodytrack() -> None:
-    folder = SHARED / "bodytrack" / "sequenceB_1"
-    if not folder.exists():
-        print("bodytrack frame not found; skipped")
-        return
-    seq = read_sequence(folder)
-    lik = EdgeSilhouetteLikelihood(seq.model, seq.rig)
-    P, layers = 4000, 5
-    prior = ZeroVelocityPrior(seq.diffusion_std)
-    frame0 = seq.frame(0, range(4))
-
-    def frame():  # one filter step, the frame's observations included (images already decoded)
-        pf = ParticleFilter(prior, lik, FilterConfig(n_particles=P, annealing_layers=layers),
-                            np.random.default_rng(0))
-        return pf.run(seq.initial_poses, [frame0])
-
-    ms = best_ms(frame, repeats=3)
-    evals = P * layers
-    print(f"bodytrack 10-cone, {P} particles x {layers} layers x 4 views: {ms:.0f} ms per frame "
-          f"({evals / ms * 1000:,.0f} particle evaluations/s; PARSEC ~{PARSEC_MS:.0f} ms -> "
-          f"{ms / PARSEC_MS:.1f}x its time)")
-
-
 if __name__ == "__main__":
     with tempfile.TemporaryDirectory() as d:
         synthetic(Path(d))
         crbm_tracking(Path(d))
     crbm_sampling()
-    bodytrack()
