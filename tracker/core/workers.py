@@ -44,8 +44,12 @@ def share(work: Callable[[Item], None], items: Iterable[Item], threads: int) -> 
     try:
         drain()
     finally:
-        wait(helpers)  # the items' results are not left to helpers still writing them
-    for helper in helpers:
+        # A helper that has not started (the pool busy with another caller's items: the filter's particles and
+        # the next frame's views share it) is not waited for; those running are, so that no result is left to
+        # a helper still writing it.
+        started = [helper for helper in helpers if not helper.cancel()]
+        wait(started)
+    for helper in started:
         helper.result()
 
 
