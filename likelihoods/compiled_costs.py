@@ -49,6 +49,20 @@ class ConeCostTables:
     has_distortion: bool
     weights: np.ndarray
 
+    def __post_init__(self) -> None:
+        """The shapes and dtypes the compiled loop reads without bounds checks."""
+        S, V = len(self.seg_link), len(self.camera_R)
+        shapes = {"seg_link": (S,), "seg_in_link": (S, 3, 3), "cone": (S, 4), "camera_R": (V, 3, 3),
+                  "camera_t": (V, 3), "intrinsics": (V, 5), "distortion": (V, 5)}
+        for name, shape in shapes.items():
+            a = getattr(self, name)
+            if a.shape != shape or a.dtype != (np.int64 if name == "seg_link" else np.float64):
+                raise ValueError(f"cone cost tables: {name} is {a.dtype} {a.shape}, expected "
+                                 f"{'int64' if name == 'seg_link' else 'float64'} {shape}")
+        if self.weights.ndim != 2 or self.weights.shape[0] != 4 or self.weights.dtype != np.float64:
+            raise ValueError(f"cone cost tables: weights are {self.weights.dtype} {self.weights.shape}, expected "
+                             "float64 4 x N")
+
     @classmethod
     def of(cls, model: BodyModel, rig: CameraRig, weights: np.ndarray) -> "ConeCostTables":
         link, in_link = segment_tables(model)

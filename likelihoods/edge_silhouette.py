@@ -4,8 +4,8 @@ For every particle and view each cone is projected: points are sampled evenly
 along its two occluding-contour lines (the rulings whose tangent plane
 contains the camera centre, :func:`tracker.core.cones.contour_corners`) and on a
 grid between them in the image. Contour points look up the edge map, grid
-points the silhouette (nearest pixel; a point outside the image or behind the
-camera reads 0; the cost maps carry a border of cost 1). Per view::
+points the silhouette (nearest pixel; a point outside the image, and every
+point of a cone with a corner behind the camera, costs 1). Per view::
 
     edge cost = mean over contour points of (1 - edge)^2
     silhouette cost = mean over grid points of (1 - silhouette)^2
@@ -30,7 +30,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from tracker.core.arrays import device as device_of, is_cpu, namespace, torch_device
-from tracker.core.blas import serial_blas
 from tracker.core.body import BodyModel
 from tracker.core.cameras import CameraRig
 from tracker.core.cones import contour_corners
@@ -69,10 +68,11 @@ class LikelihoodTerms:
 class EdgeSilhouetteLikelihood(Likelihood):
     """Log-likelihood of body poses given one frame's images from the cameras of ``rig``.
 
-    ``device`` None (the default) scores with numpy on the CPU, the faster path there; a torch device
-    (``"cuda"``, ``"cuda:N"``, or ``"cpu"`` to run the torch path on the CPU, as the tests do) scores with torch
-    tensors on it. The registered builder maps the run's device ``cpu`` to None (``--device``,
-    ``track(device=...)``), so ``cpu`` means the numpy path there. ``threads`` (the CPU path): how many threads
+    ``device`` None (the default) scores on the CPU with one compiled loop
+    (:mod:`likelihoods.compiled_costs`), the faster path there; a torch device (``"cuda"``, ``"cuda:N"``, or
+    ``"cpu"`` to run the torch path on the CPU, as the tests do) scores with torch tensors on it
+    (:meth:`array_costs`). The registered builder maps the run's device ``cpu`` to None (``--device``,
+    ``track(device=...)``), so ``cpu`` means the compiled path there. ``threads`` (the CPU path): how many threads
     score a batch of poses, one block of particles at a time each; 1 when built directly, the run's threads
     (``--threads``, :func:`tracker.set_threads`, default the available cores) when built by
     ``tracker.build_likelihood`` or ``track``, fixed when built (assign ``threads`` to change it).
@@ -172,8 +172,7 @@ class EdgeSilhouetteLikelihood(Likelihood):
         if self.config.bidirectional:
             block = min(block, BLOCK_BIDIRECTIONAL)
         blocks = [slice(start, start + block) for start in range(0, P, block)]
-        with serial_blas():
-            share(score, blocks, self.threads)
+        share(score, blocks, self.threads)
         return self._combine(valid, edge, sil, cover)
 
     def _compiled_block_costs(self, poses: np.ndarray, maps: "_CostMaps"):
@@ -292,13 +291,13 @@ class PreparedFrame(FrameLikelihood):
 
 
 def _sample_weights(n_along: int, n_across: int) -> np.ndarray:
-    """Weights ``4 x N`` of the samples on the corners (line 0 proximal, distal, line 1 proximal, distal):
+    """Weights ``4 x N`` (float64; the array path casts them to its dtype) of the samples on the corners (line 0 proximal, distal, line 1 proximal, distal):
     ``2 n_along`` contour points, then ``n_across x n_along`` grid points."""
     s = np.linspace(0.0, 1.0, n_along)
     rows = [[1 - si, si, 0.0, 0.0] for si in s] + [[0.0, 0.0, 1 - si, si] for si in s]
     for t in np.arange(1, n_across + 1) / (n_across + 1):
         rows += [[(1 - t) * (1 - si), (1 - t) * si, t * (1 - si), t * si] for si in s]
-    return np.array(rows, np.float32).T
+    return np.array(rows).T
 
 
 #: The fewest particles per block on the CPU path (see ``terms``).

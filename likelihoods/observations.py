@@ -282,6 +282,9 @@ def observe(images: list[np.ndarray], backgrounds: list[np.ndarray | BackgroundP
     for v, img in enumerate(images):
         if img.shape[:2] != (H, W):
             raise ValueError(f"view {v}: image of {img.shape[0]} x {img.shape[1]} pixels, view 0's is {H} x {W}")
+        mask = None if masks is None else masks[v]
+        if mask is not None and mask.shape != (H, W):
+            raise ValueError(f"view {v}: mask of shape {mask.shape}, its image is {H} x {W} pixels")
     silhouettes = np.empty((V, H, W), np.float32)
     edges = np.empty((V, H, W), np.float32)
 

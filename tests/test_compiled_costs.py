@@ -97,3 +97,8 @@ def test_cone_costs_refuses_inconsistent_shapes_and_dtypes(walk_32_frames, rng):
     for name, change in bad.items():
         with pytest.raises(ValueError, match="cone costs"):
             cone_costs(**{**good, **change})
+    for change in (dict(intrinsics=tables.intrinsics[:2]), dict(cone=tables.cone[:, :3]),
+                   dict(seg_link=tables.seg_link.astype(np.int32)), dict(weights=tables.weights[:3]),
+                   dict(weights=tables.weights.astype(np.float32)), dict(camera_t=tables.camera_t[:, :2])):
+        with pytest.raises(ValueError, match="cone cost tables"):
+            dataclasses.replace(tables, **change)

@@ -219,3 +219,15 @@ def test_synth_settings_take_numpy_numbers_and_refuse_what_is_not_a_number():
     for bad in ({"noise": 10 ** 400}, {"turn": float("inf")}, {"views": True}, {"frames": 0}, {"width": 2.5}):
         with pytest.raises(InputError, match="synth setting"):
             SynthConfig(**bad)
+
+
+def test_observe_refuses_views_and_masks_of_other_sizes():
+    image = np.zeros((40, 60, 3), np.uint8)
+    mask = np.zeros((40, 60), bool)
+    mask[10:30, 20:40] = True
+    both = observe([image, image], masks=[mask, mask], threads=2)
+    assert both.silhouettes.shape == (2, 40, 60) and both.silhouettes[1, 20, 30] == 1.0
+    with pytest.raises(ValueError, match="view 1: image of 40 x 50 pixels"):
+        observe([image, image[:, :50]], masks=[mask, mask[:, :50]])
+    with pytest.raises(ValueError, match="view 1: mask of shape \\(1, 60\\)"):
+        observe([image, image], masks=[mask, mask[:1]])
