@@ -239,7 +239,7 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                    help="mocap clips whose frame-to-frame changes set the random-walk scale (default: the shipped "
                         "subject-7 walks 07_01 and 07_02); bodytrack folders use PoseParameters.txt")
     t.add_argument("--device", default="cpu", metavar="DEVICE",
-                   help="where particles are scored: cpu (default: the numpy path) or cuda, cuda:N (the GPU path: "
+                   help="where particles are scored: cpu (default: the compiled CPU path) or cuda, cuda:N (the GPU path: "
                         "the likelihood's kinematics, projection and image lookups, and a learned prior's torch sampling)")
     t.add_argument("--out", help="output folder (required)")
     t.add_argument("--video", help="also write an overlay video of the estimates (.mp4)")

@@ -34,8 +34,9 @@ def configured_threads() -> int:
 
 
 def set_threads(n: int | None) -> int:
-    """Limit BLAS (through threadpoolctl), OpenCV and torch (now or once it is imported) to ``n`` threads (default: the available cores);
-    with ``n`` of 2 or more, tracking steps the filter in a background thread while the calling thread reads the
+    """Limit BLAS (through threadpoolctl), OpenCV and torch to ``n`` threads (default: the available cores;
+    torch now if it is imported, else once a learned prior, training, the GPU path or a run calls
+    :func:`sync_torch_threads`); with ``n`` of 2 or more, tracking steps the filter in a background thread while the calling thread reads the
     next frame, and prepares frames further ahead in ``n - 2`` more (:func:`configured_threads`); the
     likelihood scores its blocks of particles on ``n`` threads (the filter's and ``n - 1`` helpers), while a run
     keeps numpy's BLAS on one (:func:`tracker.core.blas.serial_blas`). So up to ``n`` threads score, and the

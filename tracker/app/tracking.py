@@ -268,9 +268,10 @@ def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, conf
     saved (:meth:`TrackingResult.save`), so a result that cannot be written leaves the run resumable.
     """
     from tracker.app.checkpoint import load_checkpoint, save_checkpoint
-    from tracker.app.threads import configured_threads
+    from tracker.app.threads import configured_threads, sync_torch_threads
     from tracker.engine.recording import Recording
 
+    sync_torch_threads()  # a prior or likelihood built by the caller may have imported torch
     T, known, n0 = check_frames(seq, n_frames, n_known, init)
     gt = seq.groundtruth
     # The result needs the estimates and each frame's wall time (seconds_per_frame) whatever else is recorded.

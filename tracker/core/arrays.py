@@ -1,8 +1,9 @@
-"""Which array library a hot-path function computes with: one implementation for numpy arrays (the CPU path)
-and torch tensors on any device (``--device cuda``), written against the Python array API standard.
+"""Which array library a hot-path function computes with: one implementation for numpy arrays and torch tensors
+on any device (``--device cuda``), written against the Python array API standard (the likelihood's array path;
+its CPU path is a compiled loop, :mod:`likelihoods.compiled_costs`).
 
-numpy 2 implements the standard in its own namespace, so numpy arrays get numpy itself (no wrapper on the
-CPU hot path: ``array_api_compat``'s numpy wrappers measured 15% slower on the likelihood); torch tensors
+numpy 2 implements the standard in its own namespace, so numpy arrays get numpy itself
+(``array_api_compat``'s numpy wrappers measured 15% slower on the likelihood); torch tensors
 get ``array_api_compat``'s torch namespace, which supplies the standard's names torch lacks
 (``permute_dims``, ``astype``, ...).
 """

@@ -79,8 +79,8 @@ def contour_corners(model: BodyModel, axes: np.ndarray, origins: np.ndarray) -> 
     over long contiguous arrays: ``axes`` ``3 x 3 x B... x S`` (``axes[k, i]``: component ``i`` of the
     segment's axis ``k`` -- width, depth, cone axis), ``origins`` ``3 x B... x S`` (the segments' proximal
     centres), any batch shape ``B``, in the dtype of the result: numpy arrays, or torch tensors on any device
-    (one implementation for the CPU and device paths, written against the array API through
-    ``array_api_compat``). Returns ``3 x B... x S x 4``: the corners
+    (the likelihood's array path, written against the array API through ``array_api_compat``; its CPU path
+    runs the same formulas in :mod:`likelihoods.compiled_costs`). Returns ``3 x B... x S x 4``: the corners
     line 0 proximal, line 0 distal, line 1 proximal, line 1 distal.
 
     A ruling at angle ``phi`` is a contour line when the tangent plane along it contains the camera centre
