@@ -291,8 +291,9 @@ class PreparedFrame(FrameLikelihood):
 
 
 def _sample_weights(n_along: int, n_across: int) -> np.ndarray:
-    """Weights ``4 x N`` (float64; the array path casts them to its dtype) of the samples on the corners (line 0 proximal, distal, line 1 proximal, distal):
-    ``2 n_along`` contour points, then ``n_across x n_along`` grid points."""
+    """Weights ``4 x N`` of the samples on the corners (line 0 proximal, distal, line 1 proximal, distal):
+    ``2 n_along`` contour points, then ``n_across x n_along`` grid points. float64; the array path casts them
+    to its dtype."""
     s = np.linspace(0.0, 1.0, n_along)
     rows = [[1 - si, si, 0.0, 0.0] for si in s] + [[0.0, 0.0, 1 - si, si] for si in s]
     for t in np.arange(1, n_across + 1) / (n_across + 1):
@@ -300,11 +301,9 @@ def _sample_weights(n_along: int, n_across: int) -> np.ndarray:
     return np.array(rows).T
 
 
-#: The fewest particles per block on the CPU path (see ``terms``).
+#: The fewest and the most particles per block on the CPU path (see ``terms``).
 MIN_BLOCK = 64
 MAX_BLOCK = 512
-
-
 #: The most with the bidirectional term, whose point-in-quadrilateral test holds ``p x S x 4 x F`` arrays.
 BLOCK_BIDIRECTIONAL = 256
 #: Particles per block on a device: about 1.5 GB of intermediates at 15 cones x 4 views, so that a GPU of 4 GB
@@ -329,6 +328,7 @@ class _CostMaps:
     def __init__(self, edge, silhouette, foreground: list, view_offset, height: int, width: int, pad: int = 0):
         self.edge, self.silhouette, self.foreground = edge, silhouette, foreground
         self.view_offset, self.height, self.width, self.pad = view_offset, height, width, pad
+        self._padded: _CostMaps | None = None
 
     @classmethod
     def of(cls, obs: Observations, n_foreground: int = 0, threads: int = 1) -> "_CostMaps":
@@ -345,9 +345,11 @@ class _CostMaps:
         return cls(edge.reshape(-1), sil.reshape(-1), fg, np.arange(V, dtype=np.int64) * (H * W), H, W)
 
     def padded(self) -> "_CostMaps":
-        """The same maps (numpy) with a border of :data:`PAD` pixels of cost 1."""
+        """The same maps (numpy) with a border of :data:`PAD` pixels of cost 1 (made once)."""
         if self.pad:
             return self
+        if self._padded is not None:
+            return self._padded
         V, H, W = len(self.view_offset), self.height, self.width
         Hp, Wp = H + 2 * PAD, W + 2 * PAD
 
@@ -355,8 +357,9 @@ class _CostMaps:
             out = np.ones((V, Hp, Wp), np.float32)
             out[:, PAD:PAD + H, PAD:PAD + W] = m.reshape(V, H, W)
             return out.reshape(-1)
-        return _CostMaps(pad(self.edge), pad(self.silhouette), self.foreground,
-                         np.arange(V, dtype=np.int64) * (Hp * Wp), Hp, Wp, PAD)
+        self._padded = _CostMaps(pad(self.edge), pad(self.silhouette), self.foreground,
+                                 np.arange(V, dtype=np.int64) * (Hp * Wp), Hp, Wp, PAD)
+        return self._padded
 
     def to(self, device) -> "_CostMaps":
         """The :meth:`padded` maps as torch tensors on ``device``."""
