@@ -52,9 +52,7 @@ def _written_beside(filename: str | bytes | int | None, path: Path) -> bool:
     ``path`` and its temporary files are written."""
     if not isinstance(filename, (str, os.PathLike)):
         return True
-    folder = path.resolve().parent
-    where = Path(filename).resolve()
-    return where == folder or folder in where.parents
+    return Path(filename).resolve().is_relative_to(path.resolve().parent)
 
 
 def current_umask() -> int:
@@ -182,7 +180,6 @@ def check_not_inside(out: str | Path, inputs: dict[str, str | Path]) -> None:
     input folder is never written into, whatever ``--overwrite`` says)."""
     target = Path(out).resolve()
     for what, given in inputs.items():
-        source = Path(given).resolve()
-        if target == source or source in target.parents:
+        if target.is_relative_to(Path(given).resolve()):
             raise InputError(f"the output would be written into the {what} {given}; choose an output outside "
                              "the inputs", out)

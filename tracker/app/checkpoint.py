@@ -75,15 +75,17 @@ def check_inputs(saved: dict | None, now: dict | None, path: str | Path) -> None
         why.append(f"{len(files)} of the sequence's {len(now.get('sequence', {}))} files changed ({shown})")
     for model in changed_files(saved.get("models", {}), now.get("models", {})):
         why.append(f"the model file {model} changed")
-    if saved.get("version") != now.get("version"):
-        why.append(_version_change(saved.get("version"), now.get("version")))
+    _refuse_resume(why, saved.get("version"), now.get("version"), "run", path)
+
+
+def _refuse_resume(why: list[str], version_then: str | None, version_now: str | None, what: str, path) -> None:
+    """Refuse to resume ``what`` (the run, the training) from the checkpoint at ``path`` when its inputs changed
+    (``why``: what changed) or the package's version did."""
+    if version_then != version_now:
+        why = [*why, f"pose-tracker changed from version {version_then} to {version_now}"]
     if why:
-        raise InputError(f"cannot resume: since the checkpoint was written, {'; '.join(why)}; start the run again",
-                         path)
-
-
-def _version_change(before: str | None, now: str | None) -> str:
-    return f"pose-tracker changed from version {before} to {now}"
+        raise InputError(f"cannot resume: since the checkpoint was written, {'; '.join(why)}; start the {what} "
+                         "again", path)
 
 
 def _flat_state(state: Any, name: str) -> tuple[dict[str, np.ndarray], list[str]]:
@@ -198,11 +200,7 @@ def training_checkpoint(checkpoint: str | Path | None, sources: Iterable[str],
             saved = None
         if isinstance(saved, dict):
             why = [f"the training file {f} changed" for f in changed_files(saved.get("files", {}), now["files"])]
-            if saved.get("version") != now["version"]:
-                why.append(_version_change(saved.get("version"), now["version"]))
-            if why:
-                raise InputError(f"cannot resume: since the checkpoint was written, {'; '.join(why)}; start the "
-                                 "training again", checkpoint)
+            _refuse_resume(why, saved.get("version"), now["version"], "training", checkpoint)
     elif not resume:
         write_text_atomic(side, json.dumps(now, indent=1))
     with writing(checkpoint, "any earlier checkpoint is kept"):
