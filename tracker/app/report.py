@@ -52,6 +52,20 @@ def per_frame_values(result: dict, metric: str) -> list[float] | None:
     return result.get(_EARLIER_KEYS.get(metric, ""))
 
 
+def per_run(result: dict, metric: str) -> float:
+    """A run's mean over its tracked frames of ``metric`` (nan where it has none)."""
+    v = per_frame_values(result, metric)
+    return float(np.mean(v)) if v else float("nan")
+
+
+def split_row_label(row: str, labels: list[str]) -> tuple[str, str]:
+    """(prior label, the rest: likelihood variant, view set, ...) of a table row's label, given the experiment's
+    prior ``labels`` (the longest that fits)."""
+    label = next((lab for lab in sorted(labels, key=len, reverse=True) if row == lab or row.startswith(lab + ", ")),
+                 row)
+    return label, row[len(label):]
+
+
 def _cell(values: list[float], digits: int = 1) -> str:
     """``mean ± std`` over runs (:func:`~tracker.core.metrics.summarize_runs`), or n/a."""
     v = np.asarray(values, float)
@@ -73,10 +87,6 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
     for group in by.values():
         group.sort(key=lambda r: r["run"]["seed_index"])
 
-    def per_run(r: dict, metric: str) -> float:
-        v = per_frame_values(r, metric)
-        return float(np.mean(v)) if v else float("nan")
-
     md = io.StringIO()
     md.write(f"# {exp.description or exp.path.stem}\n\n")
     md.write(f"`{exp.path.name}`: {exp.seeds} seed(s) per configuration, master seed {exp.seed}; "
@@ -97,12 +107,10 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
                     csv_rows.append([metric, row, s, f"{mean:.4f}", f"{sd:.4f}", len(vals),
                                      f"{np.mean([r['seconds_per_frame'] for r in group]):.4f}"])
             md.write(f"| {row} | " + " | ".join(cells) + f" | {np.mean(secs):.3f} |\n")
-    labels = sorted((p.label for p in exp.priors), key=len, reverse=True)
+    labels = [p.label for p in exp.priors]
 
     def split_row(row: str) -> tuple[str, str]:
-        """(prior label, the rest: likelihood variant, view set, ...) of a row label."""
-        label = next((lab for lab in labels if row == lab or row.startswith(lab + ", ")), row)
-        return label, row[len(label):]
+        return split_row_label(row, labels)
 
     pairs = []  # (row, the row it is compared with)
     for row in rows:

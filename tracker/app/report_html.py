@@ -57,7 +57,7 @@ class Side:
 
     @property
     def run_mm(self) -> float:
-        return float(np.mean(marker_errors(self.run)))
+        return _mean_error(self.run)
 
 
 @dataclass(frozen=True)
@@ -99,10 +99,17 @@ def marker_errors(result: dict) -> list[float] | None:
     return per_frame_values(result, PRIMARY)
 
 
+def _mean_error(result: dict) -> float:
+    """A run's mean marker error over its tracked frames (mm)."""
+    from tracker.app.report import PRIMARY, per_run
+
+    return per_run(result, PRIMARY)
+
+
 def representative(runs: list[dict]) -> dict:
     """The run whose mean marker error is the closest to the mean over ``runs`` (the lowest seed index on a
     tie)."""
-    means = np.array([np.mean(marker_errors(r)) for r in runs])
+    means = np.array([_mean_error(r) for r in runs])
     order = sorted(range(len(runs)), key=lambda i: (abs(means[i] - means.mean()), runs[i]["run"]["seed_index"]))
     return runs[order[0]]
 
@@ -124,7 +131,7 @@ def pick_runs(results: list[dict]) -> tuple[list[Pick], list[str]]:
             why = "no ground truth to rank the priors by" if len(scored) < len(rows) else "one prior only"
             notes.append(f"{where}: no video ({why})")
             continue
-        sides = [Side(row, float(np.mean([np.mean(marker_errors(r)) for r in runs])), len(runs),
+        sides = [Side(row, float(np.mean([_mean_error(r) for r in runs])), len(runs),
                       representative(runs)) for row, runs in scored.items()]
         best = min(sides, key=lambda s: s.mean_mm)
         worst = max(sides, key=lambda s: s.mean_mm)
@@ -138,8 +145,9 @@ def pick_runs(results: list[dict]) -> tuple[list[Pick], list[str]]:
 
 def _short_label(row: str, labels: list[str]) -> str:
     """A row's prior label (the row without the variant that both sides share)."""
-    return next((lab for lab in sorted(labels, key=len, reverse=True) if row == lab or row.startswith(lab + ", ")),
-                row)
+    from tracker.app.report import split_row_label
+
+    return split_row_label(row, labels)[0]
 
 
 def crop_box(polygons: list[np.ndarray], width: int, height: int, margin: float = 0.15, min_width: int = 160
