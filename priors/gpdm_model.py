@@ -60,8 +60,6 @@ CHECKPOINT_FORMAT = "pose-tracker gpdm training checkpoint v1"
 JITTER = 1e-6
 
 
-
-
 def n_dynamics_params(cfg: GPDMConfig) -> int:
     """Number of dynamics hyperparameters: RBF scale + one width per lag, one linear scale per lag, noise."""
     n = 1

@@ -26,10 +26,8 @@ from typing import Callable, Iterator
 import numpy as np
 
 from data_tools.files import atomic_path, write_text_atomic, writing
-from data_tools.fingerprints import CACHE_NAME, sequence_hash
-from tracker.app.experiment import (
-    Experiment, RunSpec, config_hash, expand_runs, file_hash, load_experiment, run_seed,
-)
+from data_tools.fingerprints import CACHE_NAME, config_hash, file_hash, sequence_hash
+from tracker.app.experiment import Experiment, RunSpec, expand_runs, load_experiment, run_seed
 from tracker.core.errors import InputError
 
 log = logging.getLogger(__name__)

@@ -282,7 +282,8 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
 
     ``data_root`` replaces the file's ``data_root`` (as does the environment variable ``POSE_TRACKER_DATA_ROOT``
     when ``data_root`` is None); see the module docstring."""
-    from tracker.app.api import TRACK_ANNEALING_LAYERS, likelihood_entry, prior_entry
+    from tracker.app.defaults import TRACK_ANNEALING_LAYERS
+    from tracker.app.plugins import likelihood_entry, prior_entry
     from tracker.engine.registry import resolve_options
 
     path = Path(path).resolve()
