@@ -84,3 +84,26 @@ class TestToyPoints(MocapReaderContract):
         asf, amcs = sample_walks()
         clip = asf_amc_clip(asf, amcs[0])  # 120 Hz, mm, z up
         return write_toy_points(folder / "walk.toypts", clip.point_names, clip.positions[:160:4], 30.0)
+
+
+def test_the_command_line_converts_a_file_of_the_plugins_format(tmp_path):
+    """``pose-tracker --plugin toy_plugin.py convert``: the plugin's reader, found by the suffix, feeds the
+    retargeting (in a process of its own: this one registered the plugin under its package's name)."""
+    import os
+    import subprocess
+    import sys
+
+    from data_tools.clip_io import load_converted_clip
+
+    asf, amcs = sample_walks()
+    clip = asf_amc_clip(asf, amcs[0])
+    walk = write_toy_points(tmp_path / "walk.toypts", clip.point_names, clip.positions[:160:4], 30.0)
+    plugin = Path(__file__).with_name("toy_plugin.py")
+    repo = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(repo), os.environ.get("PYTHONPATH", "")])}
+    done = subprocess.run([sys.executable, "-m", "tracker", "--plugin", str(plugin), "convert", "--mocap", str(walk),
+                           "--fps", "30", "--out", str(tmp_path / "walk.npz")], capture_output=True, text=True,
+                          env=env, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "walk.toypts: CMU ASF names, lengths in cm, y up, 30 Hz; 40 frames" in done.stdout
+    assert len(load_converted_clip(tmp_path / "walk.npz").poses) == 40

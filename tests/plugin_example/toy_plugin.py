@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from data_tools.load import apply_joint_map
 from data_tools.mocap import Y_UP_TO_Z_UP, MocapClip
 from data_tools.readers import ReadOptions, register_mocap_reader
 from tracker.core.errors import InputError
@@ -118,8 +119,9 @@ def read_toy_points(path: Path, options: ReadOptions) -> MocapClip:
         if row.shape != (3 * len(names),) or not np.all(np.isfinite(row)):
             raise InputError(f"expected {3 * len(names)} finite numbers, got {row.size}", path, k)
         rows.append(row)
-    positions = np.stack(rows).reshape(len(rows), len(names), 3) * 10.0 @ Y_UP_TO_Z_UP.T
-    return MocapClip(str(path), positions, names, fps, "asf", unit="cm", up="y")
+    positions = np.stack(rows).reshape(len(rows), len(names), 3) * 10.0 @ Y_UP_TO_Z_UP.T  # cm to mm, y to z up
+    clip = MocapClip(str(path), positions, names, fps, "asf", unit="cm", up="y")
+    return apply_joint_map(clip, options.joint_map)
 
 
 def write_toy_points(path: Path, names: list[str], positions_mm: np.ndarray, fps: float) -> Path:
