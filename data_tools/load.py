@@ -129,7 +129,8 @@ def load_training_clips(files, skeletons=None, fps: float | None = 60.0, joint_m
     results = []
     for i, f in enumerate(files):
         skel = None if not skeletons else skeletons[0 if len(skeletons) == 1 else i]
-        if skel is not None and reader_for(f).skeleton is None:
+        reader = READERS.get(f.suffix.lower())  # (an unknown suffix is refused by load_mocap, after a missing file)
+        if skel is not None and reader is not None and reader.skeleton is None:
             skel = None
         results.append(retarget(load_mocap(f, skel, joint_map=maps[i]), fps=fps))
     return results
