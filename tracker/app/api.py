@@ -75,6 +75,9 @@ def load_clip(mocap: str | Path, skeleton: str | Path | None = None, fps: float 
     file's own rate; other rates are interpolated). ``joint_map`` (a JSON or TOML file, or a mapping of body
     points to the file's joint names) is for skeletons whose names are not recognised
     (docs/guide/motion_capture.md)."""
+    from tracker.app.plugins import load_plugins
+
+    load_plugins()  # the mocap readers of installed plugins (entry points) register on import
     return retarget(load_mocap(mocap, skeleton, length_unit, joint_map=joint_map), fps=fps)
 
 

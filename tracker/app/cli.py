@@ -32,7 +32,9 @@ def _convert_one(mocap: str | Path, skeleton, fps: float | None, length_unit, ou
     from data_tools.clip_io import save_converted_clip
     from data_tools.load import load_mocap
     from data_tools.retarget import retarget
+    from tracker.app.plugins import load_plugins
 
+    load_plugins()  # the mocap readers of installed plugins (entry points) register on import
     clip = load_mocap(mocap, skeleton, length_unit, joint_map=joint_map)
     result = retarget(clip, fps=fps)
     with atomic_path(out) as tmp:
@@ -55,7 +57,9 @@ def cmd_synth(args: argparse.Namespace) -> int:
     from data_tools.load import load_mocap
     from data_tools.retarget import retarget
     from data_tools.synth import SynthConfig, synthesize
+    from tracker.app.plugins import load_plugins
 
+    load_plugins()  # the mocap readers of installed plugins (entry points) register on import
     check_output_folder(args.out, empty=not args.overwrite, replaceable=("cameras.json", "meta.json"))
     settings = SynthConfig(views=args.cameras, fps=args.fps, start=args.start, frames=args.frames, seed=args.seed,
                            width=args.width, height=args.height, noise=args.noise,
