@@ -393,7 +393,7 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
                               fingerprint=settings)
     except TrackingInterrupted as stop:
         if stop.partial is not None:
-            stop.partial.settings = {**settings, "complete": False}
+            stop.partial.settings = settings
         raise
     result.settings = settings
     return result
