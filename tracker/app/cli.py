@@ -43,6 +43,18 @@ def _convert_one(mocap: str | Path, skeleton, fps: float | None, length_unit, ou
     return clip, result
 
 
+#: A mean retarget residual (mm) above which a conversion is suspect: a well-read file fits within a few mm.
+RESIDUAL_WARNING_MM = 10.0
+
+
+def _check_residual(name: str, residual_mm: float) -> None:
+    """Warn when a clip's mean retarget residual points to a wrong length unit or joint mapping."""
+    if residual_mm > RESIDUAL_WARNING_MM:
+        log.warning(f"{name}: mean retarget residual {residual_mm:.1f} mm; a well-read file fits within a few mm, "
+                    "and tens of mm point to a wrong length unit (--length-unit) or joint mapping (--joint-map): "
+                    "see docs/guide/motion_capture.md")
+
+
 def cmd_convert(args: argparse.Namespace) -> int:
     out = check_output_file(args.out, "the output", (".npz",), new=not args.overwrite)
     check_not_inside(out, {"mocap file": args.mocap, **({"skeleton": args.skeleton} if args.skeleton else {})})
@@ -51,6 +63,7 @@ def cmd_convert(args: argparse.Namespace) -> int:
         log.info(f"note: {Path(args.mocap).name}: {note}")
     print(f"{Path(args.mocap).name}: {clip.summary()}; {len(result.poses)} frames at {result.fps:g} fps, "
           f"mean retarget residual {result.mean_residual:.2f} mm -> {out}")  # the residual: how well it went
+    _check_residual(Path(args.mocap).name, result.mean_residual)
     return 0
 
 
@@ -68,6 +81,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
     for note in clip.notes:
         log.info(f"note: {Path(args.mocap).name}: {note}")
     result = retarget(clip, fps=args.fps)
+    _check_residual(Path(args.mocap).name, result.mean_residual)
     if args.then or args.switch_at:
         from data_tools.transition import cross_fade
 
