@@ -181,7 +181,8 @@ class ProgressLines:
         done = f"{self.n}/{self.total}" if self.total else f"{self.n}"
         share = f" ({100 * self.n / self.total:.0f}%)" if self.total else ""
         rate = (self.n - self._start_n) / (now - self._start) if now > self._start else 0.0
-        parts = [f"{done} {self.unit}s{share}", f"{rate:.3g} {self.unit}/s", *([self._postfix] if self._postfix else [])]
+        parts = [f"{done} {self.unit}s{share}", f"{rate:.3g} {self.unit}/s"]
+        parts += [self._postfix] if self._postfix else []
         logging.getLogger(__name__).info(f"{self.desc}: {', '.join(parts)}" if self.desc else ", ".join(parts))
         self._last_time, self._last_n = now, self.n
 
