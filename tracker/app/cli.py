@@ -23,6 +23,7 @@ from data_tools.files import atomic_path, check_not_inside, check_output_file, c
 from tracker.app.console import PROG, configure_logging, error_line, progress_bar, shows_progress, verbosity
 from tracker.app.parser import build_parser, given_options, parse_arguments
 from tracker.app.plugins import import_plugin, likelihood_entry, prior_entry
+from tracker.app.schema import TRACK_SETTINGS
 from tracker.app.threads import set_threads
 from tracker.core.errors import InputError
 
@@ -274,10 +275,8 @@ def cmd_track(args: argparse.Namespace) -> int:
         run = track(seq, args.prior, models=args.model or (), likelihood=args.likelihood,
                     **given_options(args, prior_entry(args.prior).options),
                     **given_options(args, likelihood_entry(args.likelihood).options),
-                    particles=args.particles, views=views, frames=args.frames, seed=args.seed,
-                    annealing_layers=args.annealing_layers, resampling=args.resampling,
-                    known_frames=args.known_frames, init=init, train_mocap=args.train_mocap, device=args.device,
-                    on_frame=on_frame, checkpoint=out / "checkpoint.npz", checkpoint_every=args.checkpoint_every,
+                    **{name: getattr(args, name) for name in TRACK_SETTINGS if name != "views"}, views=views,
+                    init=init, train_mocap=args.train_mocap, on_frame=on_frame, checkpoint=out / "checkpoint.npz",
                     resume=bool(args.resume))
     except (InputError, KeyboardInterrupt):  # refused, or Ctrl-C, before the filter's first frame (a bad model
         # file, say, or while the priors are being prepared): nothing stays behind; a full disk later, or Ctrl-C
