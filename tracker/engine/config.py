@@ -33,9 +33,9 @@ TRACK_ANNEALING_LAYERS = 3
 ENGINE_ANNEALING_LAYERS = 1
 
 FILTER_OPTIONS: tuple[Option, ...] = (
-    Option("particles", int, 1000, "number of particles", minimum=1, maximum=MAX_PARTICLES, unit="particles"),
+    Option("particles", int, 1000, "number of particles", minimum=1, maximum=MAX_PARTICLES),
     Option("annealing_layers", int, TRACK_ANNEALING_LAYERS, "annealed layers per frame; 1 is plain SIR",
-           minimum=1, maximum=MAX_ANNEALING_LAYERS, unit="layers"),
+           minimum=1, maximum=MAX_ANNEALING_LAYERS),
     Option("resampling", str, "systematic", "resampling scheme", choices=tuple(SCHEMES)),
     Option("ess_threshold", float, 0.5, "resample when the effective sample size falls below this fraction of "
            "the particles (an annealed frame always resamples)", minimum=0.0, maximum=1.0),
