@@ -29,7 +29,8 @@ from data_tools.retarget import RetargetResult, retarget
 from data_tools.samples import sample_walks
 from data_tools.sequence import Sequence, read_sequence
 from tracker.app import schema
-from tracker.app.schema import FILTER_OPTIONS, RECORDED_SETTINGS, TRACK_ANNEALING_LAYERS, TRACK_SETTINGS
+from tracker.app.schema import FILTER_OPTIONS, RECORDED_SETTINGS, TRACK_SETTINGS
+from tracker.app.schema import TRACK_ANNEALING_LAYERS  # noqa: F401  (the API names the default: tracker.track)
 from tracker.app.plugins import (  # the discovery functions of the API
     available_likelihoods, available_priors, likelihood_entry, prior_entry,
 )
@@ -313,7 +314,8 @@ def split_options(prior: str | MotionPrior, likelihood: str | Likelihood, option
         if kind is None:
             lists = "; ".join(f"{k} {p if isinstance(p, str) else 'object'}: {', '.join(sorted(declared[k])) or 'none'}"
                               for k, p in (("prior", prior), ("likelihood", likelihood)))
-            raise InputError(f"track takes no option {name!r} (the options of {lists})")
+            raise InputError(f"track takes no option {name!r} (the options of {lists}; the run's settings: "
+                             f"{', '.join(TRACK_SETTINGS)})")
         out[kind][name] = value
     return out["prior"], out["likelihood"]
 

@@ -306,7 +306,7 @@ def _components(w: "_Where", doc: dict, options: dict, entry: str) -> tuple[dict
     """A prior's ``[[prior.components]]`` tables (``prior``, ``options``, ``models`` or ``train``): the prior's
     options with ``components`` written from them (without paths: a component's model files are the prior's, in
     order, so that no path enters a run's hash), and the model files and trainings in that order."""
-    from priors.mixture import Component, written_value
+    from tracker.engine.components import Component, written_value
     from tracker.app.plugins import prior_entry
     from tracker.engine.registry import resolve_options
 

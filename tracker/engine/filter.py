@@ -50,7 +50,6 @@ from typing import Any, Callable, Iterable, Iterator, Mapping
 import numpy as np
 
 from tracker.core.blas import serial_blas
-from tracker.core.errors import InputError
 from tracker.engine.config import FilterConfig  # the filter's settings, declared with their options
 from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood
 from tracker.engine.mixture import Mixture, mixture_weights, resample_components
