@@ -94,13 +94,13 @@ def test_an_experiment_file_takes_the_settings_with_the_declared_defaults(tmp_pa
 
 
 @pytest.mark.parametrize("line, message", [
-    ("particles = 0", "[tracking] particles: particles must be at least 1 and at most 1000000, got 0"),
-    ("particles = [100, true]", "[tracking] particles: particles must be an integer, got True"),
+    ("particles = 0", "[tracking] particles must be at least 1 and at most 1000000, got 0"),
+    ("particles = [100, true]", "[tracking] particles must be an integer, got True"),
     ("annealing_layers = []", "[tracking] annealing_layers: expected a value or a non-empty list, got []"),
-    ("survival_rate = 1.5", "[tracking] survival_rate: survival_rate must be greater than 0 and less than 1"),
-    ('resampling = "best"', "[tracking] resampling: resampling must be one of systematic"),
-    ("known_frames = 0", "[tracking] known_frames: known_frames must be at least 1, got 0"),
-    ("views = [0, -1]", "[tracking] views: views must be at least 0, got -1"),
+    ("survival_rate = 1.5", "[tracking] survival_rate must be greater than 0 and less than 1"),
+    ('resampling = "best"', "[tracking] resampling must be one of systematic"),
+    ("known_frames = 0", "[tracking] known_frames must be at least 1, got 0"),
+    ("views = [0, -1]", "[tracking] views must be at least 0, got -1"),
     ("views = [0, 0]", "[tracking] views: each view set must list distinct camera indices"),
     ("seed = 3", "[tracking]: unknown key(s) 'seed'"),
 ])
@@ -140,3 +140,19 @@ def test_a_bad_setting_on_the_command_line_is_one_line_with_the_rule(tmp_path):
                         "--survival-rate", "1", "--out", str(tmp_path / "o")], capture_output=True, text=True)
     assert r.returncode == 2 and r.stderr.strip() == ("pose-tracker: error: track: argument --survival-rate: must "
                                                       "be greater than 0 and less than 1, got 1.0")
+
+
+@pytest.mark.parametrize("line, message", [
+    ("seeds = 0", "seeds must be at least 1, got 0"),
+    ("seed = -2", "seed must be at least 0, got -2"),
+    ("fps = 2000", "fps must be at least 1 and at most 1000, got 2000"),
+    ('paired = "some"', "paired must be one of baseline, all, got 'some'"),
+    ("description = 3", "description must be text, got 3"),
+])
+def test_the_experiments_own_settings_are_checked_by_their_declarations(tmp_path, line, message):
+    path = tmp_path / "exp.toml"
+    path.write_text(f'{line}\n[[sequence]]\nname = "walk"\nmocap = "{SAMPLE / "07_02.amc"}"\n\n'
+                    '[[prior]]\nname = "zero-velocity"\n')
+    with pytest.raises(InputError) as err:
+        load_experiment(path)
+    assert str(err.value) == f"{path}: {message}"

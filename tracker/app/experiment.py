@@ -95,6 +95,7 @@ import numpy as np
 
 from data_tools.fingerprints import config_hash, file_hash
 from tracker.core.errors import InputError
+from tracker.engine.registry import Option
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -103,6 +104,18 @@ else:  # pragma: no cover
 
 TOP_KEYS = {"description", "data_root", "seed", "seeds", "fps", "baseline", "paired", "tracking", "sequence",
             "prior", "likelihood"}
+#: The experiment's own settings at the top of the file (besides ``data_root`` and ``baseline``, which name a
+#: folder and a row).
+EXPERIMENT_OPTIONS = (
+    Option("description", str, "", "free text, the tables' title"),
+    Option("seed", int, 0, "master seed: seed index i of every configuration uses SeedSequence(seed).spawn(..)[i]",
+           minimum=0),
+    Option("seeds", int, 1, "tracking seeds (runs) per configuration", minimum=1),
+    Option("fps", float, 60.0, "frame rate of rendered sequences and trained models", minimum=1.0, maximum=1000.0,
+           unit="Hz"),
+    Option("paired", str, "baseline", "paired differences against the baseline, or between all pairs of rows",
+           choices=("baseline", "all")),
+)
 #: The environment variable that replaces an experiment file's ``data_root`` (``compare --data-root`` wins over it).
 DATA_ROOT_ENV = "POSE_TRACKER_DATA_ROOT"
 SEQUENCE_KEYS = {"name", "path", "mocap", "skeleton", "then", "then_skeleton", "switch_at", "fade", "start", "frames",
@@ -403,26 +416,27 @@ def _tracking(w: "_Where", table: Any) -> dict[str, Any]:
             for vs in sets:
                 if vs is not None and (not isinstance(vs, list) or not vs or len(set(map(repr, vs))) != len(vs)):
                     raise w.error(entry, f"each view set must list distinct camera indices, got {vs!r}")
-            grid[name] = [None if vs is None else list(_checked(w, option, vs, entry)) for vs in sets]
+            grid[name] = [None if vs is None else list(_checked(w, option, vs, "[tracking]")) for vs in sets]
         elif name in GRID_AXES:
             values = _as_list(option.default if value is None else value)
             if not values:
                 raise w.error(entry, "expected a value or a non-empty list, got []")
-            grid[name] = [_checked(w, option, v, entry) for v in values]
+            grid[name] = [_checked(w, option, v, "[tracking]") for v in values]
         else:
-            grid[name] = option.default if value is None else _checked(w, option, value, entry)
+            grid[name] = option.default if value is None else _checked(w, option, value, "[tracking]")
     if grid["frames"] is not None and grid["known_frames"] >= grid["frames"]:
         raise w.error("[tracking] frames", f"must exceed known_frames ({grid['known_frames']}), got "
                                            f"{grid['frames']}")
     return grid
 
 
-def _checked(w: "_Where", option, value: Any, entry: str) -> Any:
-    """``value`` checked by ``option``; its refusal is one line naming the file and ``entry``."""
+def _checked(w: "_Where", option: Option, value: Any, table: str = "") -> Any:
+    """``value`` checked by ``option``; its refusal is one line naming the file, the ``table`` (``[tracking]``;
+    empty at the top level) and the key: ``exp.toml: [tracking] particles must be at least 1 ..., got 0``."""
     try:
-        return option.parse(value, entry)
+        return option.parse(value, "")
     except InputError as exc:
-        raise InputError(exc.reason, w.path) from None
+        raise InputError(f"{table} {exc.reason[2:]}".strip(), w.path) from None
 
 
 def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Experiment:
@@ -445,11 +459,8 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
         raise InputError(f"not valid TOML ({exc})", path) from None
     w.keys(doc, TOP_KEYS, "")
     w.data_root = resolve_data_root(path, doc.get("data_root"), data_root)
-    seed = w.int_(doc.get("seed", 0), "seed", 0)
-    seeds = w.int_(doc.get("seeds", 1), "seeds", 1)
-    fps = doc.get("fps", 60.0)
-    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 1 <= fps <= 1000:
-        raise w.error("fps", f"expected a frame rate in 1..1000 Hz, got {fps!r}")
+    top = {o.name: o.default if doc.get(o.name) is None else _checked(w, o, doc[o.name]) for o in EXPERIMENT_OPTIONS}
+    seed, seeds, fps = top["seed"], top["seeds"], top["fps"]
     grid = _tracking(w, doc.get("tracking", {}))
     from data_tools.skeleton_points import read_joint_map
     from data_tools.synth import SynthConfig
@@ -550,11 +561,8 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
         group = [p.label for p in priors if p.replicate_of == baseline]
         raise w.error("baseline", f"{baseline!r} repeats its training (train_seeds): name one of its rows, e.g. "
                                   f"{group[0]!r}" if group else f"{baseline!r} is not a prior label")
-    paired = doc.get("paired", "baseline")
-    if paired not in ("baseline", "all"):
-        raise w.error("paired", f"expected 'baseline' or 'all', got {paired!r}")
-    return Experiment(path, str(doc.get("description", "")), seed, seeds, float(fps), baseline, paired, grid,
-                      sequences, priors, likelihoods, w.data_root)
+    return Experiment(path, top["description"], seed, seeds, fps, baseline, top["paired"], grid, sequences, priors,
+                      likelihoods, w.data_root)
 
 
 # -- runs ------------------------------------------------------------------------------------------------------
