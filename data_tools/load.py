@@ -108,18 +108,24 @@ def per_clip(values, n: int, what: str) -> list:
     return [None if isinstance(v, str) and v.lower() == "none" else v for v in out]
 
 
-def load_training_clips(files, skeletons=None, fps: float | None = 60.0, joint_maps=None) -> list:
+def load_training_clips(files, skeletons=None, fps: float | None = 60.0, joint_maps=None,
+                        cache: Path | None | bool = True) -> list:
     """Retargeted clips (:class:`~data_tools.retarget.RetargetResult`) of mocap files, each resampled to
     ``fps`` Hz (None: each at its own rate).
 
-    ``skeletons`` is ``None`` (each AMC finds ``<subject>.asf`` beside it), one ASF for every AMC, or one per
-    file (BVH files carry their own and ignore theirs). ``joint_maps`` likewise: None, one for every clip, or
-    one per clip (``"none"`` for a clip whose names are recognised). Clips of different subjects are each
-    retargeted with their own skeleton and keep their own lengths.
+    ``files`` are files, folders and glob patterns (:func:`~data_tools.corpus.expand_mocap`: a folder means
+    every file a registered reader takes in it and below, in sorted order). ``skeletons`` is ``None`` (each AMC
+    finds ``<subject>.asf`` beside it), one ASF for every AMC, or one per file (BVH files carry their own and
+    ignore theirs). ``joint_maps`` likewise: None, one for every clip, or one per clip (``"none"`` for a clip
+    whose names are recognised). Clips of different subjects are each retargeted with their own skeleton and
+    keep their own lengths. ``cache``: the folder of converted clips (:mod:`data_tools.cache`; True: the
+    user's cache folder, None or False: convert every file afresh).
     """
+    from data_tools.cache import cached_retarget
+    from data_tools.corpus import expand_mocap
     from data_tools.retarget import retarget
 
-    files = [Path(f) for f in files]
+    files = expand_mocap(files) if files else []
     if not files:
         raise InputError("no training clips given")
     skeletons = list(skeletons or [])
@@ -132,5 +138,13 @@ def load_training_clips(files, skeletons=None, fps: float | None = 60.0, joint_m
         reader = READERS.get(f.suffix.lower())  # (an unknown suffix is refused by load_mocap, after a missing file)
         if skel is not None and reader is not None and reader.skeleton is None:
             skel = None
-        results.append(retarget(load_mocap(f, skel, joint_map=maps[i]), fps=fps))
+        if reader is None or not f.is_file():
+            load_mocap(f, skel, joint_map=maps[i])  # the one-line refusal
+        found = skel is None and reader.skeleton is not None
+        if found and reader.read is read_asf_amc:
+            skel, found = find_skeleton(f), False
+        results.append(cached_retarget(
+            lambda f=f, skel=skel, m=maps[i]: retarget(load_mocap(f, skel, joint_map=m), fps=fps), f,
+            skeleton=skel, joint_map=maps[i], fps=fps, reader_module=getattr(reader.read, "__module__", None),
+            folder=None if found else cache))  # (a skeleton a plugin finds itself is not in the key)
     return results
