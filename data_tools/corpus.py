@@ -1,13 +1,8 @@
-"""A mocap corpus: files, folders and glob patterns as one sorted list of clips, labels per clip from a pattern
-over file names or from a sidecar file, and a survey of what the corpus holds.
+"""A mocap corpus: labels per clip from a pattern over file names or from a sidecar file, and a survey of what
+the corpus holds.
 
-**Inputs** (:func:`expand_mocap`). Each item is a file (kept as given, whatever its suffix: a file the user names
-is read or refused by name), a folder (every file in it and in its subfolders, recursively, that a registered
-mocap reader takes, :func:`~data_tools.load.registered_readers`), or a glob pattern (``*``, ``?``, ``[...]``;
-``**`` crosses folders) keeping the matches a registered reader takes. A folder's or pattern's files come in
-sorted order of their paths (so ``07_01`` before ``07_02``, and the same order on every machine); items keep the
-order they are given in, and a file named twice is kept once. A folder or pattern that holds no mocap file is
-an error naming it. An AMC's skeleton (``.asf``) is not a clip: it is found beside its motion files.
+The files themselves come from :func:`~data_tools.load.expand_mocap` (files, folders searched recursively, glob
+patterns; sorted, each once).
 
 **Labels** (:class:`LabelSource`). ``dataset-2_{content}_{style}_{take}`` is a pattern over the file name
 without its suffix: each ``{key}`` matches one or more characters (the shortest that makes the whole name
@@ -23,7 +18,6 @@ exactly one key.
 from __future__ import annotations
 
 import csv
-import glob
 import json
 import re
 from dataclasses import dataclass, field
@@ -32,58 +26,10 @@ from typing import Iterable, Sequence
 
 from tracker.core.errors import InputError
 
-#: Characters that make an item a glob pattern.
-GLOB_CHARS = set("*?[")
 #: Sidecar label files, by suffix.
 SIDECAR_SUFFIXES = (".csv", ".toml", ".json")
 #: What a label value may hold (the FCRBM's labels: letters, digits, '_', '-', '.').
 LABEL_VALUE = re.compile(r"^[A-Za-z0-9_.\-]+$")
-
-
-def _readable(path: Path) -> bool:
-    from data_tools.load import registered_readers
-
-    return path.is_file() and path.suffix.lower() in {r.suffix for r in registered_readers()}
-
-
-def _takes() -> str:
-    from data_tools.load import registered_readers
-
-    return ", ".join(r.suffix for r in registered_readers())
-
-
-def is_pattern(item: str | Path) -> bool:
-    """Whether ``item`` is a glob pattern (holds ``*``, ``?`` or ``[``) rather than a path."""
-    return bool(GLOB_CHARS & set(str(item)))
-
-
-def expand_mocap(items: str | Path | Iterable[str | Path], base: Path | None = None) -> list[Path]:
-    """The mocap files that ``items`` (files, folders, glob patterns; see the module docstring) name, in order,
-    each once. Relative items are relative to ``base`` (None: the working folder). A missing file or folder, or
-    a folder or pattern without mocap files, is an :class:`InputError` naming it."""
-    items = [items] if isinstance(items, (str, Path)) else list(items)
-    out: list[Path] = []
-    for item in items:
-        text = str(item)
-        path = Path(text).expanduser()
-        if base is not None and not path.is_absolute():
-            path = base / path
-        if is_pattern(text) and not path.exists():
-            found = sorted(Path(p) for p in glob.glob(str(path), recursive=True))
-            files = [p for p in found if _readable(p)]
-            if not files:
-                raise InputError(f"the pattern matches no mocap file ({_takes()})" if not found else
-                                 f"the pattern matches {len(found)} path(s) but no mocap file ({_takes()})", text)
-        elif path.is_dir():
-            files = sorted(p for p in path.rglob("*") if _readable(p))
-            if not files:
-                raise InputError(f"the folder holds no mocap file ({_takes()}), in it or below", path)
-        elif path.exists():
-            files = [path]
-        else:
-            raise InputError("no such file or folder", path)
-        out.extend(files)
-    return list(dict.fromkeys(out))
 
 
 @dataclass(frozen=True)
@@ -284,18 +230,17 @@ class CorpusEntry:
         return d if self.refused is None else {"file": self.path, "refused": self.refused}
 
 
-def survey(items: str | Path | Iterable[str | Path], labels: str | Path | None = None,
-           on_file=None) -> list[CorpusEntry]:
-    """Every mocap file ``items`` name (:func:`expand_mocap`) read as a training would read it (the reader,
-    the naming convention of its points), with its labels from ``labels`` (:func:`label_source`): one entry per
-    file, a file that cannot be read or labelled refused with its reason, never stopping at the first.
-    ``on_file(i, n)`` is called after each file. An item that names nothing is an :class:`InputError`."""
-    from data_tools.load import load_mocap, reader_for
+def survey(items: str | Path | Iterable[str | Path], labels: str | Path | None = None) -> list[CorpusEntry]:
+    """Every mocap file ``items`` name (:func:`~data_tools.load.expand_mocap`) read as a training reads it (its
+    reader, the naming convention of its points), with its labels from ``labels`` (:func:`label_source`): one
+    entry per file, a file that cannot be read or labelled refused with its reason, never stopping at the
+    first. An item that names nothing, or a bad ``labels``, is an :class:`InputError`."""
+    from data_tools.load import expand_mocap, load_mocap, reader_for
 
     files = expand_mocap(items)
     source = None if labels is None else label_source(labels)
     out = []
-    for i, f in enumerate(files):
+    for f in files:
         entry = CorpusEntry(str(f))
         try:
             entry.format = reader_for(f).name
@@ -309,6 +254,4 @@ def survey(items: str | Path | Iterable[str | Path], labels: str | Path | None =
         except InputError as exc:
             entry.refused = exc.reason
         out.append(entry)
-        if on_file is not None:
-            on_file(i + 1, len(files))
     return out

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from data_tools.cache import cached_retarget, clip_key, entry_path
-from data_tools.corpus import expand_mocap, is_label_source, label_source, survey
-from data_tools.load import load_training_clips
+from data_tools.corpus import is_label_source, label_source, survey
+from data_tools.load import expand_mocap, load_training_clips
 from tests.conftest import SHARED, need_shared
 from tracker.app.cli import main
 from tracker.core.errors import InputError
@@ -281,6 +281,12 @@ def test_train_command_on_a_folder(corpus, tmp_path, capsys):
     assert main(["train", "--prior", "fcrbm", "--mocap", str(corpus), "--labels", "{a}_{b}", "--epochs", "1",
                  "--out", str(tmp_path / "f.pt")]) == 2
     assert "several keys" in capsys.readouterr().err
+    labels = tmp_path / "styles.csv"
+    labels.write_text("file,style\n07_01,normal\n07_02,tired\n07_bvh_03,normal\n")
+    assert main(["train", "--prior", "fcrbm", "--mocap", str(corpus / "**" / "07_0?.amc"), str(corpus / "c"),
+                 "--labels", str(labels), "--epochs", "1", "--hidden", "8", "--factors", "4", "--features", "2",
+                 "--order", "1", "--grow-from", "none", "--out", str(tmp_path / "f.pt")]) == 0
+    assert "labels normal, tired" in capsys.readouterr().out
 
 
 def test_experiment_train_entries_take_folders_and_patterns(corpus, tmp_path):

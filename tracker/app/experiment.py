@@ -256,10 +256,10 @@ class _Where:
 
 
 def _clips(w: "_Where", value: Any, entry: str) -> list[ClipSpec]:
-    """The training clips of one entry: a path, folder or glob pattern (:func:`~data_tools.corpus.expand_mocap`:
+    """The training clips of one entry: a path, folder or glob pattern (:func:`~data_tools.load.expand_mocap`:
     every mocap file a folder holds, recursively, or the pattern matches, in sorted order), or
     ``{ path = "...", start = 0, frames = 600, joint_map = "map.toml" }`` (its settings apply to every file)."""
-    from data_tools.corpus import expand_mocap
+    from data_tools.load import expand_mocap
     from data_tools.skeleton_points import read_joint_map
 
     settings: dict = {}
