@@ -173,9 +173,6 @@ def load_training_clips(files, skeletons=None, fps: float | None = 60.0, joint_m
     keep their own lengths. ``cache``: the folder of converted clips (:mod:`data_tools.cache`; True: the
     user's cache folder, None or False: convert every file afresh).
     """
-    from data_tools.cache import cached_retarget
-    from data_tools.retarget import retarget
-
     files = expand_mocap(files) if files else []
     if not files:
         raise InputError("no training clips given")
@@ -189,13 +186,28 @@ def load_training_clips(files, skeletons=None, fps: float | None = 60.0, joint_m
         reader = READERS.get(f.suffix.lower())  # (an unknown suffix is refused by load_mocap, after a missing file)
         if skel is not None and reader is not None and reader.skeleton is None:
             skel = None
-        if reader is None or not f.is_file():
-            load_mocap(f, skel, joint_map=maps[i])  # the one-line refusal
-        found = skel is None and reader.skeleton is not None
-        if found and reader.read is read_asf_amc:
-            skel, found = find_skeleton(f), False
-        results.append(cached_retarget(
-            lambda f=f, skel=skel, m=maps[i]: retarget(load_mocap(f, skel, joint_map=m), fps=fps), f,
-            skeleton=skel, joint_map=maps[i], fps=fps, reader_module=getattr(reader.read, "__module__", None),
-            folder=None if found else cache))  # (a skeleton a plugin finds itself is not in the key)
+        results.append(load_retargeted(f, skel, fps, joint_map=maps[i], cache=cache))
     return results
+
+
+def load_retargeted(path: str | Path, skeleton: str | Path | None = None, fps: float | None = 60.0,
+                    mm_per_unit: float | None = None, joint_map: str | Path | Mapping | None = None,
+                    cache: Path | None | bool = True):
+    """A mocap file read as :func:`load_mocap` reads it and retargeted at ``fps`` Hz (None: its own rate), as a
+    :class:`~data_tools.retarget.RetargetResult`, from the cache of converted clips when it holds it
+    (:mod:`data_tools.cache`; ``cache``: its folder, True: the user's, None or False: none)."""
+    from data_tools.cache import cached_retarget
+    from data_tools.retarget import retarget
+
+    path = Path(path)
+    reader = READERS.get(path.suffix.lower())
+    if reader is None or not path.is_file() or (skeleton and reader.skeleton is None):
+        load_mocap(path, skeleton, mm_per_unit, joint_map=joint_map)  # the one-line refusal
+    found = not skeleton and reader.skeleton is not None
+    if found and reader.read is read_asf_amc:
+        skeleton, found = find_skeleton(path), False
+    return cached_retarget(
+        lambda: retarget(load_mocap(path, skeleton, mm_per_unit, joint_map=joint_map), fps=fps), path,
+        skeleton=skeleton or None, joint_map=joint_map, mm_per_unit=mm_per_unit, fps=fps,
+        reader_module=getattr(reader.read, "__module__", None),
+        folder=None if found else cache)  # (a skeleton a plugin's reader finds itself is not in the key)

@@ -250,12 +250,17 @@ def test_cache_key_covers_rate_skeleton_and_joint_map(corpus):
     assert entry_path(Path("/c"), base) == Path("/c/clips") / base[:2] / f"{base}.npz"
 
 
-def test_cache_folder_from_the_environment(corpus, tmp_path, monkeypatch):
+def test_the_api_loads_through_the_cache(corpus, tmp_path, monkeypatch):
+    import tracker
+
     monkeypatch.setenv("POSE_TRACKER_CACHE", str(tmp_path / "env-cache"))
-    load_training_clips([corpus / "c" / "07_bvh_03.bvh"], fps=None)
+    one = tracker.load_clip(corpus / "c" / "07_bvh_03.bvh", fps=None)
     assert len(list((tmp_path / "env-cache").rglob("*.npz"))) == 1
+    clips = tracker.load_clips(str(corpus / "**" / "07_*"), fps=None, cache=tmp_path / "given")
+    assert [Path(c.source).name for c in clips] == ["07_01.amc", "07_02.amc", "07_bvh_03.bvh"]
+    assert np.array_equal(clips[2].poses, one.poses) and len(list((tmp_path / "given").rglob("*.npz"))) == 3
     monkeypatch.setenv("POSE_TRACKER_CACHE", "off")
-    load_training_clips([corpus / "c" / "07_bvh_03.bvh"], fps=30.0)
+    tracker.load_clip(corpus / "c" / "07_bvh_03.bvh", fps=30.0)
     assert len(list((tmp_path / "env-cache").rglob("*.npz"))) == 1
 
 

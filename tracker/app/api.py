@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping, Sequence as 
 import numpy as np
 
 from data_tools.corpus import is_label_source, label_source
-from data_tools.load import load_mocap, load_training_clips
+from data_tools.load import load_mocap, load_retargeted, load_training_clips
 from data_tools.retarget import RetargetResult, retarget
 from data_tools.samples import sample_walks
 from data_tools.sequence import Sequence, read_sequence
@@ -77,11 +77,11 @@ def load_clip(mocap: str | Path, skeleton: str | Path | None = None, fps: float 
     """A mocap file (AMC with its ASF, or BVH) retargeted to the 15-cone body model at ``fps`` Hz (None: the
     file's own rate; other rates are interpolated). ``joint_map`` (a JSON or TOML file, or a mapping of body
     points to the file's joint names) is for skeletons whose names are not recognised
-    (docs/guide/motion_capture.md)."""
+    (docs/guide/motion_capture.md). Converted clips are cached (:func:`load_clips`)."""
     from tracker.app.plugins import load_plugins
 
     load_plugins()  # the mocap readers of installed plugins (entry points) register on import
-    return retarget(load_mocap(mocap, skeleton, length_unit, joint_map=joint_map), fps=fps)
+    return load_retargeted(mocap, skeleton, fps, length_unit, joint_map)
 
 
 def load_clips(mocap: str | Path | Iterable[str | Path], skeletons: Iterable[str | Path] | None = None,
