@@ -113,6 +113,12 @@ def _takes() -> str:
     return ", ".join(r.suffix for r in registered_readers())
 
 
+def _order(path: Path) -> tuple[str, ...]:
+    """The sort key of a folder's or a pattern's files: folder by folder, then the name, characters compared by
+    code point (case counts, on every system)."""
+    return path.parts
+
+
 def is_pattern(item: str | Path) -> bool:
     """Whether ``item`` is a glob pattern (holds ``*``, ``?`` or ``[``) rather than a path."""
     return bool(GLOB_CHARS & set(str(item)))
@@ -134,13 +140,13 @@ def expand_mocap(items: str | Path | Iterable[str | Path], base: Path | None = N
         if base is not None and not path.is_absolute():
             path = base / path
         if is_pattern(text) and not path.exists():
-            found = sorted(Path(p) for p in glob.glob(str(path), recursive=True))
+            found = sorted((Path(p) for p in glob.glob(str(path), recursive=True)), key=_order)
             files = [p for p in found if _readable(p)]
             if not files:
                 raise InputError(f"the pattern matches no mocap file ({_takes()})" if not found else
                                  f"the pattern matches {len(found)} path(s) but no mocap file ({_takes()})", text)
         elif path.is_dir():
-            files = sorted(p for p in path.rglob("*") if _readable(p))
+            files = sorted((p for p in path.rglob("*") if _readable(p)), key=_order)
             if not files:
                 raise InputError(f"the folder holds no mocap file ({_takes()}), in it or below", path)
         elif path.exists():
