@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 import torch
 
-from tracker.engine.prior import MotionPrior, reindex_state
+from tracker.engine.prior import MotionPrior, label_for, reindex_state
 
 P = 12
 
@@ -253,7 +253,7 @@ def test_a_learned_prior_grows_its_history_from_one_known_frame(priors, walk_07_
         history = np.repeat(walk_07_01.poses[None, :1], prior.order, axis=1).repeat(P, axis=0)
         labels = []
         for available in range(1, prior.order + 1):
-            labels.append(prior.label_for(available))
+            labels.append(label_for(prior, available))
             new, state = prior.sample(history, available, state, rng)
             assert np.all(np.isfinite(new)), (label, available)
             history = np.concatenate([history[:, 1:], new[:, None]], axis=1)
