@@ -68,6 +68,9 @@ class MixturePrior(Composite):
         if len(self.labels) != len(components) or len(set(self.labels)) != len(components):
             raise InputError(f"a mixture needs one distinct label per component, got {list(self.labels)}")
         self.inner = [mixing_of(c) for c in components]  # the components' own components, where kept apart
+        sizes = [1 if m is None else m.transition.shape[0] for m in self.inner]
+        #: How many filter components each model takes, and the first of them ``(C,)``.
+        self.sizes, self.first = sizes, np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
         self.summary_names = tuple(n for label, inner in zip(self.labels, self.inner) for n in
                                    ([label] if inner is None else [f"{label} {s}" for s in inner.names]))
         self.name = "mixture of " + " + ".join(self.labels)
@@ -105,17 +108,12 @@ class MixturePrior(Composite):
 
     # -- components kept apart (tracker.engine.mixture.ComponentPrior) ------------------------------------------
 
-    def _sizes(self) -> tuple[list[int], np.ndarray]:
-        """How many filter components each model takes, and the first of them ``(C,)``."""
-        sizes = [1 if m is None else m.transition.shape[0] for m in self.inner]
-        return sizes, np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-
     def mixing(self) -> Mixing:
         """The filter's components: one per motion model, or, for a model that keeps components of its own (an
         FCRBM's style labels), one per model and component, those switching among themselves as the model
         says. Between models a particle switches with probability ``switch``, to each component of the other
         model alike. Named as :attr:`summary_names`."""
-        sizes, start = self._sizes()
+        sizes, start = self.sizes, self.first
         C = len(self.components)
         transition = np.zeros((sum(sizes), sum(sizes)))
         for a in range(C):
@@ -129,8 +127,7 @@ class MixturePrior(Composite):
     def component_of(self, state: PriorState) -> np.ndarray:
         """Each particle's filter component ``(P,)``: its model's first, plus its own component in that model."""
         outer = state["component"]
-        _, start = self._sizes()
-        flat = start[outer]
+        flat = self.first[outer]
         for a, prior in enumerate(self.components):
             if self.inner[a] is not None:
                 in_block = outer == a
@@ -141,11 +138,10 @@ class MixturePrior(Composite):
         """A model that keeps components of its own learns its particles' new ones from the filter's components
         ``flat`` ``(P,)`` (:meth:`mixing`'s numbering over models and their components)."""
         outer, new = state["component"], dict(state)
-        _, start = self._sizes()
         for c, prior in enumerate(self.components):
             if self.inner[c] is not None:
                 own = state[f"model_{c}"]
-                labels = np.where(outer == c, flat - start[c], prior.component_of(own))
+                labels = np.where(outer == c, flat - self.first[c], prior.component_of(own))
                 new[f"model_{c}"] = prior.relabel(own, labels)
         return new
 

@@ -199,7 +199,7 @@ def groups(state) -> np.ndarray | None:
     """The component each particle belongs to where a prior keeps components apart (an ensemble's member, an
     FCRBM's style label, a mixture's motion model): resampling within a component leaves every component's random numbers where they were."""
     if isinstance(state, dict):
-        for key in ("member", "style", "component"):
+        for key in ("style", "component"):
             if key in state:
                 return np.asarray(state[key])
     return None

@@ -210,12 +210,12 @@ class ParticleFilter:
         if self.config.annealing_layers > 1:  # ll becomes the last layer's tempered log-likelihood
             x, history, prior_state, annealed = self._anneal(x, history, prior_state, ll, frame_lik)
             ll = annealed.log_w
-        recovered = not carried.add(ll).any_finite
-        if recovered:
+        weighed = self.weighing.weigh(carried, ll, evidence, prior_state)
+        recovered = weighed is None
+        if recovered:  # no particle has any weight
             x, history, prior_state, carried, ll = self._recover(state, frame_lik)
-            evidence = ll
-        weights, W = self.weighing.weigh(carried, ll, evidence, prior_state)
-        return Weighed(x, history, prior_state, weights, W, recovered)
+            weighed = self.weighing.weigh(carried, ll, ll, prior_state)
+        return Weighed(x, history, prior_state, *weighed, recovered)
 
     def _resample(self, state: FilterState, weighed: Weighed, mean: np.ndarray, ess: float
                   ) -> tuple[FilterState, bool]:

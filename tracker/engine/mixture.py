@@ -191,9 +191,11 @@ class MixtureTracking:
             raise ValueError(f"prior {prior.name!r} keeps no components apart")
         self.prior, self.mixing, self.scheme, self.n_particles = prior, mixing, scheme, n_particles
 
-    def mixture(self, state: PriorState) -> Mixture:
-        """The particle set's components for the per-particle ``state`` (checked)."""
-        return self.mixing.at(self.prior.component_of(state)).check(self.n_particles)
+    def mixture(self, state: PriorState, checked: bool = True) -> Mixture:
+        """The particle set's components for the per-particle ``state``, checked unless ``checked`` is False (for
+        a state already checked where it was weighed)."""
+        mix = self.mixing.at(self.prior.component_of(state))
+        return mix.check(self.n_particles) if checked else mix
 
     def start_weights(self, state: PriorState) -> LogWeights:
         """Every component the same weight, shared equally by its particles."""
@@ -201,17 +203,17 @@ class MixtureTracking:
 
     def groups(self, state: PriorState) -> list[np.ndarray]:
         """The particles of each component: annealing layers sharpen and redraw each on its own."""
-        component = self.mixture(state).component
+        component = self.mixture(state, checked=False).component
         return [np.flatnonzero(component == c) for c in range(self.mixing.transition.shape[0])]
 
     def weigh(self, carried: LogWeights, log_likelihood: np.ndarray, evidence: np.ndarray,
-              state: PriorState) -> tuple[LogWeights, np.ndarray]:
+              state: PriorState) -> tuple[LogWeights, np.ndarray] | None:
         """The log-weights and normalised weights ``(P,)``: within components the carried weights times the
-        likelihood, times the components' weights from their ``evidence`` (:func:`mixture_weights`); the
-        particles unweighted when none has a weight (only a recovered frame that nothing explains)."""
+        likelihood, times the components' weights from their ``evidence`` (:func:`mixture_weights`); None when
+        no particle has any weight (the filter recovers)."""
+        if not carried.add(log_likelihood).any_finite:
+            return None
         W = mixture_weights(carried, log_likelihood, self.mixture(state), evidence)
-        if not W.any():
-            W = np.full(len(W), 1.0 / len(W))
         return LogWeights(np.log(W, out=np.full(len(W), -np.inf), where=W > 0)), W
 
     def resample(self, weights: LogWeights, normalised: np.ndarray, state: PriorState, due: bool,
@@ -219,6 +221,6 @@ class MixtureTracking:
         """Every frame (``due`` does not matter): each component redrawn from all particles (the IMM mixing step,
         :func:`resample_components`), the prior's state reindexed and relabelled; the indices ``(P,)``, the
         carried log-weights and the state."""
-        mix = self.mixture(state)
+        mix = self.mixture(state, checked=False)  # the state weighed
         idx, carried = resample_components(normalised, mix, rng, self.scheme)
         return idx, carried, self.prior.relabel(self.prior.reindex(state, idx), mix.component)

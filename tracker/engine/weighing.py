@@ -25,7 +25,8 @@ class Weighing(Protocol):
     lost frame) for the prior's per-particle ``state``; ``groups(state)``: the particle index sets ``(n,)`` that
     annealing layers sharpen and redraw each on its own; ``weigh(carried, log_likelihood, evidence, state)``: the
     log-weights and the normalised weights ``(P,)`` from the carried log-weights and the frame's log-likelihood
-    ``(P,)`` (``evidence`` ``(P,)``: the log-likelihood of the prior's own samples, before annealing moved them);
+    ``(P,)`` (``evidence`` ``(P,)``: the log-likelihood of the prior's own samples, before annealing moved them),
+    or None when no particle has any weight (the filter then re-diffuses the particles and weighs again);
     ``resample(weights, normalised, state, due, rng)``: the indices ``(P,)`` drawn (None: not resampled), the
     log-weights carried to the next frame, and the prior's state reindexed with the particles; ``due`` is the
     filter's rule (an annealed frame, or the effective sample size below its threshold).
@@ -36,7 +37,7 @@ class Weighing(Protocol):
     def groups(self, state: PriorState) -> list[np.ndarray]: ...
 
     def weigh(self, carried: LogWeights, log_likelihood: np.ndarray, evidence: np.ndarray,
-              state: PriorState) -> tuple[LogWeights, np.ndarray]: ...
+              state: PriorState) -> tuple[LogWeights, np.ndarray] | None: ...
 
     def resample(self, weights: LogWeights, normalised: np.ndarray, state: PriorState, due: bool,
                  rng: np.random.Generator) -> tuple[np.ndarray | None, LogWeights, PriorState]: ...
@@ -56,9 +57,9 @@ class PlainSIR:
         return [np.arange(self.n_particles)]
 
     def weigh(self, carried: LogWeights, log_likelihood: np.ndarray, evidence: np.ndarray,
-              state: PriorState) -> tuple[LogWeights, np.ndarray]:
+              state: PriorState) -> tuple[LogWeights, np.ndarray] | None:
         weights = carried.add(log_likelihood)
-        return weights, weights.normalised
+        return (weights, weights.normalised) if weights.any_finite else None
 
     def resample(self, weights: LogWeights, normalised: np.ndarray, state: PriorState, due: bool,
                  rng: np.random.Generator) -> tuple[np.ndarray | None, LogWeights, PriorState]:
