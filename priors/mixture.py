@@ -45,10 +45,10 @@ TEMPERATURE = 10.0
 class MixturePrior(Composite):
     """Motion models each drawing a fixed share of the particles, weighed by their evidence (module docstring).
 
-    ``components``: the priors; ``labels``: their names in the summary (default: their names,
-    numbered where one repeats); ``switch`` in [0, 1): the probability per frame that a particle's component
-    changes (the IMM transition); ``temperature`` >= 1: the evidence's temperature. Its particles' components
-    are kept apart by the filter (:class:`~tracker.engine.mixture.ComponentPrior`).
+    ``components``: the priors; ``labels``: their names in the summary (default: their names, numbered where
+    one repeats); ``switch`` in [0, 1): the probability per frame that a particle's component changes (the IMM
+    transition); ``temperature`` >= 1: the evidence's temperature. The filter keeps the components apart
+    (:class:`~tracker.engine.mixture.ComponentPrior`).
     """
 
     summary_kind = "posterior"
