@@ -22,9 +22,9 @@ sys.path.insert(0, str(REPO))
 from data_tools.asf_amc import asf_amc_clip  # noqa: E402
 from data_tools.retarget import retarget  # noqa: E402
 from priors.parts import GroundDiffusion
-from priors.crbm_model import CRBMConfig  # noqa: E402
-from priors.crbm import CRBMPrior
-from priors.crbm_training import train_crbm
+from priors.crbm.model import CRBMConfig  # noqa: E402
+from priors.crbm.prior import CRBMPrior
+from priors.crbm.training import train_crbm
 from tracker.core.body import DOF_NAMES  # noqa: E402
 from tracker.core.kinematics import markers  # noqa: E402
 from tracker.core.metrics import marker_error  # noqa: E402

@@ -34,11 +34,12 @@ def time_prior(prior, history: np.ndarray, known: np.ndarray, particles: int, fr
 
 def main() -> None:
     from data_tools.load import load_training_clips
-    from priors.crbm_model import CRBMConfig
-    from priors.crbm import CRBMPrior
-    from priors.crbm_training import train_crbm
-    from priors.fcrbm_model import FCRBMConfig, train_fcrbm
-    from priors.fcrbm import FCRBMPrior
+    from priors.crbm.model import CRBMConfig
+    from priors.crbm.prior import CRBMPrior
+    from priors.crbm.training import train_crbm
+    from priors.fcrbm.training import train_fcrbm
+    from priors.settings import FCRBMConfig
+    from priors.fcrbm.prior import FCRBMPrior
     from tracker.core.body import DOF_NAMES
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -26,8 +26,9 @@ def main() -> None:
     from matplotlib.figure import Figure
 
     from data_tools.load import load_training_clips
-    from priors.fcrbm_model import FCRBMConfig, train_fcrbm
-    from priors.fcrbm import generate, transition_styles
+    from priors.fcrbm.training import train_fcrbm
+    from priors.settings import FCRBMConfig
+    from priors.fcrbm.prior import generate, transition_styles
     from tracker.core.body import DOF_NAMES
     from tracker.core.representation import poses_to_invariant
 

@@ -24,9 +24,9 @@ sys.path.insert(0, str(REPO))
 
 from data_tools.asf_amc import asf_amc_clip  # noqa: E402
 from data_tools.retarget import retarget  # noqa: E402
-from priors.gpdm_predict import prepare  # noqa: E402
-from priors.gpdm_model import GPDMConfig  # noqa: E402
-from priors.gpdm_training import train_gpdm
+from priors.gpdm.predict import prepare  # noqa: E402
+from priors.gpdm.model import GPDMConfig  # noqa: E402
+from priors.gpdm.training import train_gpdm
 from tracker.core.body import DOF_NAMES  # noqa: E402
 from tracker.core.representation import FeatureNormaliser, feature_names, poses_to_invariant  # noqa: E402
 

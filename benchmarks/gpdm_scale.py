@@ -37,11 +37,12 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from data_tools.load import load_training_clips  # noqa: E402
-from priors.gpdm_predict import prepare  # noqa: E402
+from priors.gpdm.predict import prepare  # noqa: E402
 from priors.parts import HeightOffset  # noqa: E402
-from priors.gpdm_model import SPARSE_METHODS, GPDMConfig  # noqa: E402
-from priors.gpdm import GPDMPrior
-from priors.gpdm_training import GPDMPriorModel, train_gpdm
+from priors.gpdm.model import SPARSE_METHODS, GPDMConfig  # noqa: E402
+from priors.gpdm.prior import GPDMPrior
+from priors.gpdm.model import GPDMPriorModel
+from priors.gpdm.training import train_gpdm
 from tracker.core.body import DOF_NAMES  # noqa: E402
 from tracker.core.representation import clip_features, poses_to_invariant, step_rms  # noqa: E402
 

@@ -24,12 +24,12 @@ from data_tools.retarget import retarget  # noqa: E402
 from data_tools.sequence import read_sequence  # noqa: E402
 from data_tools.synth import SynthConfig, synthesize  # noqa: E402
 from priors.parts import HeightOffset
-from priors.crbm_model import CRBMConfig  # noqa: E402
-from priors.crbm import CRBMPrior
-from priors.crbm_training import train_crbm
-from priors.gpdm_model import GPDMConfig  # noqa: E402
-from priors.gpdm import GPDMPrior
-from priors.gpdm_training import train_gpdm_prior
+from priors.crbm.model import CRBMConfig  # noqa: E402
+from priors.crbm.prior import CRBMPrior
+from priors.crbm.training import train_crbm
+from priors.gpdm.model import GPDMConfig  # noqa: E402
+from priors.gpdm.prior import GPDMPrior
+from priors.gpdm.training import train_gpdm_prior
 from priors.random_walk import ConstantVelocityPrior, ZeroVelocityPrior  # noqa: E402
 from tracker.core.representation import step_rms  # noqa: E402
 from tracker.core.body import DOF_NAMES  # noqa: E402

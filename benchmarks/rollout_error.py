@@ -16,9 +16,9 @@ import numpy as np
 
 from priors.parts import GroundDiffusion
 
-from priors.crbm import CRBMPrior
+from priors.crbm.prior import CRBMPrior
 
-from priors.crbm_file import load_crbm
+from priors.crbm.file import load_crbm
 from tracker.app.api import load_training_clips
 from tracker.core.kinematics import markers
 from tracker.core.representation import pending_step

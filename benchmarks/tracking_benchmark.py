@@ -72,7 +72,7 @@ def crbm_tracking(tmp: Path) -> None:
     grown from 1, trained with train's defaults on 07_01, 07_02, 07_09, 07_10), frames per second of the whole
     loop (observations included), at 30 Gibbs steps (the default before 0.4.0) and at the default, with one
     layer (plain SIR, as published) and with track's default annealing layers."""
-    from priors.crbm import GIBBS_STEPS
+    from priors.crbm.prior import GIBBS_STEPS
     from tracker import train
     from tracker.app.defaults import TRACK_ANNEALING_LAYERS
 
@@ -96,9 +96,9 @@ def crbm_tracking(tmp: Path) -> None:
 
 def crbm_sampling() -> None:
     """CRBM prior: time to sample the next pose of 1000 particles (the default Gibbs steps), orders 1, 3, 6."""
-    from priors.crbm_model import CRBMConfig
-    from priors.crbm import CRBMPrior
-    from priors.crbm_training import train_crbm
+    from priors.crbm.model import CRBMConfig
+    from priors.crbm.prior import CRBMPrior
+    from priors.crbm.training import train_crbm
     from tracker.core.body import DOF_NAMES
 
     mocap = SHARED / "mocap" / "cmu" / "07"

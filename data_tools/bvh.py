@@ -4,16 +4,24 @@ Conventions of the format, as read here:
 - A joint's local rotation is the product of its rotation channels in the
   listed order, ``Zrotation Xrotation Yrotation`` -> ``Rz @ Rx @ Ry``; angles
   in degrees. Its origin is ``parent origin + R_parent @ offset``; position
-  channels (the root's) replace the offset. End sites become points named
-  ``<joint>_end``.
+  channels, the root's or any joint's, replace the offset. End sites become
+  points named ``<joint>_end``.
+- The rest skeleton is the hierarchy with every rotation zero and every joint
+  at its offset (:func:`rest_frame`).
 - The length unit is not stated in BVH files. Give it as ``mm_per_unit``, or
   let :func:`infer_unit` choose among :data:`CANDIDATE_UNITS_MM` the one that
-  makes the rest skeleton's height closest to an adult's (1.6 m); the choice is
+  makes the skeleton's height closest to an adult's (1.6 m); the choice is
   recorded in the clip's ``unit``. The shared CMU conversions need this:
   10_01/10_03/11_01 are in centimetres and 131_01 in CMU's ASF unit
   (1/0.45 inch); read as inches, subject 10 would be 4 m tall.
 - Data is y up or z up (:func:`up_axis` tells from the rest skeleton); y-up
   data is rotated to our z-up world on load.
+- Files from game and animation pipelines often bake joint orients into the
+  offsets: with every rotation zero such a skeleton lies down (along x, say),
+  and only the motion's rotations stand it up. When the rest skeleton does not
+  stand, the up axis and the skeleton's height (for the unit) come from the
+  posed frames instead (:func:`posed_up_axis`, :func:`posed_height`); where the
+  rest skeleton stands it decides, as it always has.
 """
 from __future__ import annotations
 
@@ -231,32 +239,60 @@ def _positions(bvh: BvhFile, frames: np.ndarray) -> tuple[np.ndarray, list[str]]
     return np.stack(p_all + ends, axis=1), names + end_names
 
 
-def infer_unit(bvh: BvhFile, axis: int = 1) -> tuple[str, float]:
-    """The candidate unit (name, mm per unit) that makes the rest skeleton about 1.6 m tall.
+def rest_frame(bvh: BvhFile) -> np.ndarray:
+    """The channel values ``1 x C`` of the rest skeleton: every rotation zero, every position channel at its
+    joint's offset (so a file with position channels on every joint keeps its bones in the rest pose; for a
+    root alone, only where the skeleton stands moves)."""
+    values = []
+    for j in bvh.joints:
+        values += [j.offset["xyz".index(c[0])] if c.endswith("position") else 0.0 for c in j.channels]
+    return np.array([values], float).reshape(1, bvh.frames.shape[1])
 
-    The rest skeleton is the hierarchy with every channel zero; its height is
-    its extent along the up ``axis`` (1: y, 2: z). Log-ratio distance to 1.6 m
-    picks the unit; the candidates differ by factors of 2.2 or more, so the
-    choice is clear-cut for human skeletons.
+
+def infer_unit(height: float, source: str | None = None, what: str = "rest skeleton") -> tuple[str, float]:
+    """The candidate unit (name, mm per unit) that makes a skeleton ``height`` file units tall about 1.6 m.
+
+    Log-ratio distance to 1.6 m picks the unit; the candidates differ by
+    factors of 2.2 or more, so the choice is clear-cut for human skeletons.
     """
-    rest, _ = _positions(bvh, np.zeros((1, bvh.frames.shape[1])))
-    extent = float(np.ptp(rest[0, :, axis]))
-    if extent <= 0:
-        raise InputError("rest skeleton has no height; cannot infer its length unit", bvh.path)
-    best = min(CANDIDATE_UNITS_MM.items(), key=lambda kv: abs(np.log(extent * kv[1] / 1600.0)))
-    return best
+    if not height > 0:
+        raise InputError(f"{what} has no height; cannot infer its length unit", source)
+    return min(CANDIDATE_UNITS_MM.items(), key=lambda kv: abs(np.log(height * kv[1] / 1600.0)))
+
+
+def _stance(points: np.ndarray, plan: PointPlan) -> np.ndarray:
+    """Thorax minus the ankles' midpoint ``T x 3`` (file axes) of positions ``T x J x 3``."""
+    thorax, left, right = np.moveaxis(plan.positions(points, ("thorax", "left_ankle", "right_ankle")), 1, 0)
+    return thorax - 0.5 * (left + right)
+
+
+def _standing_axis(v: np.ndarray, what: str, source: str) -> int:
+    """The up axis (1: y, 2: z) of a thorax-above-ankles vector ``v`` (file axes); x, or a negative one, is
+    refused, naming ``what`` stands that way."""
+    axis = int(np.argmax(np.abs(v)))
+    if axis == 0 or v[axis] <= 0:
+        raise InputError(f"{what} stands along {'-' if v[axis] < 0 else '+'}{'xyz'[axis]} (thorax above the "
+                         "ankles); only y-up and z-up files are read", source)
+    return axis
 
 
 def up_axis(rest: np.ndarray, plan: PointPlan, source: str) -> int:
     """The file's up axis (1: y, 2: z) from its rest skeleton ``J x 3`` (file axes): the axis along which the
     thorax stands highest above the ankles. A skeleton standing along x, or upside down, is refused."""
-    thorax, left, right = plan.positions(rest[None], ("thorax", "left_ankle", "right_ankle"))[0]
-    v = thorax - 0.5 * (left + right)
-    axis = int(np.argmax(np.abs(v)))
-    if axis == 0 or v[axis] <= 0:
-        raise InputError(f"the rest skeleton stands along {'-' if v[axis] < 0 else '+'}{'xyz'[axis]} (thorax "
-                         "above the ankles); only y-up and z-up files are read", source)
-    return axis
+    return _standing_axis(_stance(rest[None], plan)[0], "the rest skeleton", source)
+
+
+def posed_up_axis(posed: np.ndarray, plan: PointPlan, source: str) -> int:
+    """The file's up axis (1: y, 2: z) from its posed frames ``T x J x 3`` (file axes): as :func:`up_axis`, for
+    the median over frames of the thorax's place above the ankles."""
+    return _standing_axis(np.median(_stance(posed, plan), axis=0), "the skeleton in its frames", source)
+
+
+def posed_height(posed: np.ndarray, axis: int) -> float:
+    """The skeleton's height (file units) in its posed frames ``T x J x 3``: the median over frames of its
+    extent along the up ``axis``. In a walk or a wave this is about the standing height; a clip spent
+    crouching or lying reads shorter (give ``mm_per_unit`` for those)."""
+    return float(np.median(np.ptp(posed[:, :, axis], axis=1)))
 
 
 def file_rate(frame_time: float) -> float:
@@ -276,10 +312,13 @@ def bvh_clip(path: str | Path, mm_per_unit: float | None = None,
     The body's points come from the joint names (a recognised convention, :mod:`data_tools.joint_names`) or
     from ``joint_map`` (a JSON or TOML file, or a mapping; :func:`~data_tools.skeleton_points.read_joint_map`).
     The up axis (y or z) comes from the rest skeleton (:func:`up_axis`), the length unit from its height
-    (:func:`infer_unit`) unless ``mm_per_unit`` is given.
+    (:func:`infer_unit`) unless ``mm_per_unit`` is given; where the rest skeleton does not stand (joint orients
+    baked into the offsets), both come from the posed frames (:func:`posed_up_axis`, :func:`posed_height`),
+    and the clip's notes say so.
     """
     bvh = read_bvh(path)
-    rest, names = _positions(bvh, np.zeros((1, bvh.frames.shape[1])))
+    rest, names = _positions(bvh, rest_frame(bvh))
+    pos, _ = _positions(bvh, bvh.frames)
     mapping = None if joint_map is None else read_joint_map(joint_map)
     map_source = None if joint_map is None or isinstance(joint_map, Mapping) else joint_map
     try:
@@ -288,18 +327,27 @@ def bvh_clip(path: str | Path, mm_per_unit: float | None = None,
         if mapping is not None:
             raise
         plan = None  # readable as points; asking for the body's markers repeats the refusal
-    axis = 1 if plan is None else up_axis(rest[0], plan, str(path))
+    notes = list(plan.notes) if plan else []
+    axis, height, what = 1, float(np.ptp(rest[0, :, 1])), "rest skeleton"
+    if plan is not None:
+        try:
+            axis = up_axis(rest[0], plan, str(path))
+            height = float(np.ptp(rest[0, :, axis]))
+        except InputError:
+            axis = posed_up_axis(pos, plan, str(path))
+            height, what = posed_height(pos, axis), "skeleton in its frames"
+            notes.append("the rest skeleton (every rotation zero) does not stand: up axis and length unit read "
+                         "from the frames")
     if mm_per_unit is None:
-        unit_name, mm_per_unit = infer_unit(bvh, axis)
+        unit_name, mm_per_unit = infer_unit(height, str(path), what)
         unit = (f"{unit_name[:-1]}; inferred from the skeleton's height)" if unit_name.endswith(")")
                 else f"{unit_name} (inferred from the skeleton's height)")
     else:
         mm_per_unit = real_number(mm_per_unit, "length unit (mm per file unit)", path, lo=MIN_MM_PER_UNIT,
                                   hi=MAX_MM_PER_UNIT)
         unit = f"{mm_per_unit:g} mm per unit (given)"
-    pos, names = _positions(bvh, bvh.frames)
     to_world = Y_UP_TO_Z_UP if axis == 1 else np.eye(3)
     positions = (pos * mm_per_unit) @ to_world.T
     check_range(positions, "joint positions", path, hi=MAX_POSITION_MM, unit=" mm", row_lines=bvh.row_lines)
-    return MocapClip(str(path), positions, names, file_rate(bvh.frame_time), "bvh", list(plan.notes) if plan else [], plan, unit,
+    return MocapClip(str(path), positions, names, file_rate(bvh.frame_time), "bvh", notes, plan, unit,
                      "yz"[axis - 1])

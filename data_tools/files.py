@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import errno
 import os
+import shutil
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -183,3 +184,46 @@ def check_not_inside(out: str | Path, inputs: dict[str, str | Path]) -> None:
         if target.is_relative_to(Path(given).resolve()):
             raise InputError(f"the output would be written into the {what} {given}; choose an output outside "
                              "the inputs", out)
+
+
+def first_missing(path: str | Path) -> Path:
+    """The outermost of ``path`` and its folders that does not exist yet (``path`` itself if it exists): what
+    writing ``path`` creates."""
+    path = Path(path).absolute()
+    missing = path
+    for folder in path.parents:
+        if folder.exists():
+            break
+        missing = folder
+    return missing
+
+
+@contextmanager
+def undone_unless_started(*paths: str | Path, on: tuple[type[BaseException], ...] = (InputError, KeyboardInterrupt)
+                          ) -> Iterator[dict]:
+    """A block that begins a command's work in ``paths`` (folders or files). Ended by one of ``on`` (a refusal,
+    an interruption) before the block sets ``state["started"]``, whatever it created there is removed again: a
+    path that was not there before (see :func:`first_missing`), or the entries it added to a folder that was; so
+    a refused command leaves nothing behind. Once started, what was written stays (a checkpoint to resume from,
+    a partial result)."""
+    before = {Path(p): (set(os.listdir(p)) if Path(p).is_dir() else None) if Path(p).exists() else False
+              for p in paths}
+    state = {"started": False}
+    try:
+        yield state
+    except on:
+        if not state["started"]:
+            for path, was in before.items():
+                if was is False:
+                    _remove(path)
+                elif was is not None and path.is_dir():
+                    for name in sorted(set(os.listdir(path)) - was):
+                        _remove(path / name)
+        raise
+
+
+def _remove(path: Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        path.unlink(missing_ok=True)

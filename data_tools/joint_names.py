@@ -23,6 +23,9 @@ BVH, ASF = "bvh", "asf"
 #: The point a missing head end is derived from: the origin of the head joint (the top of the neck).
 HEAD_JOINT = "head_joint"
 
+#: The name shown for the ``_L``/``_R`` game-rig convention of Bandai Namco Research's datasets.
+BANDAI = "Bandai Namco (UpperArm_L, game rig)"
+
 
 def _sided(table: dict[str, list]) -> dict[str, tuple]:
     """Expand ``SIDE_`` roles and ``{Side}`` / ``{s}`` names into left and right entries."""
@@ -85,6 +88,15 @@ CONVENTIONS: tuple[tuple[str, str, dict[str, tuple]], ...] = (
         "SIDE_hip": ["{s}Thigh"], "SIDE_knee": ["{s}Shin"], "SIDE_ankle": ["{s}Foot"],
         "SIDE_hand_end": ["{s}Mid1", "{s}Hand_end"], "SIDE_toe": ["{s}Toe", "{s}Foot_end"],
     })),
+    # Game-rig names with an _L/_R suffix, as in Bandai Namco Research's motion datasets: an extra root
+    # (joint_Root) on the ground below Hips, a short neck (Neck at its base, Head a few cm up) and End Sites
+    # that coincide with their joints, so the head end and the hand ends are derived.
+    (BANDAI, BVH, _sided({
+        "pelvis": ["Hips"], "thorax": ["Neck"], HEAD_JOINT: ["Head"],
+        "SIDE_shoulder": ["UpperArm_{s}"], "SIDE_elbow": ["LowerArm_{s}"], "SIDE_wrist": ["Hand_{s}"],
+        "SIDE_hip": ["UpperLeg_{s}"], "SIDE_knee": ["LowerLeg_{s}"], "SIDE_ankle": ["Foot_{s}"],
+        "SIDE_toe": ["Toes_{s}"],
+    })),
 )
 
 # Points derived when a file lacks them, from the proportions of the shared CMU skeletons: medians over
@@ -99,3 +111,10 @@ FOOT_PER_SHANK = 0.285
 HAND_PER_FOREARM = 0.66
 #: Head-joint-to-head-end length over thorax-to-head-joint length; the head end continues that line.
 HEAD_PER_NECK = 0.51
+#: Thorax-to-head-end length over pelvis-to-thorax length (0.66 to 0.95 over the same skeletons), for
+#: conventions whose head joint sits low on a short neck (:data:`HEAD_BY_TORSO`), where continuing the neck
+#: by :data:`HEAD_PER_NECK` would end the head a few cm above the neck: the head end lies on the
+#: thorax-to-head-joint line, this far from the thorax.
+HEAD_PER_TORSO = 0.77
+#: Conventions whose missing head end is placed by :data:`HEAD_PER_TORSO` rather than :data:`HEAD_PER_NECK`.
+HEAD_BY_TORSO = (BANDAI,)

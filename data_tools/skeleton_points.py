@@ -10,7 +10,9 @@ or the mean of several) or how it is derived:
   line and the pelvis-to-thorax line), pitched down as :data:`~data_tools.joint_names.FOOT_DIRECTION`,
   :data:`~data_tools.joint_names.FOOT_PER_SHANK` of the shank's length long;
 - the head end (``head``): the thorax-to-head-joint line continued by
-  :data:`~data_tools.joint_names.HEAD_PER_NECK` of its length.
+  :data:`~data_tools.joint_names.HEAD_PER_NECK` of its length or, for the conventions of
+  :data:`~data_tools.joint_names.HEAD_BY_TORSO`, to :data:`~data_tools.joint_names.HEAD_PER_TORSO` of the
+  pelvis-to-thorax length from the thorax.
 
 Derived hands and toes only guide the fit's hand and foot angles (they are not markers); a derived head is a
 marker and is said so in the clip's notes.
@@ -26,7 +28,8 @@ from typing import Mapping
 import numpy as np
 
 from data_tools.joint_names import (
-    BVH, CONVENTIONS, FOOT_DIRECTION, FOOT_PER_SHANK, HAND_PER_FOREARM, HEAD_JOINT, HEAD_PER_NECK,
+    BVH, CONVENTIONS, FOOT_DIRECTION, FOOT_PER_SHANK, HAND_PER_FOREARM, HEAD_BY_TORSO, HEAD_JOINT, HEAD_PER_NECK,
+    HEAD_PER_TORSO,
 )
 from tracker.core.body import EXTRA_POINT_NAMES, MARKER_NAMES
 from tracker.core.errors import InputError
@@ -61,11 +64,12 @@ class PointPlan:
     """Where each point comes from: ``sources[point]`` is the indices of the clip's points whose mean it is,
     or ``None`` when it is derived (:data:`DERIVED_FROM`). ``naming`` says how the names were read (a
     convention's name, or the joint map's file); ``notes`` what a user should know (ignored namespaces,
-    derived points)."""
+    derived points); ``head_by_torso`` places a derived head end by the torso's length, not the neck's."""
 
     naming: str
     sources: dict[str, tuple[int, ...] | None]
     notes: list[str] = field(default_factory=list)
+    head_by_torso: bool = False
 
     def positions(self, positions: np.ndarray, points=MARKER_NAMES + EXTRA_POINT_NAMES) -> np.ndarray:
         """The ``points`` ``T x M x 3`` (mm) from the clip's ``positions`` ``T x J x 3``."""
@@ -74,21 +78,26 @@ class PointPlan:
         def get(p: str) -> np.ndarray:
             if p not in cache:
                 idx = self.sources.get(p)
-                cache[p] = positions[:, list(idx)].mean(axis=1) if idx else _derive(p, get)
+                cache[p] = positions[:, list(idx)].mean(axis=1) if idx else _derive(p, get, self.head_by_torso)
             return cache[p]
 
         return np.stack([get(p) for p in points], axis=1)
 
 
-def _derive(point: str, get) -> np.ndarray:
+def _derive(point: str, get, head_by_torso: bool = False) -> np.ndarray:
     """A point the file lacks, ``T x 3``, from those it has (``get(name)``)."""
     if point.endswith("hand_end"):
         side = point.split("_")[0]
         wrist = get(f"{side}_wrist")
         return wrist + HAND_PER_FOREARM * (wrist - get(f"{side}_elbow"))
     if point == "head":
-        joint = get(HEAD_JOINT)
-        return joint + HEAD_PER_NECK * (joint - get("thorax"))
+        joint, thorax = get(HEAD_JOINT), get("thorax")
+        if not head_by_torso:
+            return joint + HEAD_PER_NECK * (joint - thorax)
+        neck = joint - thorax
+        torso = float(np.median(np.linalg.norm(thorax - get("pelvis"), axis=-1)))
+        return thorax + HEAD_PER_TORSO * torso * neck / np.maximum(np.linalg.norm(neck, axis=-1, keepdims=True),
+                                                                   1e-12)
     side = point.split("_")[0]  # a toe: along the body's forward axis, pitched down, from the ankle
     y = get("left_hip") - get("right_hip")
     y /= np.maximum(np.linalg.norm(y, axis=-1, keepdims=True), 1e-12)
@@ -185,7 +194,7 @@ def plan_points(names: list[str], style: str, joint_map: Mapping[str, object] | 
     spaces = found.namespaces()
     if spaces:
         naming += f" (namespace{'s' if len(spaces) > 1 else ''} {' '.join(spaces)} ignored)"
-    return PointPlan(naming, sources, _derived_notes(derived))
+    return PointPlan(naming, sources, _derived_notes(derived), conv_name in HEAD_BY_TORSO)
 
 
 def _unrecognised(names: list[str], style: str, conv_name: str | None, table: dict, missing: list[str]) -> str:

@@ -1,5 +1,4 @@
 """Image observations and the edge / silhouette likelihoods. They import only the geometry core in ``tracker``."""
 
-#: The modules that register no likelihood (the observations and the compiled costs):
-#: :func:`tracker.app.plugins.load_plugins` imports every other module of the package.
-SUPPORT_MODULES = ("compiled_costs", "observations")
+#: The modules that register the built-in likelihoods: :func:`tracker.app.plugins.load_plugins` imports these.
+BUILTIN_MODULES = ("likelihoods.edge_silhouette",)

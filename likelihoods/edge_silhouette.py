@@ -148,6 +148,9 @@ class EdgeSilhouetteLikelihood(Likelihood):
         return PreparedFrame(self, maps if self.device is None else maps.to(self.device))
 
     def terms(self, poses: np.ndarray, maps: "_CostMaps") -> LikelihoodTerms:
+        shape = np.shape(poses)
+        if len(shape) != 2 or shape[1] != self.model.n_dofs:
+            raise InputError(f"poses must be P x {self.model.n_dofs} for the {self.model.name} model, got {shape}")
         if self.device is not None:
             return self._device_terms(poses, maps)
         poses = np.asarray(poses, float)

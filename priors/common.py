@@ -136,10 +136,13 @@ def check_model_fits(kind: str, trained: tuple[str, Sequence[str], float], body_
         problems.append(f"body model {body_model!r} (trained on {t_body!r})")
     elif list(dof_names) != list(t_dofs):
         problems.append("a different pose layout")
+    fix = ""
     if fps is not None and abs(fps - t_fps) > 1e-6:
         problems.append(f"{fps:g} fps (trained at {t_fps:g} fps; velocities are per frame)")
+        fix = (f": train the model at the sequence's rate (pose-tracker train ... --fps {fps:g}) or render the "
+               f"sequence at the model's (pose-tracker synth ... --fps {t_fps:g})")
     if problems:
-        raise InputError(f"{kind} model does not fit this sequence: " + "; ".join(problems), source)
+        raise InputError(f"{kind} model does not fit this sequence: " + "; ".join(problems) + fix, source)
     if fps is None:  # a sequence that states no frame rate (meta.json's fps, groundtruth.npz): said, not assumed
         log.warning(f"the sequence states no frame rate; the {kind} model was trained at {t_fps:g} fps and "
                     "predicts per frame at that rate (give fps in the sequence's meta.json to have it checked)")

@@ -1,12 +1,12 @@
 """The pose step the CRBM family shares: a model that draws the next frame's features, plus parts.
 
-A :class:`ConditionalPrior` turns each particle's last poses into invariant features
-(:mod:`tracker.core.representation`), lets its parts (:mod:`priors.parts`) move them into the frame the model
-knows (a posture offset, a root-height offset), normalises them, puts the particle's pace in front where the
-model takes one, and asks its model for the next frame's normalised features (:meth:`ConditionalPrior.draw`,
-the one method a member of the family implements). The prediction goes back through the same parts, the root is
-integrated from the pending step, and the ground diffusion is added. The CRBM, the FCRBM and the deep CRBM
-priors are this step with their own model.
+A :class:`ConditionalPrior` is a :class:`~priors.learned.LearnedPrior` whose model reads each particle's last
+poses as invariant features (:mod:`tracker.core.representation`): its parts (:mod:`priors.parts`) move them into
+the frame the model knows (a posture offset, a root-height offset), it normalises them, the parts put further
+inputs in front (the particle's pace, where the model takes one), and the model draws the next frame's normalised
+features (:meth:`ConditionalPrior.draw`, the one method a member of the family implements). The prediction goes
+back through the same parts, the root is integrated from the pending step, and the ground diffusion is added. The
+CRBM, the FCRBM and the deep CRBM priors are this step with their own model.
 """
 from __future__ import annotations
 
@@ -16,22 +16,23 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from priors.common import torch_generator
-from priors.parts import GroundDiffusion, GrowingModels, HeightOffset, PaceInput, PostureOffset, shift_height
+from priors.learned import LearnedPrior
+from priors.parts import GroundDiffusion, GrowingModels, HeightOffset, PaceInput, PostureOffset, Step
 from tracker.core.errors import InputError
-from tracker.core.representation import STEP_FEATURES, next_poses, pending_step, posture_features, poses_to_invariant
-from tracker.engine.prior import MotionPrior, PriorState
+from tracker.core.representation import STEP_FEATURES, pending_step, poses_to_invariant
+from tracker.engine.prior import PriorState
 
 if TYPE_CHECKING:  # torch loads when a prior is built, not when the priors register
     import torch
 
 
-class ConditionalPrior(MotionPrior):
+class ConditionalPrior(LearnedPrior):
     """Samples every particle's next pose from its own history with a model of the CRBM family, in one batch.
 
     ``models`` are the models of increasing order (:class:`~priors.parts.GrowingModels`; each has ``order``,
-    ``normaliser``, ``pose_step_rms`` and, when trained with a pace input, ``pace_input(log_paces)``). The parts:
-    ``ground`` (always), ``pace`` (exactly when the models take a pace input), ``height`` and ``posture``
-    (None: off). Per-particle state: ``step`` ``P x 3``, the pending root step
+    ``normaliser``, ``pose_step_rms`` and, when trained with a pace input, ``pace_input(log_paces)``). The parts,
+    in this order: ``pace`` (exactly when the models take a pace input), ``height`` and ``posture`` (None: off),
+    ``ground``. Per-particle state: ``step`` ``P x 3``, the pending root step
     (:data:`~tracker.core.representation.STEP_FEATURES`) of the newest history frame, which the previous sample
     chose, and the parts' own entries. Each sample's torch generator is seeded from the filter's generator.
     """
@@ -47,25 +48,32 @@ class ConditionalPrior(MotionPrior):
         if pace is not None and not paced:
             raise InputError(f"the pace settings are for a {models.kind} trained with a pace input (train "
                              "--pace-input); this one has none")
+        parts = [] if not paced else [PaceInput() if pace is None else pace]
+        super().__init__([*parts, HeightOffset() if height is None else height,
+                          PostureOffset() if posture is None else posture, ground])
         self.models = models
         self.device = torch.device(device)
-        self.ground = ground
-        self.pace = None if not paced else PaceInput() if pace is None else pace
-        self.height = height if height is not None and height.active else None
-        self.posture = posture if posture is not None and posture.gain > 0 else None
         self.order = models.order
-        self.summary_names = tuple(p.SUMMARY for p in self.parts if hasattr(p, "SUMMARY"))
-        if self.summary_names:  # posterior means of the parts' quantities
-            self.summary_kind = "quantity"
 
     @property
-    def parts(self) -> list[Any]:
-        """The parts in use, in the order their state is started and summarised."""
-        return [p for p in (self.ground, self.pace, self.height, self.posture) if p is not None]
+    def ground(self) -> GroundDiffusion | None:
+        return self.part(GroundDiffusion)
+
+    @property
+    def pace(self) -> PaceInput | None:
+        return self.part(PaceInput)
+
+    @property
+    def height(self) -> HeightOffset | None:
+        return self.part(HeightOffset)
+
+    @property
+    def posture(self) -> PostureOffset | None:
+        return self.part(PostureOffset)
 
     @abstractmethod
     def draw(self, model: Any, conditioning: torch.Tensor, generator: torch.Generator,
-             state: PriorState) -> torch.Tensor:
+                      state: PriorState) -> torch.Tensor:
         """The next frames' normalised features ``P x K`` that ``model`` draws for the conditioning inputs
         ``P x (C + N K)`` (the pace when the model takes one, then the history, oldest first), with every random
         number from ``generator``; ``state`` is the particles' state (a style label, for instance)."""
@@ -78,35 +86,20 @@ class ConditionalPrior(MotionPrior):
         return f"{self.name} order {self.model_for(available).order}"
 
     def settings(self) -> dict:
-        out = {"orders": [m.order for m in self.models]}
-        for part in self.parts:
-            out.update(part.settings())
-        return out
+        return {"orders": [m.order for m in self.models], **super().settings()}
 
     def diffusion_std(self) -> np.ndarray:
         return self.models.models[-1].pose_step_rms
 
-    def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
-        """The pending step of the last known frame (:func:`~tracker.core.representation.pending_step`) and the
-        parts' states. Refuses known frames too few for every model (a higher order never runs on a padded
-        history)."""
-        known = np.atleast_2d(known)
+    def model_state(self, known: np.ndarray, n_particles: int) -> PriorState:
+        """The pending step of the last known frame (:func:`~tracker.core.representation.pending_step`). Refuses
+        known frames too few for every model (a higher order never runs on a padded history)."""
         self.model_for(min(len(known), self.order))
-        step = pending_step(known)
-        state = {"step": np.repeat(step[None], n_particles, axis=0)}
-        if self.pace is not None:
-            state.update(self.pace.start(step, n_particles, rng))
-        if self.posture is not None:
-            state.update(self.posture.start(known.shape[-1], n_particles))
-        if self.height is not None:
-            state.update(self.height.start(n_particles, rng))
-        return state
+        return {"step": np.repeat(pending_step(known)[None], n_particles, axis=0)}
 
-    def restart(self, state: PriorState, recent: np.ndarray, n_particles: int,
-                rng: np.random.Generator) -> PriorState:
-        """:meth:`start` from ``recent``, keeping the posture offset (it is the person's, not the lost frame's)."""
-        new = self.start(recent, n_particles, rng)
-        return new if self.posture is None else self.posture.restart(state, new, n_particles)
+    def model_noise(self, n_particles: int, available: int, rng: np.random.Generator) -> torch.Generator:
+        """The torch generator of the model's draw, seeded by one draw from ``rng``."""
+        return torch_generator(rng, self.device)
 
     def adopt(self, state: PriorState, history: np.ndarray, available: int,
               rng: np.random.Generator) -> PriorState:
@@ -115,46 +108,21 @@ class ConditionalPrior(MotionPrior):
         pose)."""
         return {**state, "step": pending_step(history[:, history.shape[1] - min(available, 2):])}
 
-    def sample(self, history: np.ndarray, available: int, state: PriorState,
-               rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
+    def prepare(self, history: np.ndarray, available: int, state: PriorState) -> Step:
         model = self.model_for(available)
         n = model.order
-        step = list(STEP_FEATURES)
         feats = poses_to_invariant(history[:, -n - 1:] if history.shape[1] > n else
                                    np.concatenate([history[:, :1], history], axis=1))[:, -n:]
-        feats[:, -1, step] = state["step"]
-        previous = feats[:, -1].copy()  # the newest frame's features with the step the particle takes
-        new: dict[str, np.ndarray] = {}
-        posture = posture_features(feats.shape[-1])
-        offset = None
-        if self.posture is not None:  # the history in the postures the model knows
-            offset = self.posture.updated(state, previous[:, posture])
-            feats[:, :, posture] -= offset
-        height = None
-        if self.height is not None:  # the history at the heights the model knows
-            height = new["height_offset"] = self.height.advance(state["height_offset"], rng)
-            shift_height(feats, -height)
-        z = model.normaliser.transform(feats).reshape(len(feats), -1)  # P x (n K)
-        if self.pace is not None:  # the model is told each particle's pace, which drifts first
-            pace = new["pace"] = self.pace.advance(state["pace"], rng)
-            z = np.concatenate([model.pace_input(pace), z], axis=1)
+        feats[:, -1, list(STEP_FEATURES)] = state["step"]
+        # the newest frame's features with the step the particle takes
+        return Step(previous=feats[:, -1].copy(), history=feats, model=model)
+
+    def predict(self, step: Step, state: PriorState, noise: torch.Generator) -> np.ndarray:
         import torch
 
+        model = step.model
+        z = model.normaliser.transform(step.history).reshape(len(step.history), -1)  # P x (n K)
+        z = np.concatenate([*step.inputs, z], axis=1) if step.inputs else z
         conditioning = torch.tensor(z, dtype=torch.float32, device=self.device)
-        v = self.draw(model, conditioning, torch_generator(rng, self.device), state)
-        f_next = model.normaliser.inverse(v.cpu().double().numpy())
-        if offset is not None:  # and the prediction in the person's posture and height
-            f_next[:, posture] += offset
-            new.update(PostureOffset.state(offset, f_next[:, posture], len(f_next)))
-        if height is not None:
-            shift_height(f_next, height)
-        poses = next_poses(history[:, -1], previous, f_next)
-        self.ground.apply(poses, rng)
-        new["step"] = f_next[:, step]
-        return poses, new
-
-    def summarize(self, state: PriorState, weights: np.ndarray) -> np.ndarray | None:
-        """The posterior means of :attr:`summary_names` (the pace, the height offset, the posture offset's RMS);
-        None when no part has one."""
-        values = [p.summarize(state, weights) for p in self.parts if hasattr(p, "SUMMARY")]
-        return np.array(values) if values else None
+        v = self.draw(model, conditioning, noise, state)
+        return model.normaliser.inverse(v.cpu().double().numpy())

@@ -1,42 +1,132 @@
 """The parts a learned prior is built from besides its model: small per-particle pieces with their own options.
 
 A learned prior (CRBM, FCRBM, deep CRBM, GPDM) is a model that draws the next frame of the invariant features
-(:mod:`tracker.core.representation`) from a batch of histories, plus some of these parts:
+(:mod:`tracker.core.representation`) from a batch of histories, plus an ordered list of these parts
+(:class:`priors.learned.LearnedPrior`):
 
-- :class:`GroundDiffusion`: Gaussian noise on each sample's ground position (mm), so that the likelihood can
-  correct the drift of integrated velocities.
 - :class:`PaceInput`: each particle's own pace (log ground speed), given to a model trained with a pace input.
 - :class:`HeightOffset`: each particle's own root-height offset (mm), so that the images select the height of a
   shorter, taller or crouching person.
 - :class:`PostureOffset`: one posture offset (rad) that integrates the images' corrections, so that the model
   stops pulling an unseen person's posture toward its training subjects'.
-- :class:`GrowingModels`: the models of increasing order that grow the history from the known frames
-  (Taylor 2009, Sec. 6.4).
+- :class:`GroundDiffusion`: Gaussian noise on each sample's ground position (mm), so that the likelihood can
+  correct the drift of integrated velocities.
 
-Each part declares its options once (:attr:`OPTIONS`, used by the command line, experiment files and the API),
-starts its per-particle state from the known frames, moves it one frame on, and summarises it under the
-posterior weights. Its state lives in the prior's state dict under its own keys, rows on the leading axis, so
-the filter's reindexing after resampling and the checkpoint carry it without the part's help. Every random
-draw comes from the generator passed in, and a part with nothing to draw draws nothing.
+Every part implements one small protocol, :class:`Part`: it declares its options once (:attr:`Part.OPTIONS`, used
+by the command line, experiment files and the API, and the bounds its constructor checks), starts its per-particle
+state from the known frames, draws its random numbers for a step, updates from the weighted particles, conditions
+the model's input, turns the model's draw into the proposal, and summarises its state under the posterior
+weights. Its state lives in the prior's state dict under its own keys (:attr:`Part.KEYS`), rows on the leading
+axis, so the filter's reindexing after resampling and its checkpoints carry it without the part's help. Every
+random draw comes from the generator passed in, and a part with nothing to draw draws nothing.
+
+:class:`GrowingModels` holds the models of increasing order that grow the history from the known frames
+(Taylor 2009, Sec. 6.4).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import ClassVar, Generic, Sequence, TypeVar
+from dataclasses import dataclass, field, fields
+from typing import Any, ClassVar, Generic, Sequence, TypeVar
 
 import numpy as np
 
 from tracker.core.errors import InputError
-from tracker.core.representation import PACE_FLOOR_MM, STANDING_LOG_PACE, log_pace, posture_features
+from tracker.core.representation import (
+    PACE_FLOOR_MM, STANDING_LOG_PACE, log_pace, pending_step, posture_features,
+)
 from tracker.engine.registry import Option
 
 
-def _check_range(what: str, value: float, low: float, high: float, unit: str) -> float:
-    """``value`` as a float when ``low <= value <= high``; otherwise an :class:`InputError` saying so."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
-            or not low <= value <= high:
-        raise InputError(f"{what} must lie in [{low:g}, {high:g}] {unit}, got {value!r}".rstrip())
-    return float(value)
+@dataclass
+class Step:
+    """One step of a learned prior for ``P`` particles as its parts see it; the parts change these in place.
+
+    ``previous`` ``P x K``: the newest history frame's invariant features, with the root step each particle takes
+    out of it (the resampled particles: the posterior the parts update from); ``history`` ``P x n x K``: the
+    history's features (oldest first) that the model reads, which conditioning parts move into the frame the model
+    knows (None for a model that reads none); ``inputs``: further model inputs ``P x C`` put before the history;
+    ``model``: the model drawing this step; ``drawn`` ``P x K``: the next frame's features, once the model drew
+    them; ``poses`` ``P x D``: the next poses, once integrated; ``new``: the next state's entries.
+    """
+
+    previous: np.ndarray
+    history: np.ndarray | None
+    model: Any
+    inputs: list[np.ndarray] = field(default_factory=list)
+    drawn: np.ndarray | None = None
+    poses: np.ndarray | None = None
+    new: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Part:
+    """The protocol of a learned prior's per-particle parts. A part is a frozen dataclass whose fields are the
+    values of its :attr:`OPTIONS`, in order (checked against their bounds on construction; :meth:`settings` gives
+    them under the options' names); each method below does nothing by default, and a part implements the ones it
+    needs. A step of a learned prior calls, for its parts in order: :meth:`update`, :meth:`condition` (the model's
+    input), then the model draws, then :meth:`propose` (the drawn features), the poses are integrated, and
+    :meth:`displace` (the poses). The random numbers of a step are drawn first (:meth:`noise`): those of the
+    parts that condition the model (:attr:`CONDITIONS`) in order, then the model's, then the others'."""
+
+    #: The part's options, one per field in field order (the only place their defaults and bounds are written).
+    OPTIONS: ClassVar[tuple[Option, ...]] = ()
+    #: Units of the options, for messages.
+    UNITS: ClassVar[tuple[str, ...]] = ()
+    #: The state entries the part owns (one row per particle: reindexed and checkpointed with the filter's state).
+    KEYS: ClassVar[tuple[str, ...]] = ()
+    #: The name of the posterior mean :meth:`summarize` gives ("": none).
+    SUMMARY: ClassVar[str] = ""
+    #: Whether the part's random numbers are drawn before the model's (it moves the model's input) or after.
+    CONDITIONS: ClassVar[bool] = True
+
+    def __post_init__(self):
+        for option, unit, f in zip(self.OPTIONS, self.UNITS, fields(self)):
+            value = getattr(self, f.name)
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
+                    or not option.minimum <= value <= option.maximum:
+                raise InputError(f"{option.name.replace('_', ' ')} must lie in [{option.minimum:g}, "
+                                 f"{option.maximum:g}] {unit}, got {value!r}".rstrip())
+            object.__setattr__(self, f.name, float(value))
+
+    @property
+    def active(self) -> bool:
+        """Whether the part changes anything at these settings (a prior leaves an inactive part out of its steps,
+        its state and its summary)."""
+        return True
+
+    def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
+        """The part's state entries from the known frames ``n0 x D``."""
+        return {}
+
+    def restart(self, state: dict, started: dict, n_particles: int) -> dict[str, np.ndarray]:
+        """The part's state entries after the filter lost the person and restarted: ``started`` is the fresh
+        start's state (:meth:`start` from the last estimates), ``state`` the state the lost frame started from. By
+        default the fresh start's; a part whose state is the person's rather than the lost frame's keeps it."""
+        return {k: started[k] for k in self.KEYS}
+
+    def noise(self, n_particles: int, rng: np.random.Generator) -> np.ndarray | None:
+        """Every random number of one step, row ``i`` for particle ``i`` (None: nothing to draw)."""
+        return None
+
+    def update(self, state: dict, step: Step) -> None:
+        """Update from the weighted particles (``step.previous``, resampled) before the model draws."""
+
+    def condition(self, state: dict, step: Step, noise: np.ndarray | None) -> None:
+        """Move ``step.history`` into the frame the model knows, or add to ``step.inputs``."""
+
+    def propose(self, state: dict, step: Step, noise: np.ndarray | None) -> None:
+        """Move the model's draw ``step.drawn`` back into the person's frame."""
+
+    def displace(self, state: dict, step: Step, noise: np.ndarray | None) -> None:
+        """Move the integrated poses ``step.poses``."""
+
+    def summarize(self, state: dict, weights: np.ndarray) -> float:
+        """The posterior mean of the :attr:`SUMMARY` quantity under the normalised ``weights`` ``(P,)``."""
+        raise NotImplementedError(f"{type(self).__name__} has no summary")
+
+    def settings(self) -> dict:
+        """The part's option values under the options' names."""
+        return {o.name: getattr(self, f.name) for o, f in zip(self.OPTIONS, fields(self))}
 
 
 def gaussian_start(n_particles: int, std: float, rng: np.random.Generator) -> np.ndarray:
@@ -47,11 +137,9 @@ def gaussian_start(n_particles: int, std: float, rng: np.random.Generator) -> np
     return std * rng.standard_normal(n_particles)
 
 
-def gaussian_drift(values: np.ndarray, std: float, rng: np.random.Generator) -> np.ndarray:
-    """Per-particle values ``(P,)`` after one frame's random walk of std ``std`` (nothing drawn when 0)."""
-    if std <= 0:
-        return values
-    return values + std * rng.standard_normal(len(values))
+def walk_noise(std: float, shape: tuple[int, ...], rng: np.random.Generator) -> np.ndarray | None:
+    """Standard normal numbers of ``shape`` for a random walk of std ``std`` (None, nothing drawn, when 0)."""
+    return rng.standard_normal(shape) if std > 0 else None
 
 
 def shift_height(features: np.ndarray, offset: np.ndarray) -> np.ndarray:
@@ -62,45 +150,6 @@ def shift_height(features: np.ndarray, offset: np.ndarray) -> np.ndarray:
     return features
 
 
-#: Default ground-plane diffusion (mm per frame) of learned-prior samples. A learned prior predicts body-centred
-#: motion; the ground position integrates its velocities, and a walker slightly faster or slower than the
-#: training walks drifts away from particles that all move alike. Chosen for the CRBM on a validation render
-#: (07_01 tracked with CRBMs trained on 07_02, 07_09, 07_10; 1000 particles, 4 views, 2 seeds): 0 mm gave
-#: 41-71 mm error, 3 and 6 mm 16-18 mm, 12 mm 17-20 mm. The GPDM prior uses the same value.
-ROOT_NOISE_MM = 5.0
-#: Largest ground-plane diffusion (mm per frame) accepted.
-MAX_ROOT_NOISE_MM = 1000.0
-
-
-@dataclass(frozen=True)
-class GroundDiffusion:
-    """Gaussian noise of ``std_mm`` (mm per frame) on each sample's ground position (x, y)."""
-
-    std_mm: float = ROOT_NOISE_MM
-
-    OPTIONS: ClassVar[tuple[Option, ...]] = (
-        Option("root_noise", float, ROOT_NOISE_MM, "ground-plane diffusion of each sample (mm per frame)",
-               minimum=0.0, maximum=MAX_ROOT_NOISE_MM),)
-
-    def __post_init__(self):
-        object.__setattr__(self, "std_mm", _check_range("root noise", self.std_mm, 0.0, MAX_ROOT_NOISE_MM, "mm"))
-
-    def apply(self, poses: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """``poses`` ``P x D`` with the noise added to the root's ground position, in place."""
-        if self.std_mm > 0:
-            self.apply_with(poses, rng.standard_normal((len(poses), 2)))
-        return poses
-
-    def apply_with(self, poses: np.ndarray, noise: np.ndarray) -> np.ndarray:
-        """``poses`` ``P x D`` moved by standard normal ``noise`` ``P x 2`` drawn beforehand, in place."""
-        if self.std_mm > 0:
-            poses[:, :2] += self.std_mm * noise
-        return poses
-
-    def settings(self) -> dict:
-        return {"root_noise_mm": self.std_mm}
-
-
 #: Defaults of the pace's spread and drift: the std of each particle's initial log pace around the known frames'
 #: pace, and of its change per frame. Chosen a priori, before any tracking run: 0.3 covers a pace 0.55-1.8 times
 #: the known frames' within two standard deviations; 0.05 per frame lets the pace move by about 0.4 (a factor
@@ -109,7 +158,7 @@ PACE_SPREAD, PACE_DRIFT = 0.3, 0.05
 
 
 @dataclass(frozen=True)
-class PaceInput:
+class PaceInput(Part):
     """Each particle's own pace (:func:`~tracker.core.representation.log_pace`), the input of a model trained with
     one (``train --pace-input``). State ``pace`` ``(P,)``: it starts at the known frames' pace with std
     ``spread`` (log units), moves by a random walk of ``drift`` per frame, and never falls below standing still
@@ -124,35 +173,37 @@ class PaceInput:
         Option("pace_drift", float, PACE_DRIFT, "std of the change of each particle's log pace per frame",
                minimum=0.0, maximum=1.0),
     )
+    UNITS: ClassVar[tuple[str, ...]] = ("(log units)", "(log units per frame)")
+    KEYS: ClassVar[tuple[str, ...]] = ("pace",)
     SUMMARY: ClassVar[str] = "pace (mm/frame)"
 
-    def __post_init__(self):
-        object.__setattr__(self, "spread", _check_range("pace spread", self.spread, 0.0, 3.0, "(log units)"))
-        object.__setattr__(self, "drift", _check_range("pace drift", self.drift, 0.0, 1.0, "(log units per frame)"))
-
-    def start(self, step: np.ndarray, n_particles: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
-        """The state at the start from the pending root step ``step`` ``(3,)`` of the last known frame."""
-        return {"pace": np.maximum(log_pace(step) + gaussian_start(n_particles, self.spread, rng),
+    def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
+        """Around the pace of the pending root step of the last known frame."""
+        return {"pace": np.maximum(log_pace(pending_step(known)) + gaussian_start(n_particles, self.spread, rng),
                                    STANDING_LOG_PACE)}
 
-    def advance(self, pace: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Each particle's log pace ``(P,)`` one frame on."""
-        return np.maximum(np.array(gaussian_drift(pace, self.drift, rng), float), STANDING_LOG_PACE)
+    def noise(self, n_particles: int, rng: np.random.Generator) -> np.ndarray | None:
+        return walk_noise(self.drift, (n_particles,), rng)
+
+    def condition(self, state: dict, step: Step, noise: np.ndarray | None) -> None:
+        """The pace one frame on, given to the model before the history (it drifts first)."""
+        pace = np.asarray(state["pace"], float)
+        if noise is not None:
+            pace = pace + self.drift * noise
+        step.new["pace"] = np.maximum(pace, STANDING_LOG_PACE)
+        step.inputs.append(step.model.pace_input(step.new["pace"]))
 
     def summarize(self, state: dict, weights: np.ndarray) -> float:
         """The posterior mean ground speed (mm/frame) under the normalised ``weights`` ``(P,)``."""
         return float(np.sum(weights * (np.exp(state["pace"]) - PACE_FLOOR_MM)))
 
-    def settings(self) -> dict:
-        return {"pace_spread": self.spread, "pace_drift": self.drift}
-
 
 @dataclass(frozen=True)
-class HeightOffset:
+class HeightOffset(Part):
     """Each particle's own root-height offset (mm; the person's root height minus the heights the model learned).
     State ``height_offset`` ``(P,)``: Gaussian with std ``spread`` (mm) at the start, a random walk of ``drift``
-    (mm per frame). The prior shifts the history into the model's heights before the model sees it and the
-    prediction back after."""
+    (mm per frame). The history is shifted into the model's heights before the model sees it (a model that reads
+    the history's features) and the model's draw back after."""
 
     spread: float = 0.0
     drift: float = 0.0
@@ -164,40 +215,41 @@ class HeightOffset:
         Option("height_drift", float, 0.0, "std of each frame's random-walk step of the root-height offset (mm), so "
                "that it can follow a person who crouches or straightens up", minimum=0.0, maximum=100.0),
     )
+    UNITS: ClassVar[tuple[str, ...]] = ("mm", "mm per frame")
+    KEYS: ClassVar[tuple[str, ...]] = ("height_offset",)
     SUMMARY: ClassVar[str] = "height offset (mm)"
-
-    def __post_init__(self):
-        object.__setattr__(self, "spread", _check_range("height spread", self.spread, 0.0, 1000.0, "mm"))
-        object.__setattr__(self, "drift", _check_range("height drift", self.drift, 0.0, 100.0, "mm per frame"))
 
     @property
     def active(self) -> bool:
         """Whether the particles carry offsets at all (a spread or a drift)."""
         return self.spread > 0 or self.drift > 0
 
-    def start(self, n_particles: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
         return {"height_offset": gaussian_start(n_particles, self.spread, rng)}
 
-    def advance(self, offset: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """The offsets ``(P,)`` one frame on."""
-        return gaussian_drift(offset, self.drift, rng)
+    def noise(self, n_particles: int, rng: np.random.Generator) -> np.ndarray | None:
+        return walk_noise(self.drift, (n_particles,), rng)
 
-    def advance_with(self, offset: np.ndarray, noise: np.ndarray) -> np.ndarray:
-        """The offsets one frame on for standard normal ``noise`` ``(P,)`` drawn beforehand."""
-        return offset + self.drift * noise
+    def condition(self, state: dict, step: Step, noise: np.ndarray | None) -> None:
+        """The offsets one frame on; the history at the heights the model knows."""
+        offset = state["height_offset"]
+        step.new["height_offset"] = offset if noise is None else offset + self.drift * noise
+        if step.history is not None:
+            shift_height(step.history, -step.new["height_offset"])
+
+    def propose(self, state: dict, step: Step, noise: np.ndarray | None) -> None:
+        """The draw at the person's height."""
+        shift_height(step.drawn, step.new["height_offset"])
 
     def summarize(self, state: dict, weights: np.ndarray) -> float:
         """The posterior mean offset (mm) under the normalised ``weights`` ``(P,)``."""
         return float(np.sum(weights * state["height_offset"]))
 
-    def settings(self) -> dict:
-        return {"height_spread_mm": self.spread, "height_drift_mm": self.drift}
-
 
 @dataclass(frozen=True)
-class PostureOffset:
+class PostureOffset(Part):
     """One posture offset (rad, the person's posture angles minus the ones the model would give) that moves each
-    frame by ``gain`` times the images' mean correction (:meth:`updated`): an integrator of the likelihood's
+    frame by ``gain`` times the images' mean correction (:meth:`update`): an integrator of the likelihood's
     corrections, so that a model that pulls an unseen person's posture toward its training subjects' is
     corrected by as much as the images keep pulling it back. State ``posture_offset`` and ``posture_predicted``
     ``P x Kp`` (rows alike: the filter reindexes rows), the offset and the posture angles the prior predicted."""
@@ -208,40 +260,48 @@ class PostureOffset:
         Option("posture_gain", float, 0.0, "fraction per frame of the images' mean posture correction (posterior "
                "minus predicted mean posture angles) added to an offset by which the model's history and "
                "prediction are shifted", minimum=0.0, maximum=1.0),)
+    UNITS: ClassVar[tuple[str, ...]] = ("per frame",)
+    KEYS: ClassVar[tuple[str, ...]] = ("posture_offset", "posture_predicted")
     SUMMARY: ClassVar[str] = "posture offset rms (deg)"
 
-    def __post_init__(self):
-        object.__setattr__(self, "gain", _check_range("posture gain", self.gain, 0.0, 1.0, "per frame"))
+    @property
+    def active(self) -> bool:
+        return self.gain > 0
 
-    def start(self, n_features: int, n_particles: int) -> dict[str, np.ndarray]:
+    def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
         """No offset yet, and no prediction to measure the first correction against."""
-        n_posture = len(posture_features(n_features))
+        n_posture = len(posture_features(np.shape(known)[-1]))
         return {"posture_offset": np.zeros((n_particles, n_posture)),
                 "posture_predicted": np.full((n_particles, n_posture), np.nan)}
 
-    def restart(self, state: dict, new: dict, n_particles: int) -> dict:
-        """``new`` (a fresh start) keeping the offset of ``state``: it is the person's, not the lost frame's."""
-        return {**new, "posture_offset": np.repeat(np.asarray(state["posture_offset"])[:1], n_particles, axis=0)}
+    def restart(self, state: dict, started: dict, n_particles: int) -> dict[str, np.ndarray]:
+        """A fresh start keeping the offset of ``state``: it is the person's, not the lost frame's."""
+        return {"posture_predicted": started["posture_predicted"],
+                "posture_offset": np.repeat(np.asarray(state["posture_offset"])[:1], n_particles, axis=0)}
 
-    def updated(self, state: dict, posterior: np.ndarray) -> np.ndarray:
+    def update(self, state: dict, step: Step) -> None:
         """The offset ``(Kp,)`` one frame on: moved by ``gain`` times the mean posture angles of the resampled
-        particles ``posterior`` ``P x Kp`` minus the mean the prior predicted for them the frame before (NaN
-        before the first prediction: no move)."""
-        return updated_posture_offset(np.asarray(state["posture_offset"])[0], posterior,
-                                      np.asarray(state["posture_predicted"])[0], self.gain)
+        particles minus the mean the prior predicted for them the frame before (NaN before the first prediction:
+        no move)."""
+        posture = posture_features(step.previous.shape[-1])
+        offset = updated_posture_offset(np.asarray(state["posture_offset"])[0], step.previous[:, posture],
+                                        np.asarray(state["posture_predicted"])[0], self.gain)
+        step.new["posture_offset"] = np.repeat(offset[None], len(step.previous), axis=0)
 
-    @staticmethod
-    def state(offset: np.ndarray, predicted: np.ndarray, n_particles: int) -> dict[str, np.ndarray]:
-        """The state entries for the offset ``(Kp,)`` and the predicted posture angles ``P x Kp``."""
-        return {"posture_offset": np.repeat(offset[None], n_particles, axis=0),
-                "posture_predicted": np.repeat(predicted.mean(axis=0)[None], n_particles, axis=0)}
+    def condition(self, state: dict, step: Step, noise: np.ndarray | None) -> None:
+        """The history in the postures the model knows."""
+        if step.history is not None:
+            step.history[:, :, posture_features(step.history.shape[-1])] -= step.new["posture_offset"][0]
+
+    def propose(self, state: dict, step: Step, noise: np.ndarray | None) -> None:
+        """The draw in the person's posture; its mean posture angles are what the next update measures against."""
+        posture = posture_features(step.drawn.shape[-1])
+        step.drawn[:, posture] += step.new["posture_offset"][0]
+        step.new["posture_predicted"] = np.repeat(step.drawn[:, posture].mean(axis=0)[None], len(step.drawn), axis=0)
 
     def summarize(self, state: dict, weights: np.ndarray) -> float:
         """The offset's RMS over the posture angles (degrees)."""
         return float(np.degrees(np.sqrt(np.mean(np.asarray(state["posture_offset"])[0] ** 2))))
-
-    def settings(self) -> dict:
-        return {"posture_gain": self.gain}
 
 
 def updated_posture_offset(offset: np.ndarray, posterior: np.ndarray, predicted: np.ndarray,
@@ -251,6 +311,36 @@ def updated_posture_offset(offset: np.ndarray, posterior: np.ndarray, predicted:
     if not np.all(np.isfinite(predicted)):
         return offset
     return offset + gain * (posterior.mean(axis=0) - predicted)
+
+
+#: Default ground-plane diffusion (mm per frame) of learned-prior samples. A learned prior predicts body-centred
+#: motion; the ground position integrates its velocities, and a walker slightly faster or slower than the
+#: training walks drifts away from particles that all move alike. Chosen for the CRBM on a validation render
+#: (07_01 tracked with CRBMs trained on 07_02, 07_09, 07_10; 1000 particles, 4 views, 2 seeds): 0 mm gave
+#: 41-71 mm error, 3 and 6 mm 16-18 mm, 12 mm 17-20 mm. The GPDM prior uses the same value.
+ROOT_NOISE_MM = 5.0
+
+
+@dataclass(frozen=True)
+class GroundDiffusion(Part):
+    """Gaussian noise of ``std_mm`` (mm per frame) on each sample's ground position (x, y); its random numbers
+    are drawn after the model's."""
+
+    std_mm: float = ROOT_NOISE_MM
+
+    OPTIONS: ClassVar[tuple[Option, ...]] = (
+        Option("root_noise", float, ROOT_NOISE_MM, "ground-plane diffusion of each sample (mm per frame)",
+               minimum=0.0, maximum=1000.0),)
+    UNITS: ClassVar[tuple[str, ...]] = ("mm",)
+    CONDITIONS: ClassVar[bool] = False
+
+    def noise(self, n_particles: int, rng: np.random.Generator) -> np.ndarray | None:
+        return walk_noise(self.std_mm, (n_particles, 2), rng)
+
+    def displace(self, state: dict, step: Step, noise: np.ndarray | None) -> None:
+        """The poses moved on the ground plane."""
+        if noise is not None:
+            step.poses[:, :2] += self.std_mm * noise
 
 
 M = TypeVar("M")

@@ -85,12 +85,12 @@ class ConstantVelocityPrior(MotionPrior):
         return {"damping": self.damping}
 
 
-SCALE_OPTION = Option("prior_scale", float, 1.0, "multiply the random-walk noise (default 1)", minimum=0.0,
+SCALE_OPTION = Option("prior_scale", float, 1.0, "multiply the random-walk noise", minimum=0.0,
                       strict=True, maximum=1000.0)
 ISOTROPIC_OPTION = Option("isotropic_ground", bool, False,
                           "give the root's two ground coordinates one noise, the RMS of their two scales, so the "
-                          "walk does not favour the direction the training clips moved in (default off: a scale "
-                          "per axis; CMU's walks go along one axis)")
+                          "walk does not favour the direction the training clips moved in",
+                          default_note="off: a scale per axis; CMU's walks go along one axis")
 #: The root's ground-plane coordinates (mm) in the 15-cone model's pose layout.
 GROUND_DOFS = ("root_x", "root_y")
 

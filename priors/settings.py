@@ -1,7 +1,7 @@
 """The training settings of the learned priors, and the options that set them, without the models.
 
 The command line lists every prior's options (``train --help``, ``track --help``) from these; they import no
-torch, so the models (:mod:`priors.crbm_model`, :mod:`priors.fcrbm_model`, :mod:`priors.gpdm_model`, which
+torch, so the models (:mod:`priors.crbm.model`, :mod:`priors.fcrbm.model`, :mod:`priors.gpdm.model`, which
 re-export them) load only when a prior is built or trained.
 """
 from __future__ import annotations
@@ -79,6 +79,17 @@ class CRBMConfig(ContrastiveConfig):
         return self
 
 
+@dataclass
+class TopConfig(ContrastiveConfig):
+    """Settings of the second layer: :class:`~priors.settings.ContrastiveConfig`'s, with a smaller second layer."""
+
+    order: int = 2
+    hidden: int = 100
+    epochs: int = 200
+
+    KIND: ClassVar[str] = "deep CRBM top"
+
+
 #: Temperature of the labels' evidence in mixture inference (the likelihood to the power ``1 / T`` when the
 #: labels are weighed against each other). Chosen on a tuning fold (``docs/methods_report.md``).
 STYLE_TEMPERATURE = 10.0
@@ -102,7 +113,7 @@ class FCRBMConfig(ContrastiveConfig):
 
 
 DYNAMICS = ("linear", "rbf", "linear+rbf")
-#: Sparse approximations (:class:`priors.gpdm_model._Sparse`): ``dtc`` (the default; deterministic training conditional, or
+#: Sparse approximations (:class:`priors.gpdm.model._Sparse`): ``dtc`` (the default; deterministic training conditional, or
 #: projected process, Seeger et al. 2003), ``vfe`` (DTC plus Titsias' 2009 trace term: a lower bound on the
 #: evidence), ``fitc`` (Snelson & Ghahramani 2006). docs/reference/priors.md compares them: DTC forecast best overall, VFE
 #: worst, and FITC learned a near-zero dynamics noise.
@@ -166,27 +177,28 @@ class GPDMConfig:
 PACE_SPREAD_FOR_INPUT = 0.1
 
 CRBM_TRAIN_OPTIONS = (
-    Option("order", int, CRBMConfig.order, "CRBM order N (default 3)", minimum=1, maximum=100),
-    Option("hidden", int, CRBMConfig.hidden, "hidden units (default 150)", minimum=1, maximum=100000),
-    Option("epochs", int, CRBMConfig.epochs, "passes through the data (default 500)", minimum=1,
+    Option("order", int, CRBMConfig.order, "CRBM order N", minimum=1, maximum=100),
+    Option("hidden", int, CRBMConfig.hidden, "hidden units", minimum=1, maximum=100000),
+    Option("epochs", int, CRBMConfig.epochs, "passes through the data", minimum=1,
            maximum=1000000),
-    Option("cd_k", int, CRBMConfig.cd_k, "Gibbs steps of contrastive divergence (default 10)", minimum=1,
+    Option("cd_k", int, CRBMConfig.cd_k, "Gibbs steps of contrastive divergence", minimum=1,
            maximum=10000),
-    Option("batch_size", int, CRBMConfig.batch_size, "windows per mini-batch (default 100)", minimum=1,
+    Option("batch_size", int, CRBMConfig.batch_size, "windows per mini-batch", minimum=1,
            maximum=1000000),
     Option("history_noise", str, "auto",
-           "std of the noise added to the history in training (normalised units), or 'auto' (default)"),
-    Option("sparsity", float, None, "target mean activation of the hidden units (default: no sparsity term)"),
+           "std of the noise added to the history in training (normalised units), or 'auto': per feature, the 99th "
+           "percentile of its frame-to-frame change"),
+    Option("sparsity", float, None, "target mean activation of the hidden units", default_note="none: no sparsity term"),
     Option("checkpoint_every", int, None, "also save the training state every this many epochs, for train --resume",
            minimum=1, default_note="never"),
     Option("grow_from", str, "1", "lower orders trained alongside and saved in the same file, which grow the "
-                                  "history from the known frames (Taylor 2009, Sec. 6.4); 'none' to skip (default 1)"),
+                                  "history from the known frames (Taylor 2009, Sec. 6.4); 'none' to skip"),
     Option("pace_input", bool, None, "condition the model on each frame's pace (log ground speed averaged over one "
-                                     "second), which each particle carries while tracking (default: on when the "
-                                     f"clips' paces vary, std of log pace >= {PACE_SPREAD_FOR_INPUT:g}, e.g. the "
-                                     "walks of several people; --no-pace-input to turn it off)"),
+                                     "second), which each particle carries while tracking",
+           default_note=f"on when the clips' paces vary, std of log pace >= {PACE_SPREAD_FOR_INPUT:g}, e.g. the walks "
+                        "of several people; --no-pace-input to turn it off"),
     Option("validation", float, CRBMConfig.validation,
            "fraction of each clip (its last frames) held out to choose the epoch: the weights of the epoch with the "
-           "least held-out one-step error, checked every 10 epochs, are kept (default 0: the last epoch's)",
-           minimum=0.0, maximum=0.5),
+           "least held-out one-step error, checked every 10 epochs, are kept",
+           minimum=0.0, maximum=0.5, default_note="0: the last epoch's"),
 )

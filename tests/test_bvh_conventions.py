@@ -14,7 +14,9 @@ from data_tools.load import load_mocap, load_training_clips
 from data_tools.mocap import MocapClip, marker_positions
 from data_tools.retarget import retarget
 from tests.bvh_writer import write_bvh
+from tests.conftest import SHARED, need_shared
 from tracker.app.cli import main
+from tracker.core.body import MARKER_NAMES as MARKERS
 from tracker.core.errors import InputError
 
 #: Source frames written (1 s of the 120 Hz walk 07_01).
@@ -276,3 +278,131 @@ def test_experiment_training_clips_take_joint_maps(walk, reference, tmp_path):
     assert clips[0].joint_map == mapping and clips[1].joint_map is None  # its content: part of the model's key
     loaded = load_clips(clips, 30.0)
     assert gap_mm(loaded[0].markers, reference(30.0).markers) < TOLERANCE_MM and len(loaded[1].poses) > 3
+
+
+# Files from game and animation pipelines: joint orients baked into the offsets (with every rotation zero the
+# skeleton lies along x), six channels on every joint, an extra root on the ground above the hips, End Sites
+# at their joints, `_L`/`_R` names. Written from the packaged sample walk: no shared data needed.
+
+GAME_RIG = sided({
+    "lowerback": "Spine", "upperback": "Chest", "lowerneck": "Neck", "head": "Head",
+    "{s}clavicle": "Shoulder_{S}", "{s}humerus": "UpperArm_{S}", "{s}radius": "LowerArm_{S}", "{s}wrist": "Hand_{S}",
+    "{s}femur": "UpperLeg_{S}", "{s}tibia": "LowerLeg_{S}", "{s}foot": "Foot_{S}", "{s}toes": "Toes_{S}",
+})
+RIG = dict(names=GAME_RIG, orients=True, positions=True, extra_root="joint_Root", zero_ends=True, drop=HANDS)
+#: How far the derived head end may lie from the walk's own (mm): it is placed by the torso's length
+#: (``HEAD_PER_TORSO``, a median over several skeletons) on the neck's line; subject 7's head ends 40 mm
+#: nearer the thorax than that, and up to 55 mm from it with the head's own nod.
+HEAD_TOLERANCE_MM = 60.0
+
+
+@pytest.fixture(scope="module")
+def sample_walk():
+    """The packaged CMU walk's ASF, AMC, its first :data:`FRAMES` frames' conversion, and their markers
+    retargeted at a rate (computed once per rate)."""
+    from data_tools.samples import sample_walks
+
+    asf, amcs = sample_walks()
+    clip = asf_amc_clip(asf, amcs[0])
+    cut = MocapClip(clip.path, clip.positions[:FRAMES], clip.point_names, clip.fps, clip.style, unit=clip.unit)
+    cache = {}
+
+    def at(fps: float):
+        if fps not in cache:
+            cache[fps] = retarget(cut, fps)
+        return cache[fps]
+    return asf, amcs[0], cut, at
+
+
+@pytest.mark.parametrize("settings, summary", [
+    (dict(RIG, every=4), ("Bandai Namco", "lengths in cm", "y up", "30 Hz")),
+    (dict(RIG, z_up=True, mm_per_unit=1000.0), ("Bandai Namco", "lengths in m", "z up", "120 Hz")),
+    (dict(RIG, mm_per_unit=25.4, every=2), ("Bandai Namco", "lengths in inch", "y up", "60 Hz")),
+], ids=["cm y-up 30 Hz", "m z-up 120 Hz", "inch y-up 60 Hz"])
+def test_game_rig_converts_with_no_flags(sample_walk, tmp_path, settings, summary):
+    """The rest skeleton lies down, so the up axis and the unit come from the posed frames; the extra root is
+    not the pelvis; the markers are the ASF conversion's, but for the derived head end."""
+    asf, amc, _, reference = sample_walk
+    path = write_bvh(tmp_path / "rig.bvh", asf, amc, frames=FRAMES, **settings)
+    assert "ROOT joint_Root" in path.read_text()
+    clip = load_mocap(path)
+    for fragment in summary:
+        assert fragment in clip.summary(), (fragment, clip.summary())
+    notes = " ".join(clip.notes)
+    for fragment in ("does not stand: up axis and length unit read from the frames", "head derived",
+                     "left_hand_end derived"):
+        assert fragment in notes, (fragment, notes)
+    result, ref = retarget(clip), reference(clip.fps)
+    assert len(result.markers) == len(ref.markers)
+    head = MARKERS.index("head")
+    others = [i for i in range(len(MARKERS)) if i != head]
+    assert gap_mm(result.markers[:, others], ref.markers[:, others]) < TOLERANCE_MM
+    assert np.linalg.norm(result.markers[:, head] - ref.markers[:, head], axis=-1).max() < HEAD_TOLERANCE_MM
+    assert result.mean_residual < 2.0
+
+
+def test_game_rig_convert_says_how_it_read_the_file(sample_walk, tmp_path, capsys):
+    asf, amc, _, _ = sample_walk
+    path = write_bvh(tmp_path / "rig.bvh", asf, amc, frames=FRAMES, every=4, **RIG)
+    capsys.readouterr()
+    assert main(["convert", "--mocap", str(path), "--out", str(tmp_path / "rig.npz")]) == 0
+    captured = capsys.readouterr()
+    lines = [line for line in (captured.out + captured.err).splitlines() if "rig.bvh" in line]
+    summary = [line for line in lines if line.startswith("rig.bvh: ")]
+    assert len(summary) == 1 and summary[0].startswith(
+        "rig.bvh: Bandai Namco (UpperArm_L, game rig) names, lengths in cm (inferred from the skeleton's height), "
+        "y up, 30 Hz; 31 frames at 30 fps"), lines
+    assert any(line.startswith("note: rig.bvh: the rest skeleton (every rotation zero) does not stand")
+               for line in lines), lines
+
+
+def test_position_channels_on_every_joint_keep_a_standing_rest(sample_walk, tmp_path):
+    """Six channels on every joint of an upright skeleton: read as before, from the rest skeleton, no note."""
+    asf, amc, _, reference = sample_walk
+    clip = load_mocap(write_bvh(tmp_path / "six.bvh", asf, amc, frames=FRAMES, names=MOTIONBUILDER, positions=True,
+                                every=4))
+    assert "MotionBuilder" in clip.summary() and "lengths in cm" in clip.summary() and "y up" in clip.summary()
+    assert not any("does not stand" in n for n in clip.notes)
+    assert gap_mm(retarget(clip).markers, reference(30.0).markers) < TOLERANCE_MM
+
+
+def test_a_skeleton_lying_in_its_frames_too_is_refused_in_one_line(sample_walk, tmp_path, capsys):
+    asf, amc, _, _ = sample_walk
+    path = write_bvh(tmp_path / "lying.bvh", asf, amc, frames=8, **RIG)
+    lines = path.read_text().splitlines()
+    motion = lines.index("MOTION") + 3
+    for k in range(motion, len(lines)):  # every rotation zero: the frames are the rest skeleton
+        values = np.array(lines[k].split(), float).reshape(-1, 6)
+        values[:, 3:] = 0.0
+        lines[k] = " ".join(f"{v:.6f}" for v in values.ravel())
+    path.write_text("\n".join(lines) + "\n")
+    capsys.readouterr()
+    code = main(["convert", "--mocap", str(path), "--out", str(tmp_path / "c.npz")])
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert code == 2 and len(err) == 1, err
+    assert "lying.bvh" in err[0] and "the skeleton in its frames stands along" in err[0] and "x" in err[0], err
+
+
+#: Real clips of that convention (Bandai Namco Research's motion dataset 2, CC BY-NC 4.0): content, style ->
+#: the range of walking speed (m/s) they must show. Lengths in cm, y up, 30 Hz; one skeleton about 1.6 m tall.
+BANDAI_CLIPS = {("walk", "normal"): (0.9, 1.4), ("run", "normal"): (2.0, 4.5),
+                ("walk-turn-left", "active"): (0.8, 1.6), ("wave-right-hand", "elderly"): (0.0, 0.1)}
+
+
+@pytest.mark.parametrize("content, style", sorted(BANDAI_CLIPS))
+def test_bandai2_clips_convert_with_no_flags(content, style):
+    folder = need_shared(SHARED / "mocap" / "bandai2")
+    clip = load_mocap(folder / f"dataset-2_{content}_{style}_001.bvh")
+    assert clip.summary() == ("Bandai Namco (UpperArm_L, game rig) names, lengths in cm (inferred from the "
+                              "skeleton's height), y up, 30 Hz")
+    points = marker_positions(clip)
+    # Height: the head end above the lowest point of the skeleton, median over frames.
+    height = np.median(points[:, MARKERS.index("head"), 2] - clip.positions[..., 2].min(axis=1))
+    assert 1500 < height < 1750, height
+    # Speed: the pelvis's path over the ground, smoothed over a second (its sway averaged out).
+    k = int(clip.fps)
+    pelvis = np.stack([np.convolve(points[:, 0, i], np.ones(k) / k, mode="valid") for i in range(2)], axis=1)
+    speed = np.linalg.norm(np.diff(pelvis, axis=0), axis=1).sum() / 1000 / ((len(pelvis) - 1) / clip.fps)
+    low, high = BANDAI_CLIPS[content, style]
+    assert low <= speed <= high, speed
+    assert retarget(clip, fps=5.0).mean_residual < 3.0

@@ -6,20 +6,16 @@ import numpy as np
 import pytest
 import torch
 
+from priors.crbm.file import load_crbm
+from priors.crbm.model import CRBM, CRBMConfig, bernoulli
+from priors.crbm.prior import CRBMPrior
+from priors.crbm.training import make_windows, train_crbm
 from priors.parts import GroundDiffusion, PostureOffset
-
-from priors.crbm_model import CRBM, CRBMConfig, bernoulli
-
-from priors.crbm import CRBMPrior
-
-from priors.crbm_file import load_crbm
-
-from priors.crbm_training import make_windows, train_crbm
-
-CRBM_PARAMS = CRBM.PARAMS
 from tracker.core.body import DOF_NAMES
 from tracker.core.errors import InputError
 from tracker.core.representation import poses_to_invariant, posture_features
+
+CRBM_PARAMS = CRBM.PARAMS
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +39,7 @@ def test_binary_samples_are_16_bit_uniforms_below_the_probabilities():
     """The sampler's contract, which every seeded CRBM/FCRBM result depends on (since 0.11.0): one uniform 16-bit
     integer per unit, four from each 64-bit draw of the generator, 1 where it is below ``p * 2^16``; float 0/1 in
     ``p``'s dtype, ``p`` left unchanged."""
-    from priors.crbm_model import uniform16
+    from priors.crbm.model import uniform16
 
     for dtype in (torch.float32, torch.float64):
         p = torch.rand(40, 7, generator=torch.Generator().manual_seed(1), dtype=dtype)
@@ -246,7 +242,7 @@ def test_interrupted_training_resumes_to_the_same_model(tmp_path):
 
 
 def test_split_validation_holds_out_the_end_of_each_clip():
-    from priors.crbm_training import split_validation
+    from priors.crbm.training import split_validation
 
     # Order-2 windows of clips of 10 and 6 frames (none predicts a clip's last frame, see make_windows).
     starts = torch.tensor([0, 1, 2, 3, 4, 5, 6, 10, 11, 12])
@@ -292,7 +288,7 @@ def test_two_models_of_one_order_are_refused_not_silently_dropped(crbm3):
 
 
 def test_the_history_noise_option_is_auto_or_a_number_in_range():
-    from priors.crbm_training import parse_history_noise
+    from priors.crbm.training import parse_history_noise
 
     assert parse_history_noise("auto") == "auto" and parse_history_noise("0.5") == 0.5 and parse_history_noise(0) == 0
     for bad, expected in [("abc", "'auto' or a number"), ("200", r"\[0, 100\]"), (-1, r"\[0, 100\]")]:

@@ -2,17 +2,17 @@
 training frames, a model whose gait speed follows the pace it is given and the per-particle pace while tracking;
 each particle's root-height offset; the posture offset; their defaults for a paced model; the model file's
 checks."""
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 import torch
 
-from priors.parts import GroundDiffusion
-
-from priors.crbm import CRBMPrior
-from priors.crbm_file import load_crbm
-from priors.crbm_model import CRBMConfig
-from priors.crbm_training import train_crbm
-from priors.parts import PACE_DRIFT, PACE_SPREAD, HeightOffset, PaceInput, PostureOffset
+from priors.crbm.file import load_crbm
+from priors.crbm.model import CRBMConfig
+from priors.crbm.prior import CRBMPrior
+from priors.crbm.training import train_crbm
+from priors.parts import PACE_DRIFT, PACE_SPREAD, GroundDiffusion, HeightOffset, PaceInput, PostureOffset, Step
 from tracker.core.body import DOF_NAMES, fifteen_cone_model
 from tracker.core.errors import InputError
 from tracker.core.representation import PACE_FLOOR_MM, clip_log_pace, poses_to_invariant
@@ -222,7 +222,7 @@ def test_height_offsets_start_spread_drift_and_are_summarised(paced, walk_07_01)
 
 
 def test_a_paced_crbm_gives_each_particle_a_height_offset_by_default(paced, plain, walk_07_01):
-    from priors.crbm import PACED_HEIGHT_SPREAD
+    from priors.crbm.prior import PACED_HEIGHT_SPREAD
     from tracker.app.api import prior_entry
 
     assert PACED_HEIGHT_SPREAD == 50.0 and CRBMPrior([paced]).height.spread == PACED_HEIGHT_SPREAD
@@ -234,7 +234,7 @@ def test_a_paced_crbm_gives_each_particle_a_height_offset_by_default(paced, plai
 
 
 def test_a_paced_crbm_corrects_its_posture_by_default(paced, plain):
-    from priors.crbm import PACED_POSTURE_GAIN
+    from priors.crbm.prior import PACED_POSTURE_GAIN
     from tracker.app.api import prior_entry
 
     assert PACED_POSTURE_GAIN == 0.1 and CRBMPrior([paced]).posture.gain == PACED_POSTURE_GAIN
@@ -256,14 +256,14 @@ def test_height_offsets_selected_by_the_images_follow_a_shorter_person(paced, wa
 
 
 def test_by_default_a_pace_input_only_for_clips_of_several_paces(walk_07_01):
-    from priors.crbm_training import paces_vary
+    from priors.crbm.training import paces_vary
 
     assert not paces_vary([walk_07_01], 60.0)  # one walk: a 1% spread of paces
     assert paces_vary([walk_07_01, time_warp_clip(walk_07_01, 0.6, TRIPLES)], 60.0)
 
 
 def test_a_deep_crbm_file_with_a_paced_first_layer_is_refused(paced, tmp_path):
-    from priors.deep_crbm import load_deep_crbm
+    from priors.deep_crbm.file import load_deep_crbm
 
     path = tmp_path / "deep.pt"
     torch.save({"format": "pose-tracker deep-crbm v1", "bottom": paced.to_document()}, path)
@@ -275,7 +275,10 @@ def test_a_deep_crbm_file_with_a_paced_first_layer_is_refused(paced, tmp_path):
 def test_a_pace_never_falls_below_standing_and_pace_settings_need_a_pace_input(paced, plain):
     rng = np.random.default_rng(4)
     low = np.full(20000, np.log(PACE_FLOOR_MM) - 0.2)
-    out = PaceInput(drift=0.5).advance(low, rng)
+    part = PaceInput(drift=0.5)
+    step = Step(previous=np.zeros((len(low), 40)), history=None, model=SimpleNamespace(pace_input=lambda p: p[:, None]))
+    part.condition({"pace": low}, step, part.noise(len(low), rng))
+    out = step.new["pace"]
     assert out.min() == pytest.approx(np.log(PACE_FLOOR_MM))  # a negative ground speed means nothing
     for bad in ((-0.1, 0.05), (0.3, 2.0)):
         with pytest.raises(InputError, match="pace"):

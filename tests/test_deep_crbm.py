@@ -6,11 +6,14 @@ import numpy as np
 import pytest
 import torch
 
+from priors.crbm.model import CRBM, CRBMConfig
+from priors.crbm.training import train_crbm
+from priors.deep_crbm.file import load_deep_crbm
+from priors.deep_crbm.model import DeepCRBMModel, deep_gibbs
+from priors.deep_crbm.prior import DeepCRBMPrior
+from priors.deep_crbm.training import first_layer_activations, train_top
 from priors.parts import HeightOffset, PostureOffset
-from priors.crbm_model import CRBM, CRBMConfig
-
-from priors.crbm_training import train_crbm
-from priors.deep_crbm import DeepCRBMModel, DeepCRBMPrior, TopConfig, deep_gibbs, first_layer_activations, load_deep_crbm, train_top
+from priors.settings import TopConfig
 from tracker.core.body import DOF_NAMES
 from tracker.core.errors import InputError
 

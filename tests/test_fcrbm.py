@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 import torch
 
-from priors.fcrbm_model import FCRBM, FCRBMConfig, group_rows, load_fcrbm, parse_labels, train_fcrbm
-
-from priors.fcrbm import FCRBMPrior, generate, transition_styles
+from priors.fcrbm.file import load_fcrbm
+from priors.fcrbm.model import FCRBM, FCRBMConfig, group_rows, parse_labels
+from priors.fcrbm.prior import FCRBMPrior, generate, transition_styles
+from priors.fcrbm.training import train_fcrbm
 from tracker.core.body import DOF_NAMES
 from tracker.core.errors import InputError
 

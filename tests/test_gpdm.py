@@ -3,14 +3,21 @@ import numpy as np
 import pytest
 import torch
 
-from priors.gpdm_predict import prepare
+from priors.gpdm.file import load_gpdm
+from priors.gpdm.model import GPDM, GPDMConfig, save_gpdm
+from priors.gpdm.predict import prepare
+from priors.gpdm.training import train_gpdm
 from priors.parts import GroundDiffusion, HeightOffset
-
-from priors.gpdm_model import GPDM, GPDMConfig
-
-from priors.gpdm_training import load_gpdm, save_gpdm, train_gpdm
 from tracker.core.errors import InputError
 from tracker.engine.prior import summarize, summary_of
+
+
+def noise_row(noise, i: int):
+    """Row ``i`` of a step's random numbers (:meth:`priors.learned.LearnedPrior.step_noise`): the GPDM's latent
+    noise and each part's."""
+    from priors.learned import StepNoise
+
+    return StepNoise(noise.model[i:i + 1], [None if z is None else z[i:i + 1] for z in noise.parts])
 
 
 @pytest.fixture(scope="module")
@@ -106,14 +113,14 @@ def test_bad_config_and_data():
 
 @pytest.fixture(scope="module")
 def gpdm_prior_model(walk_07_01):
-    from priors.gpdm_training import train_gpdm_prior
+    from priors.gpdm.training import train_gpdm_prior
     from tracker.core.body import DOF_NAMES
 
     return train_gpdm_prior([walk_07_01.poses], GPDMConfig(iterations=100), 60.0, DOF_NAMES, sources=["07_01"])
 
 
 def test_gpdm_prior_samples_a_batch_of_walking_poses(gpdm_prior_model, walk_07_01):
-    from priors.gpdm import GPDMPrior
+    from priors.gpdm.prior import GPDMPrior
 
     prior = GPDMPrior(gpdm_prior_model, ground=GroundDiffusion(0.0))
     known = walk_07_01.poses[:2]
@@ -135,7 +142,7 @@ def test_gpdm_prior_samples_a_batch_of_walking_poses(gpdm_prior_model, walk_07_0
 
 
 def test_gpdm_prior_file_round_trip_and_mismatch(gpdm_prior_model, tmp_path):
-    from priors.gpdm_training import load_gpdm_prior
+    from priors.gpdm.file import load_gpdm_prior
 
     gpdm_prior_model.save(tmp_path / "g.pt")
     loaded = load_gpdm_prior(tmp_path / "g.pt")
@@ -166,7 +173,7 @@ def test_train_and_track_gpdm_cli(mocap_dir, walk_32_frames, tmp_path):
 # --- sparse (inducing-point) GPDM and the batched prior step ---------------------------------------------------
 
 def test_sparse_gradients_match_finite_differences(walk_features):
-    from priors.gpdm_model import inducing_frames
+    from priors.gpdm.model import inducing_frames
 
     Y = walk_features[:40, :6]
     m = GPDM(Y, [20, 20], GPDMConfig(order=2, balance=3.0), active=inducing_frames(Y, 12))
@@ -187,7 +194,7 @@ def test_sparse_gradients_match_finite_differences(walk_features):
 
 
 def test_inducing_setting_and_frame_choice(walk_features):
-    from priors.gpdm_model import AUTO_INDUCING, EXACT_MAX_FRAMES, inducing_frames
+    from priors.gpdm.model import AUTO_INDUCING, EXACT_MAX_FRAMES, inducing_frames
 
     assert GPDMConfig().inducing_count(EXACT_MAX_FRAMES) == 0
     assert GPDMConfig().inducing_count(EXACT_MAX_FRAMES + 1) == AUTO_INDUCING
@@ -257,7 +264,7 @@ def test_sparse_model_round_trips_and_old_files_load_exact(two_walks, tmp_path):
 
 @pytest.fixture(scope="module")
 def sparse_prior_model(gpdm_prior_model, walk_07_01, walk_07_11):
-    from priors.gpdm_training import train_gpdm_prior
+    from priors.gpdm.training import train_gpdm_prior
     from tracker.core.body import DOF_NAMES
 
     return train_gpdm_prior([walk_07_01.poses, walk_07_11.poses], GPDMConfig(iterations=30, inducing=40), 60.0,
@@ -268,7 +275,7 @@ def sparse_prior_model(gpdm_prior_model, walk_07_01, walk_07_11):
                                          ("sparse", torch.float32)])
 def test_prior_step_batched_equals_looped_and_is_seeded(which, dtype, gpdm_prior_model, sparse_prior_model,
                                                         walk_07_01):
-    from priors.gpdm import GPDMPrior
+    from priors.gpdm.prior import GPDMPrior
 
     model = gpdm_prior_model if which == "exact" else sparse_prior_model
     assert model.gpdm.sparse == (which == "sparse")
@@ -279,9 +286,9 @@ def test_prior_step_batched_equals_looped_and_is_seeded(which, dtype, gpdm_prior
     state["latent"] = state["latent"] + 0.1 * np.random.default_rng(1).standard_normal(state["latent"].shape)
     hist = np.repeat(known[None, -1:], P, axis=0) + np.random.default_rng(2).normal(0, 1e-3, (P, 1, 40))
     batched, bstate = prior.sample(hist, 1, state, np.random.default_rng(7))
-    noise = prior.draw(P, np.random.default_rng(7))  # the same generator state: the same draws
-    rows = [prior.advance(hist[i:i + 1], {k: v[i:i + 1] for k, v in state.items()},
-                          {k: v[i:i + 1] for k, v in noise.items()}) for i in range(P)]
+    noise = prior.step_noise(P, 1, np.random.default_rng(7))  # the same generator state: the same draws
+    rows = [prior.advance(hist[i:i + 1], 1, {k: v[i:i + 1] for k, v in state.items()}, noise_row(noise, i))
+            for i in range(P)]
     # Up to rounding: the float32 variance product sums in another order for one row than for six (differences
     # of about 2e-5 in latent units, where a step is about 0.1, and in rad).
     tol = 1e-10 if dtype == torch.float64 else 2e-4
@@ -327,7 +334,7 @@ def test_interrupted_training_resumes_to_the_same_model(tmp_path):
     0.10 away in X after 50 iterations)."""
     import tracker
     from data_tools.samples import sample_walks
-    from priors.gpdm_training import GPDM_PARAMETERS
+    from priors.gpdm.training import GPDM_PARAMETERS
 
     asf, walks = sample_walks()
     settings = dict(skeletons=[asf], iterations=30, seed=0, checkpoint_every=10)
@@ -399,7 +406,7 @@ def _normaliser(key, factor):
     (lambda d: d["extra"].pop("normaliser"), "lacks 'normaliser'"),
 ])
 def test_broken_model_files_are_refused(small_gpdm_file, tmp_path, damage, expected):
-    from priors.gpdm_training import load_gpdm_prior
+    from priors.gpdm.file import load_gpdm_prior
 
     doc = torch.load(small_gpdm_file, weights_only=True)
     damage(doc)
@@ -411,7 +418,7 @@ def test_broken_model_files_are_refused(small_gpdm_file, tmp_path, damage, expec
 
 
 def test_foreign_and_corrupt_model_files_are_refused(small_gpdm_file, tmp_path):
-    from priors.gpdm_training import load_gpdm_prior
+    from priors.gpdm.file import load_gpdm_prior
 
     text, cut, other = tmp_path / "text.pt", tmp_path / "cut.pt", tmp_path / "other.pt"
     text.write_text("not a model\n")
@@ -432,16 +439,16 @@ def test_latent_dimension_above_the_features_is_refused():
 
 def test_a_particles_height_offset_moves_the_gpdms_heights_by_exactly_that_offset(gpdm_prior_model, walk_07_01):
     """The same latent history and noise with an offset of 70 mm give the same pose 70 mm higher."""
-    from priors.gpdm import GPDMPrior
+    from priors.gpdm.prior import GPDMPrior
 
     prior = GPDMPrior(gpdm_prior_model, height=HeightOffset(30.0))
     assert prior.summary_names == ("height offset (mm)",) and prior.summary_kind == "quantity"
     state = prior.start(walk_07_01.poses[:2], 20, np.random.default_rng(0))
     hist = np.repeat(walk_07_01.poses[None, 1:2], 20, axis=0)
-    noise = prior.draw(20, np.random.default_rng(1))
+    noise = prior.step_noise(20, 1, np.random.default_rng(1))
     out = []
     for offset in (0.0, 70.0):
-        poses, new = prior.advance(hist, {**state, "height_offset": np.full(20, offset)}, noise)
+        poses, new = prior.advance(hist, 1, {**state, "height_offset": np.full(20, offset)}, noise)
         assert np.all(new["height_offset"] == offset)  # no drift: the offset keeps its value
         out.append(poses)
     assert np.allclose(out[1][:, 2] - out[0][:, 2], 70.0, atol=1e-6)
@@ -450,7 +457,7 @@ def test_a_particles_height_offset_moves_the_gpdms_heights_by_exactly_that_offse
 
 def test_gpdm_height_offsets_start_spread_drift_are_summarised_and_batched_equals_looped(gpdm_prior_model,
                                                                                          walk_07_01):
-    from priors.gpdm import GPDMPrior
+    from priors.gpdm.prior import GPDMPrior
     from tracker.app.api import prior_entry
 
     prior = GPDMPrior(gpdm_prior_model, height=HeightOffset(40.0, 2.0))
@@ -465,10 +472,10 @@ def test_gpdm_height_offsets_start_spread_drift_are_summarised_and_batched_equal
     assert prior.summarize(new, weights)[0] == pytest.approx(np.mean(new["height_offset"][:2]))
     P = 5  # row by row the same as in one batch
     small = {k: v[:P] for k, v in state.items()}
-    noise = prior.draw(P, np.random.default_rng(7))
-    batched, bstate = prior.advance(hist[:P], small, noise)
-    rows = [prior.advance(hist[i:i + 1], {k: v[i:i + 1] for k, v in small.items()},
-                          {k: v[i:i + 1] for k, v in noise.items()}) for i in range(P)]
+    noise = prior.step_noise(P, 1, np.random.default_rng(7))
+    batched, bstate = prior.advance(hist[:P], 1, small, noise)
+    rows = [prior.advance(hist[i:i + 1], 1, {k: v[i:i + 1] for k, v in small.items()}, noise_row(noise, i))
+            for i in range(P)]
     assert np.allclose(batched, np.concatenate([r[0] for r in rows]), atol=2e-4)
     assert np.array_equal(bstate["height_offset"], np.concatenate([r[1]["height_offset"] for r in rows]))
     assert GPDMPrior(gpdm_prior_model).height.spread == 50.0  # the default

@@ -1,17 +1,10 @@
-"""The motion-prior contract (tracker.engine.prior.MotionPrior), checked for every registered prior.
+"""The motion-prior contract (:class:`tracker.testing.PriorContract`), run for every registered prior of the
+package.
 
-Every prior the registry knows is built through the public API from small models trained here, and so is a
-plugin prior that this file registers through the extension mechanism. Each must:
-
-- sample a batch as it samples each particle alone: a particle's next pose depends on its own history and state
-  and on the random numbers at its position in the batch, never on the other particles' histories;
-- draw the same poses from the same seed;
-- keep histories and state together when the filter reindexes them after resampling;
-- continue to the same poses after its state went through a checkpoint file;
-- start from the known frames with one row of state per particle, and grow its history from lower orders.
-
-A prior of the package that has no configuration in ``BUILT`` below fails the tests: a new prior joins the
-contract by being added there.
+Every prior the registry knows is built through the public API from small models trained here, in each
+configuration of ``BUILT`` below, and checked by the contract's tests (a plugin's own tests inherit the same
+class: tests/plugin_example). A prior of the package that has no configuration in ``BUILT`` fails the tests: a
+new prior joins the contract by being added there.
 """
 from __future__ import annotations
 
@@ -21,47 +14,7 @@ import numpy as np
 import pytest
 import torch
 
-from tracker.engine.prior import MotionPrior, label_for, reindex_state
-
-P = 12
-
-
-class DampedWalkPrior(MotionPrior):
-    """The plugin prior of this file: a second-order walk keeping a per-particle damping factor as its state."""
-
-    name = "test-damped-walk"
-    order = 2
-
-    def __init__(self, std: np.ndarray):
-        self.std = std
-
-    def start(self, known, n_particles, rng):
-        return {"damping": rng.uniform(0.2, 0.8, n_particles)}
-
-    def sample(self, history, available, state, rng):
-        velocity = history[:, -1] - history[:, -2] if available >= 2 else 0.0
-        poses = history[:, -1] + state["damping"][:, None] * velocity
-        return poses + self.std * rng.standard_normal(poses.shape), dict(state)
-
-    def diffusion_std(self):
-        return self.std
-
-
-@pytest.fixture(scope="module")
-def plugin_prior():
-    """``test-damped-walk`` registered through :func:`tracker.engine.registry.register_prior` while the module
-    runs, and removed after (other tests list the registered priors)."""
-    from tracker.app.plugins import load_plugins
-    from tracker.engine.registry import PRIORS, register_prior
-
-    load_plugins()
-
-    @register_prior("test-damped-walk", summary="a damped second-order walk (the contract test's plugin)")
-    def build(context, model_files, options):
-        return DampedWalkPrior(context.step_std())
-
-    yield "test-damped-walk"
-    PRIORS.entries.pop("test-damped-walk", None)
+from tracker.testing import PriorContract
 
 
 @pytest.fixture(scope="module")
@@ -94,170 +47,88 @@ BUILT = {
     "constant-velocity": [("constant-velocity", [], {})],
     "crbm": [("crbm", ["crbm"], {}), ("crbm", ["crbm-paced"], {}), ("crbm", ["crbm", "crbm"], {}),
              ("crbm", ["crbm"], {"height_spread": 30.0, "height_drift": 1.0, "posture_gain": 0.2})],
-    "gpdm": [("gpdm", ["gpdm"], {}), ("gpdm", ["gpdm"], {"height_drift": 2.0})],
-    "fcrbm": [("fcrbm", ["fcrbm"], {}), ("fcrbm", ["fcrbm"], {"style": "b"})],
+    "gpdm": [("gpdm", ["gpdm"], {}), ("gpdm", ["gpdm"], {"height_drift": 2.0}),
+             ("gpdm", ["gpdm"], {"posture_gain": 0.2})],
+    "fcrbm": [("fcrbm", ["fcrbm"], {}), ("fcrbm", ["fcrbm"], {"style": "b"}),
+              ("fcrbm", ["fcrbm"], {"height_spread": 20.0, "height_drift": 1.0, "posture_gain": 0.2})],
     "deep-crbm": [("deep-crbm", ["deep-crbm"], {"height_spread": 20.0})],
     "mixture": [("mixture", ["crbm-paced"], {}), ("mixture", ["crbm", "gpdm"], {"components": "crbm,gpdm"}),
                 ("mixture", ["fcrbm", "deep-crbm"], {"components": "fcrbm,deep-crbm"}),
                 ("mixture", [], {"components": "zero-velocity,constant-velocity", "switch": 0.2})],
-    "test-damped-walk": [("test-damped-walk", [], {})],
 }
+CONFIGURATIONS = [c for configurations in BUILT.values() for c in configurations]
+LABELS = [f"{name}-{'+'.join(files) or 'none'}-{k}" for k, (name, files, _) in enumerate(CONFIGURATIONS)]
 #: Priors without lower orders to grow their history through.
-RANDOM_WALKS = ("zero-velocity", "constant-velocity", "test-damped-walk")
+RANDOM_WALKS = ("zero-velocity", "constant-velocity")
 
 
-def configurations(models, plugin_prior, walk_07_01):
-    """Every configuration of :data:`BUILT` as ``(label, prior)``; a registered prior missing from it fails."""
-    from tracker.app.api import available_priors, build_prior, prior_entry
-    from tracker.core.representation import step_rms
+def test_every_registered_prior_of_the_package_has_a_contract_configuration():
+    from tracker.app.api import available_priors, prior_entry
 
-    # The package's priors and this file's plugin (other test files register stubs of their own).
-    names = [n for n in available_priors() if prior_entry(n).build.__module__.startswith("priors.")] + [plugin_prior]
+    names = [n for n in available_priors() if prior_entry(n).build.__module__.startswith("priors.")]
     missing = sorted(set(names) - set(BUILT))
     assert not missing, f"registered priors without a contract configuration: {missing}"
+
+
+@pytest.fixture(scope="module")
+def built(models, walk_07_01):
+    """The prior of configuration ``k`` of :data:`CONFIGURATIONS`, built through the API on first use."""
+    from tracker.app.api import build_prior
+    from tracker.core.representation import step_rms
 
     class _Seq:  # what build_prior reads of a sequence
         model = walk_07_01.model
         fps = 60.0
         root = Path("contract")
 
-    out = []
-    for name, files, options in [c for n in names for c in BUILT[n]]:
-        prior = build_prior(name, _Seq(), [models[f] for f in files], step_std=step_rms([walk_07_01.poses]),
-                            **options)
-        out.append((f"{name} {'+'.join(files)} {options}", prior))
-    return out
+    step_std = step_rms([walk_07_01.poses])
+    cache = {}
+
+    def get(k: int):
+        if k not in cache:
+            name, files, options = CONFIGURATIONS[k]
+            cache[k] = build_prior(name, _Seq(), [models[f] for f in files], step_std=step_std, **options)
+        return cache[k]
+    return get
 
 
-@pytest.fixture(scope="module")
-def priors(models, plugin_prior, walk_07_01):
-    return configurations(models, plugin_prior, walk_07_01)
+def members(prior) -> list:
+    """The priors a composite prior samples with (a mixture's components), or the prior itself."""
+    return list(getattr(prior, "components", None) or [prior])
 
 
-def rollout(prior, poses: np.ndarray, n_particles: int, seed: int, frames: int):
-    """``frames`` steps of ``prior`` from the known frames ``poses[:order]``: the histories ``P x N x D``, the
-    available count and the state before the last step."""
-    rng = np.random.default_rng(seed)
-    known = poses[:prior.order]
-    state = prior.start(known, n_particles, rng)
-    history = np.repeat(known[None], n_particles, axis=0)
-    available = prior.order
-    for _ in range(frames):
-        new, state = prior.sample(history, available, state, rng)
-        history = np.concatenate([history[:, 1:], new[:, None]], axis=1)
-    return history, available, state
+class TestRegisteredPriors(PriorContract):
+    """Every configuration of :data:`BUILT`, started from the realistic walk 07_01."""
 
+    @pytest.fixture(autouse=True, params=range(len(CONFIGURATIONS)), ids=LABELS)
+    def configuration(self, request, built, walk_07_01):
+        self.prior = built(request.param)
+        self.poses = walk_07_01.poses
 
-def rows(state, n: int):
-    """Every array of a (nested) state, to check that each has one row per particle."""
-    if state is None:
-        return
-    if isinstance(state, dict):
-        for v in state.values():
-            yield from rows(v, n)
-    else:
-        yield np.asarray(state)
+    def make_prior(self):
+        return self.prior
 
+    def known_poses(self):
+        return self.poses
 
-def test_every_registered_prior_starts_with_one_state_row_per_particle(priors, walk_07_01):
-    for label, prior in priors:
-        state = prior.start(walk_07_01.poses[:prior.order], P, np.random.default_rng(0))
-        for array in rows(state, P):
-            assert array.shape[:1] == (P,), label
+    def components(self, prior, state):
+        """A mixture's components, or an ensemble's members (each samples its particles with its own model)."""
+        found = super().components(prior, state)
+        if found is None and isinstance(state, dict) and "component" in state:
+            return np.asarray(state["component"])
+        return found
 
+    def frames_before_batch_check(self, prior):
+        """0 for a prior with a posture offset: that offset is one for the whole particle set (it integrates
+        the posterior's mean posture correction, :class:`priors.parts.PostureOffset`), the one part that sees
+        the other particles by design; before its first move it sees none."""
+        return 0 if any(getattr(m, "posture", None) is not None for m in members(prior)) else 2
 
-def test_the_same_seed_draws_the_same_poses(priors, walk_07_01):
-    for label, prior in priors:
-        a = rollout(prior, walk_07_01.poses, P, 3, 3)[0]
-        b = rollout(prior, walk_07_01.poses, P, 3, 3)[0]
-        assert np.array_equal(a, b), label
-        c = rollout(prior, walk_07_01.poses, P, 4, 3)[0]
-        assert not np.array_equal(a, c), label
+    def grows_history(self, prior):
+        return prior.order >= 2 and not all(m.name in RANDOM_WALKS for m in members(prior))
 
-
-def shared_frames(prior) -> int:
-    """Frames to roll out before a batch check: 2, or 0 for a prior with a posture offset. That offset is one for
-    the whole particle set (it integrates the posterior's mean posture correction, :class:`priors.parts.
-    PostureOffset`), the one part that sees the other particles by design; before its first move it sees none."""
-    members = getattr(prior, "members", None) or getattr(prior, "components", None) or [prior]
-    return 0 if any(getattr(m, "posture", None) is not None for m in members) else 2
-
-
-def test_a_batch_samples_each_particle_as_it_would_alone(priors, walk_07_01):
-    """Row ``i`` of a batch is the same whatever the other rows' histories: replacing every other particle's
-    history by particle ``i``'s (as sampling it alone would) leaves its pose unchanged."""
-    for label, prior in priors:
-        history, available, state = rollout(prior, walk_07_01.poses, P, 5, shared_frames(prior))
-        batched = prior.sample(history, available, state, np.random.default_rng(9))[0]
-        for i in (0, P // 2, P - 1):
-            alone = np.repeat(history[i:i + 1], P, axis=0)
-            looped = prior.sample(alone, available, state, np.random.default_rng(9))[0]
-            assert np.allclose(looped[i], batched[i], rtol=1e-5, atol=1e-4), (label, i)
-
-
-def groups(state) -> np.ndarray | None:
-    """The component each particle belongs to where a prior keeps components apart (an ensemble's member, an
-    FCRBM's style label, a mixture's motion model): resampling within a component leaves every component's random numbers where they were."""
-    if isinstance(state, dict):
-        for key in ("style", "component"):
-            if key in state:
-                return np.asarray(state[key])
-    return None
-
-
-def test_reindexing_after_resampling_keeps_histories_and_state_together(priors, walk_07_01):
-    """After resampling picked particle ``i`` for every slot of its component, slot ``i`` samples what particle
-    ``i`` would have."""
-    for label, prior in priors:
-        history, available, state = rollout(prior, walk_07_01.poses, P, 6, shared_frames(prior))
-        batched = prior.sample(history, available, state, np.random.default_rng(11))[0]
-        for i in (1, P - 2):
-            component = groups(state)
-            idx = np.full(P, i) if component is None else np.where(component == component[i], i, np.arange(P))
-            picked = prior.reindex(state, idx)
-            for array, original in zip(rows(picked, P), rows(reindex_state(state, idx), P)):
-                assert np.array_equal(array, original, equal_nan=True), label
-            again = prior.sample(history[idx], available, picked, np.random.default_rng(11))[0]
-            assert np.allclose(again[i], batched[i], rtol=1e-5, atol=1e-4), (label, i)
-
-
-def test_a_checkpointed_state_continues_to_the_same_poses(priors, walk_07_01, tmp_path):
-    from tracker.app.checkpoint import load_checkpoint, save_checkpoint
-    from tracker.engine.filter import FilterState
-    from tracker.engine.recording import Recording
-    from tracker.engine.weights import LogWeights
-
-    for k, (label, prior) in enumerate(priors):
-        history, available, state = rollout(prior, walk_07_01.poses, P, 7, 2)
-        rng = np.random.default_rng(13)
-        path = tmp_path / f"checkpoint{k}.npz"
-        filter_state = FilterState(history, state, LogWeights(np.zeros(P)), history[0], available, 2)
-        save_checkpoint(path, filter_state, Recording(()), rng.bit_generator.state, {"prior": label})
-        direct = prior.sample(history, available, state, rng)[0]
-        resumed_rng = np.random.default_rng(0)
-        restored, _ = load_checkpoint(path, {"prior": label}, Recording(()), resumed_rng)
-        resumed = prior.sample(restored.history, restored.available, restored.prior_state, resumed_rng)[0]
-        assert np.array_equal(direct, resumed), label
-
-
-def test_a_learned_prior_grows_its_history_from_one_known_frame(priors, walk_07_01):
-    """From one known pose the history grows through the lower orders the model files carry (Taylor 2009,
-    Sec. 6.4): every step draws finite poses and says which model drew them."""
-    for label, prior in priors:
-        parts = getattr(prior, "components", [prior])
-        if prior.order < 2 or all(p.name in RANDOM_WALKS for p in parts):
-            continue  # a random walk has no lower orders: it samples from whatever history it has
-        rng = np.random.default_rng(8)
-        known = walk_07_01.poses[:1]
-        state = prior.start(known, P, rng)
-        history = np.repeat(walk_07_01.poses[None, :1], prior.order, axis=1).repeat(P, axis=0)
-        labels = []
-        for available in range(1, prior.order + 1):
-            labels.append(label_for(prior, available))
-            new, state = prior.sample(history, available, state, rng)
-            assert np.all(np.isfinite(new)), (label, available)
-            history = np.concatenate([history[:, 1:], new[:, None]], axis=1)
-        assert labels[0] != labels[-1], label
+    def parts(self, prior):
+        return list(getattr(prior, "parts", ()))
 
 
 def test_model_files_of_0_13_sample_as_they_did(walk_07_01):

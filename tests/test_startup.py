@@ -54,22 +54,21 @@ def test_zero_velocity_track_loads_no_renderer_and_no_torch(bodytrack_dir, tmp_p
 
 
 @pytest.mark.parametrize("package", ["priors", "likelihoods"])
-def test_support_modules_register_nothing(package):
-    """The modules that load_plugins skips exist and register no prior or likelihood (a registering module left
-    in the list would vanish from the command line)."""
+def test_builtin_modules_are_exactly_the_registering_ones(package):
+    """The modules load_plugins imports each register something, and no other module of the package registers
+    anything (a registering module missing from the list would vanish from the command line)."""
     import importlib
     import pkgutil
 
     from tracker.engine.registry import LIKELIHOODS, PRIORS
 
     pkg = importlib.import_module(package)
-    modules = {info.name for info in pkgutil.iter_modules(pkg.__path__)}
-    assert set(pkg.SUPPORT_MODULES) <= modules
-    for name in modules:
-        importlib.import_module(f"{package}.{name}")
+    modules = {info.name for info in pkgutil.walk_packages(pkg.__path__, f"{package}.")}
+    assert set(pkg.BUILTIN_MODULES) <= modules
+    for name in sorted(modules):
+        importlib.import_module(name)
     origins = {e.build.__module__ for e in [*PRIORS.entries.values(), *LIKELIHOODS.entries.values()]}
-    assert origins & {f"{package}.{name}" for name in pkg.SUPPORT_MODULES} == set()
-    assert {o for o in origins if o.startswith(f"{package}.")}, "the package registers nothing at all"
+    assert {o for o in origins if o.startswith(f"{package}.")} == set(pkg.BUILTIN_MODULES)
 
 
 

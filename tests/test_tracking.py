@@ -158,7 +158,7 @@ def test_ctrl_c_saves_a_checkpoint_and_resume_gives_the_uninterrupted_result(wal
         assert np.array_equal(a["poses"], b["poses"]) and np.array_equal(a["best_poses"], b["best_poses"])
     resumed = json.loads((out / "result.json").read_text())
     assert resumed["metrics"] == json.loads((tmp_path / "whole" / "result.json").read_text())["metrics"]
-    assert "complete" not in resumed
+    assert resumed["complete"] is True
     assert not (out / "checkpoint.npz").exists()
     r = subprocess.run([sys.executable, "-m", "tracker", "track", "--resume", str(out)], capture_output=True,
                        text=True)
@@ -291,7 +291,10 @@ def test_a_block_that_fails_on_any_thread_stops_the_others_and_is_raised():
         assert len(scored) < len(blocks) - 1  # the others stopped early
 
 
-def test_the_track_progress_bar_counts_the_tracked_frames(walk_32_frames, tmp_path, capsys):
+def test_the_track_progress_bar_counts_the_tracked_frames(walk_32_frames, tmp_path, capsys, monkeypatch):
+    from tracker.app import console
+
+    monkeypatch.setattr(console, "on_terminal", lambda: True)  # bars are drawn on a terminal only
     assert main(["track", str(walk_32_frames.root), "--prior", "zero-velocity", "--particles", "50",
                  "--frames", "6", "--out", str(tmp_path / "run")]) == 0
     err = capsys.readouterr().err

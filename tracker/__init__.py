@@ -25,17 +25,15 @@ pull in the application layer.
 Conventions (docs/conventions.md): world z up, millimetres, radians, images
 H x W with (x, y) pixel coordinates, batches on the leading axis.
 """
-from __future__ import annotations
-
-import importlib
-import os
+import importlib as _importlib
+import os as _os
 
 # OpenMP threads (torch's and MKL's) that finish a parallel region spin, waiting for the next, unless told to
 # sleep; on a machine where other processes run, the spinning threads take the cores the work needs. Measured
 # on a busy 2-core machine, sampling a CRBM for 1000 particles with 2 torch threads: median 122-126 ms (worst
 # calls 1.9 s) spinning against 51-54 ms passive, 34-49 ms with one thread. Set before torch is imported (the
 # OpenMP runtime reads it when it loads); an explicit setting of the caller's wins.
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+_os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 __version__ = "0.17.0"
 
@@ -64,11 +62,12 @@ __all__ = sorted(_EXPORTS)
 
 def __getattr__(name: str):
     if name in _EXPORTS:
-        value = getattr(importlib.import_module(_EXPORTS[name]), name)
+        value = getattr(_importlib.import_module(_EXPORTS[name]), name)
         globals()[name] = value
         return value
     raise AttributeError(f"module 'tracker' has no attribute {name!r}")
 
 
 def __dir__() -> list[str]:
-    return sorted(list(globals()) + __all__)
+    """The API only (and ``__version__``), not the names this module uses itself."""
+    return sorted([*__all__, "__version__"])

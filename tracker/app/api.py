@@ -75,6 +75,9 @@ def load_clip(mocap: str | Path, skeleton: str | Path | None = None, fps: float 
     file's own rate; other rates are interpolated). ``joint_map`` (a JSON or TOML file, or a mapping of body
     points to the file's joint names) is for skeletons whose names are not recognised
     (docs/guide/motion_capture.md)."""
+    from tracker.app.plugins import load_plugins
+
+    load_plugins()  # the mocap readers of installed plugins (entry points) register on import
     return retarget(load_mocap(mocap, skeleton, length_unit, joint_map=joint_map), fps=fps)
 
 
@@ -94,9 +97,13 @@ def synthesize(mocap: str | Path | RetargetResult, out: str | Path, *, skeleton:
     output rate, before ``start``/``frames`` cut the result), cross-faded over ``fade`` frames into ``then``
     (:func:`data_tools.transition.cross_fade`; e.g. a walk into a run of the same subject). ``joint_map`` and
     ``then_joint_map`` name the files' joints as :func:`load_clip`'s does."""
+    from data_tools.files import check_output_folder
     from data_tools.synth import SynthConfig, synthesize as render_sequence
     from data_tools.transition import cross_fade
 
+    # before any work; the refusal says how Python asks to replace the folder
+    check_output_folder(out, empty=not overwrite, replaceable=("cameras.json", "meta.json"),
+                        overwrite_flag="overwrite=True")
     if "views" in settings:
         log.warning("synthesize(views=N) is deprecated and will be removed: use cameras=N (a number of cameras; "
                     "track's views are camera indices)")
@@ -393,7 +400,7 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
                               fingerprint=settings)
     except TrackingInterrupted as stop:
         if stop.partial is not None:
-            stop.partial.settings = {**settings, "complete": False}
+            stop.partial.settings = settings
         raise
     result.settings = settings
     return result

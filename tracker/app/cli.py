@@ -13,14 +13,17 @@ import argparse
 import gc
 import json
 import logging
+import shlex
 import sys
 from pathlib import Path
 from typing import NoReturn, Sequence
 
 import numpy as np
 
-from data_tools.files import atomic_path, check_not_inside, check_output_file, check_output_folder
-from tracker.app.console import PROG, configure_logging, error_line, progress_bar, shows_progress, verbosity
+from data_tools.files import (atomic_path, check_not_inside, check_output_file, check_output_folder, first_missing,
+                              undone_unless_started)
+from tracker.app.console import (PROG, close_bars, configure_logging, error_line, interrupted_status, invoked_as,
+                                 progress_bar, shows_progress, stop_signals, verbosity)
 from tracker.app.parser import build_parser, given_options, parse_arguments
 from tracker.app.plugins import import_plugin, likelihood_entry, prior_entry
 from tracker.app.threads import set_threads
@@ -32,12 +35,26 @@ def _convert_one(mocap: str | Path, skeleton, fps: float | None, length_unit, ou
     from data_tools.clip_io import save_converted_clip
     from data_tools.load import load_mocap
     from data_tools.retarget import retarget
+    from tracker.app.plugins import load_plugins
 
+    load_plugins()  # the mocap readers of installed plugins (entry points) register on import
     clip = load_mocap(mocap, skeleton, length_unit, joint_map=joint_map)
     result = retarget(clip, fps=fps)
     with atomic_path(out) as tmp:
         save_converted_clip(result, tmp)
     return clip, result
+
+
+#: A mean retarget residual (mm) above which a conversion is suspect: a well-read file fits within a few mm.
+RESIDUAL_WARNING_MM = 10.0
+
+
+def _check_residual(name: str, residual_mm: float) -> None:
+    """Warn when a clip's mean retarget residual points to a wrong length unit or joint mapping."""
+    if residual_mm > RESIDUAL_WARNING_MM:
+        log.warning(f"{name}: mean retarget residual {residual_mm:.1f} mm; a well-read file fits within a few mm, "
+                    "and tens of mm point to a wrong length unit (--length-unit) or joint mapping (--joint-map): "
+                    "see docs/guide/motion_capture.md")
 
 
 def cmd_convert(args: argparse.Namespace) -> int:
@@ -48,6 +65,7 @@ def cmd_convert(args: argparse.Namespace) -> int:
         log.info(f"note: {Path(args.mocap).name}: {note}")
     print(f"{Path(args.mocap).name}: {clip.summary()}; {len(result.poses)} frames at {result.fps:g} fps, "
           f"mean retarget residual {result.mean_residual:.2f} mm -> {out}")  # the residual: how well it went
+    _check_residual(Path(args.mocap).name, result.mean_residual)
     return 0
 
 
@@ -55,7 +73,9 @@ def cmd_synth(args: argparse.Namespace) -> int:
     from data_tools.load import load_mocap
     from data_tools.retarget import retarget
     from data_tools.synth import SynthConfig, synthesize
+    from tracker.app.plugins import load_plugins
 
+    load_plugins()  # the mocap readers of installed plugins (entry points) register on import
     check_output_folder(args.out, empty=not args.overwrite, replaceable=("cameras.json", "meta.json"))
     settings = SynthConfig(views=args.cameras, fps=args.fps, start=args.start, frames=args.frames, seed=args.seed,
                            width=args.width, height=args.height, noise=args.noise,
@@ -65,6 +85,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
     for note in clip.notes:
         log.info(f"note: {Path(args.mocap).name}: {note}")
     result = retarget(clip, fps=args.fps)
+    _check_residual(Path(args.mocap).name, result.mean_residual)
     if args.then or args.switch_at:
         from data_tools.transition import cross_fade
 
@@ -114,11 +135,19 @@ def _parse_views(text: str | None, n_views: int) -> list[int]:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from tracker.app.compare import compare
+    from tracker.app.compare import compare, finished_runs
 
-    summary = compare(args.experiment, args.out, jobs=args.jobs, backend=args.backend, address=args.address,
-                      threads=args.threads, data_root=args.data_root, overwrite=args.overwrite,
-                      videos=args.videos, progress=shows_progress())
+    command = shlex.join([*invoked_as().split(), *args.argv])  # as typed, recorded in report.html
+    try:
+        summary = compare(args.experiment, args.out, jobs=args.jobs, backend=args.backend, address=args.address,
+                          threads=args.threads, data_root=args.data_root, overwrite=args.overwrite,
+                          videos=args.videos, progress=shows_progress(), command=command)
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: every finished run is kept, and the same command continues
+        close_bars()
+        done, total = finished_runs(args.out)
+        kept = f"{done} of {total} runs finished and kept" if total else "nothing run yet"
+        log.warning(f"interrupted: {kept} in {args.out}; continue with: {command}")
+        return interrupted_status()
     print(summary["table"])
     log.info(f"-> {Path(args.out) / 'table.md'}, table.csv, per_frame.png, report.html")
     return 0
@@ -172,22 +201,34 @@ def cmd_train(args: argparse.Namespace) -> int:
     options = given_options(args, prior_entry(args.prior).train_options)
     clips = load_training_clips(args.mocap, args.skeleton, args.fps, args.joint_map)  # every file read, checked first
     checkpoint = out.with_name(out.name + ".checkpoint")
-    progress = _progress_bar(f"training {args.prior}", on_start=lambda: log.info(  # once every setting is checked
-        f"training a {args.prior} prior on {len(clips)} clip(s), {sum(len(c.poses) for c in clips)} frames at "
-        f"{clips[0].fps:g} fps"))
-    try:
-        model = train(args.prior, clips, skeletons=args.skeleton, fps=clips[0].fps, seed=args.seed,
-                      progress=progress, checkpoint=checkpoint, resume=args.resume, **options)
-    except KeyboardInterrupt:  # Ctrl-C: the last checkpoint (if any) stays for --resume; no model is written
-        if not prior_entry(args.prior).resumable:
-            again = "; nothing saved"
-        elif checkpoint.exists():
-            again = "; continue with the same command and --resume"
-        else:
-            again = "; nothing saved (--checkpoint-every E saves the training state as it goes)"
-        progress.close()
-        log.warning(f"interrupted{again}")
-        return 130
+    resume = args.resume and (checkpoint.exists() or not prior_entry(args.prior).resumable)  # the latter refused
+    if args.resume and not resume:  # stopped before its first checkpoint: the whole training again
+        log.info(f"no training checkpoint at {checkpoint}: training from the start")
+    side = checkpoint.with_name(checkpoint.name + ".inputs.json")
+    with undone_unless_started(first_missing(out), checkpoint, side) as work:  # refused: nothing stays behind
+
+        def started() -> None:  # once every setting is checked
+            work["started"] = True
+            log.info(f"training a {args.prior} prior on {len(clips)} clip(s), "
+                     f"{sum(len(c.poses) for c in clips)} frames at {clips[0].fps:g} fps")
+
+        progress = _progress_bar(f"training {args.prior}", on_start=started)
+        try:
+            model = train(args.prior, clips, skeletons=args.skeleton, fps=clips[0].fps, seed=args.seed,
+                          progress=progress, checkpoint=checkpoint, resume=resume, **options)
+        except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the last checkpoint (if any) stays for --resume
+            progress.close()
+            work["started"] = True  # the model file is written only at the end: nothing else to undo
+            command = shlex.join([*invoked_as().split(), *args.argv])
+            if not checkpoint.exists():
+                side.unlink(missing_ok=True)
+                saves = ("" if not prior_entry(args.prior).resumable
+                         else " (--checkpoint-every E saves the training state as it goes)")
+                again = f"nothing saved{saves}; start again with: {command}"
+            else:
+                again = f"continue with: {command}{'' if args.resume else ' --resume'}"
+            log.warning(f"interrupted: {again}")
+            return interrupted_status()
     with atomic_path(out) as tmp:
         model.save(tmp)
     print(f"{model.summary()} -> {out}")  # how the training went: its result
@@ -200,9 +241,26 @@ TRACK_ARGS = "track_arguments.json"
 _CONSOLE = ("quiet", "verbose", "argv")
 
 
+def _saved_arguments(args: argparse.Namespace) -> dict:
+    """The arguments of a run as kept in ``OUTDIR/track_arguments.json`` (paths already made absolute)."""
+    saved = {k: v for k, v in vars(args).items() if k not in ("resume", "command", "threads", *_CONSOLE)}
+    saved["plugin"] = [str(Path(p).resolve()) if p.endswith(".py") else p for p in args.plugin]
+    return saved
+
+
+def _same_run(saved: dict, given: dict) -> list[str]:
+    """The arguments in which ``given`` differs from an unfinished run's ``saved`` ones (``--overwrite`` aside)."""
+    def plain(d: dict) -> dict:
+        return json.loads(json.dumps({k: v for k, v in d.items() if k != "overwrite"}))
+
+    a, b = plain(saved), plain(given)
+    return sorted(k for k in set(a) | set(b) if a.get(k) != b.get(k))
+
+
 def _track_arguments(args: argparse.Namespace) -> argparse.Namespace:
     """The arguments of a run: as given (paths made absolute, kept in OUTDIR for --resume), or with --resume
-    those saved by the interrupted run."""
+    those saved by the interrupted run. The same command again, into the folder of its unfinished run, continues
+    that run as ``--resume OUTDIR`` does."""
     if args.resume:
         defaults = vars(build_parser(["track"]).parse_args(["track"]))
         given = [k for k, v in vars(args).items() if k not in ("resume", "command", "plugin", "threads", *_CONSOLE)
@@ -215,6 +273,8 @@ def _track_arguments(args: argparse.Namespace) -> argparse.Namespace:
         from data_tools.textfiles import read_json
 
         saved = read_json(path, "saved track arguments")
+        if not isinstance(saved, dict):
+            raise InputError("saved track arguments are not a JSON object", path)
         for spec in saved.get("plugin", []):
             import_plugin(spec)
         return argparse.Namespace(**{**vars(args), **saved, "resume": args.resume})
@@ -229,6 +289,18 @@ def _track_arguments(args: argparse.Namespace) -> argparse.Namespace:
     for key in ("model", "train_mocap"):
         if getattr(args, key):
             setattr(args, key, [str(Path(m).resolve()) for m in getattr(args, key)])
+    unfinished = Path(args.out) / TRACK_ARGS
+    if unfinished.is_file() and not args.overwrite:
+        from data_tools.textfiles import read_json
+
+        saved = read_json(unfinished, "saved track arguments")
+        differ = _same_run(saved, _saved_arguments(args)) if isinstance(saved, dict) else ["all"]
+        if differ:
+            raise InputError(f"the output folder holds an unfinished run of other arguments ({', '.join(differ)}): "
+                             f"continue it with {PROG} track --resume {args.out}, or pass --overwrite to start this "
+                             "one in its place", args.out)
+        log.info(f"{args.out} holds this run, unfinished: continuing it")
+        args.resume = args.out
     return args
 
 
@@ -246,51 +318,62 @@ def cmd_track(args: argparse.Namespace) -> int:
     if args.video:
         check_output_file(args.video, "--video", (".mp4",), new=not (args.overwrite or args.resume))
         check_not_inside(args.video, {"sequence folder": args.sequence})
-    seq = load_sequence(args.sequence)
-    views = _parse_views(args.views, seq.n_views)
-    init = read_poses_file(args.init, "initial poses", seq.model) if args.init else None
-    T, _, n_known = check_frames(seq, args.frames, args.known_frames, init)
-    if not args.resume:
-        saved = {k: v for k, v in vars(args).items() if k not in ("resume", "command", "threads", *_CONSOLE)}
-        saved["plugin"] = [str(Path(p).resolve()) if p.endswith(".py") else p for p in args.plugin]
-        write_text_atomic(out / TRACK_ARGS, json.dumps(saved, indent=1))
+    checkpoint = out / "checkpoint.npz"
     errors: list[float] = []  # the mpjpe_abs of each frame, for the bar
     bars: list = []  # the bar appears with the first tracked frame: a refusal before that stays one line
-
-    def on_frame(step, err: float | None) -> None:
-        if not bars:  # counts the tracked frames; its rate starts with the second (the first has no duration)
-            bars.append(progress_bar(total=T - n_known, initial=1, desc=f"tracking ({args.prior})", unit="frame"))
-        else:
-            bars[0].update(1)
-        if err is not None:
-            errors.append(err)
-            bars[0].set_postfix({"mpjpe_abs": f"{err:.0f} mm", "mean": f"{np.mean(errors):.0f} mm"})
-
     try:
-        run = track(seq, args.prior, models=args.model or (), likelihood=args.likelihood,
-                    **given_options(args, prior_entry(args.prior).options),
-                    **given_options(args, likelihood_entry(args.likelihood).options),
-                    particles=args.particles, views=views, frames=args.frames, seed=args.seed,
-                    annealing_layers=args.annealing_layers, resampling=args.resampling,
-                    known_frames=args.known_frames, init=init, train_mocap=args.train_mocap, device=args.device,
-                    on_frame=on_frame, checkpoint=out / "checkpoint.npz", checkpoint_every=args.checkpoint_every,
-                    resume=bool(args.resume))
-    except (InputError, KeyboardInterrupt):  # refused, or Ctrl-C, before the filter's first frame (a bad model
-        # file, say, or while the priors are being prepared): nothing stays behind; a full disk later, or Ctrl-C
-        # once the filter runs, keeps the run resumable (the filter answers Ctrl-C itself from its first frame on)
-        if not args.resume and not (out / "checkpoint.npz").exists():
-            (out / TRACK_ARGS).unlink(missing_ok=True)
-        raise
-    except TrackingInterrupted as stop:
-        for bar in bars:
-            bar.close()
-        if stop.partial is not None:
-            stop.partial.invocation = {"argv": [PROG, *args.argv]}
-            stop.partial.save(out, overwrite=True)
-        done = "" if stop.partial is None else f" after {len(stop.partial.tracked_frames)} frame(s)"
-        again = f"; resume with: {PROG} track --resume {out}" if stop.checkpoint else ""
-        log.warning(f"interrupted{done}: partial result in {out}{again}")
-        return 130
+        with undone_unless_started(first_missing(out)) as work:  # refused or stopped before the first frame:
+            # nothing stays behind
+            seq = load_sequence(args.sequence)
+            views = _parse_views(args.views, seq.n_views)
+            init = read_poses_file(args.init, "initial poses", seq.model) if args.init else None
+            T, _, n_known = check_frames(seq, args.frames, args.known_frames, init)
+            if not args.resume:
+                checkpoint.unlink(missing_ok=True)  # an earlier run's, in a folder given with --overwrite
+                write_text_atomic(out / TRACK_ARGS, json.dumps(_saved_arguments(args), indent=1))
+            elif not checkpoint.exists():  # stopped before its first checkpoint (or killed): the whole run again
+                log.info(f"no checkpoint in {out}: tracking from the first frame with the saved arguments")
+
+            def on_frame(step, err: float | None) -> None:
+                work["started"] = True
+                if not bars:  # counts the tracked frames; its rate starts with the second (the first has none)
+                    bars.append(progress_bar(total=T - n_known, initial=1, desc=f"tracking ({args.prior})",
+                                             unit="frame"))
+                else:
+                    bars[0].update(1)
+                if err is not None:
+                    errors.append(err)
+                    bars[0].set_postfix({"mpjpe_abs": f"{err:.0f} mm", "mean": f"{np.mean(errors):.0f} mm"})
+
+            try:
+                run = track(seq, args.prior, models=args.model or (), likelihood=args.likelihood,
+                            **given_options(args, prior_entry(args.prior).options),
+                            **given_options(args, likelihood_entry(args.likelihood).options),
+                            particles=args.particles, views=views, frames=args.frames, seed=args.seed,
+                            annealing_layers=args.annealing_layers, resampling=args.resampling,
+                            known_frames=args.known_frames, init=init, train_mocap=args.train_mocap,
+                            device=args.device, on_frame=on_frame, checkpoint=checkpoint,
+                            checkpoint_every=args.checkpoint_every,
+                            resume=bool(args.resume) and checkpoint.exists())
+            except TrackingInterrupted as stop:  # Ctrl-C or SIGTERM once the filter runs
+                for bar in bars:
+                    bar.close()
+                if stop.partial is None and not args.resume:  # before its first frame: as if never started
+                    work["started"] = False
+                    raise KeyboardInterrupt from None
+                work["started"] = True
+                if stop.partial is not None:
+                    stop.partial.invocation = {"argv": [PROG, *args.argv]}
+                    stop.partial.save(out, overwrite=True)
+                done = "" if stop.partial is None else f" after {len(stop.partial.tracked_frames)} frame(s)"
+                kept = "partial result" if stop.partial is not None else "saved arguments"
+                log.warning(f"interrupted{done}: {kept} in {out}; resume with: {PROG} track --resume {out}")
+                return interrupted_status()
+    except KeyboardInterrupt:  # before the first frame: nothing kept but the saved arguments of a resumed run
+        again = (f"resume with: {PROG} track --resume {out}" if args.resume
+                 else f"nothing was kept: run the same command again")
+        log.warning(f"interrupted before the first frame was tracked; {again}")
+        return interrupted_status()
     for bar in bars:
         bar.update(T - n_known - bar.n)
         bar.close()
@@ -338,28 +421,34 @@ def run() -> NoReturn:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run one command line (``argv``, default the process's arguments); returns the exit status."""
+    """Run one command line (``argv``, default the process's arguments); returns the exit status. SIGTERM stops
+    a command as Ctrl-C does (:func:`tracker.app.console.stop_signals`; exit status 143)."""
     argv = list(sys.argv[1:] if argv is None else argv)
     configure_logging()  # INFO until the arguments say otherwise (a deprecated flag warns while they are parsed)
-    try:
-        for spec in _plugins_from_argv(argv):
-            import_plugin(spec)
-        args = parse_arguments(argv)
-        configure_logging(verbosity(args.quiet, args.verbose))
-        args.argv = argv
-        log.debug(f"arguments: {vars(args)}")
-        if args.command != "compare":  # compare gives each worker its share instead
-            set_threads(args.threads)
-        return COMMANDS[args.command](args)
-    except InputError as exc:
-        print(error_line(str(exc)), file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:  # Ctrl-C where a command has nothing to keep (those that do answer it themselves)
-        log.warning("interrupted; nothing was written that a rerun would not write again")
-        return 130
-    except (MemoryError, RuntimeError) as exc:  # sizes within the checked ranges that this machine cannot hold
-        if isinstance(exc, RuntimeError) and "can't allocate memory" not in str(exc):  # torch's allocator says so
-            raise
-        reason = str(exc).splitlines()[0][:160] if str(exc) else "allocation failed"
-        print(error_line(f"not enough memory for these settings ({reason}); choose smaller sizes"), file=sys.stderr)
-        return 2
+    with stop_signals():
+        try:
+            for spec in _plugins_from_argv(argv):
+                import_plugin(spec)
+            args = parse_arguments(argv)
+            configure_logging(verbosity(args.quiet, args.verbose))
+            args.argv = argv
+            log.debug(f"arguments: {vars(args)}")
+            if args.command != "compare":  # compare gives each worker its share instead
+                set_threads(args.threads)
+            return COMMANDS[args.command](args)
+        except InputError as exc:
+            close_bars()  # the error is the last line: no bar drawn again below it
+            print(error_line(str(exc)), file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:  # Ctrl-C where a command has nothing to keep (those that do answer it themselves)
+            close_bars()
+            log.warning("interrupted; nothing was written that a rerun would not write again")
+            return interrupted_status()
+        except (MemoryError, RuntimeError) as exc:  # sizes within the checked ranges that this machine cannot hold
+            if isinstance(exc, RuntimeError) and "can't allocate memory" not in str(exc):  # torch's allocator says so
+                raise
+            close_bars()
+            reason = str(exc).splitlines()[0][:160] if str(exc) else "allocation failed"
+            print(error_line(f"not enough memory for these settings ({reason}); choose smaller sizes"),
+                  file=sys.stderr)
+            return 2

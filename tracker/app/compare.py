@@ -25,7 +25,7 @@ from typing import Callable, Iterator
 
 import numpy as np
 
-from data_tools.files import atomic_path, write_text_atomic, writing
+from data_tools.files import atomic_path, first_missing, undone_unless_started, write_text_atomic, writing
 from data_tools.fingerprints import CACHE_NAME, config_hash, file_hash, sequence_hash
 from tracker.app.experiment import Experiment, RunSpec, expand_runs, load_experiment, run_seed
 from tracker.core.errors import InputError
@@ -161,8 +161,12 @@ def execute_run(spec: RunSpec) -> dict:
         if exc.path is not None and Path(exc.path).parent == tmp:
             raise InputError(exc.reason, final / Path(exc.path).name) from None
         raise
-    except BaseException:
+    except BaseException as exc:
         shutil.rmtree(tmp, ignore_errors=True)
+        from tracker.app.tracking import TrackingInterrupted
+
+        if isinstance(exc, TrackingInterrupted):  # Ctrl-C in the run's filter: the experiment is interrupted
+            raise KeyboardInterrupt from None
         raise
 
 
@@ -304,7 +308,7 @@ def run_all(specs: list[RunSpec], jobs: int, backend: str, address: str | None) 
 def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str = "joblib",
             address: str | None = None, threads: int | None = None, say: Callable[[str], None] | None = None,
             progress: bool = True, data_root: str | Path | None = None, videos: bool = True,
-            overwrite: bool = False) -> dict:
+            overwrite: bool = False, command: str | None = None) -> dict:
     """Run an experiment (validated whole first), skipping finished runs; write and return its tables.
 
     ``out`` is a new or empty folder, or an earlier compare output (it holds ``experiment.json``), which is
@@ -313,7 +317,13 @@ def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str
 
     ``data_root`` replaces the experiment file's ``data_root`` (see :mod:`tracker.app.experiment`); ``videos=False``
     leaves the overlay videos out of ``report.html``. ``say`` receives the lines on what is being done (default:
-    this module's logger, at INFO); ``progress`` draws a bar over the runs."""
+    this module's logger, at INFO); ``progress`` shows the runs' progress (a bar on a terminal, a line now and then
+    in a log: :func:`tracker.app.console.progress_bar`). ``command`` is the command line recorded in
+    ``report.html`` (default: the equivalent ``pose-tracker compare`` line).
+
+    A refusal (a bad experiment, a prior that does not fit a sequence) leaves nothing behind that was not there
+    before; an interruption (Ctrl-C) keeps every finished run, and the same call continues. ``experiment.json``
+    says ``"complete": true`` once every run has finished and the tables are written."""
     say = say or log.info
     import tracker
     from tracker.app.report import write_report
@@ -330,23 +340,26 @@ def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str
     out = check_output_folder(out, empty=not (overwrite or ours))
     check_not_inside(out, {f"sequence folder of {s.name!r}": s.path for s in exp.sequences if s.path is not None})
     runs_dir = out / "runs"
-    with writing(runs_dir):
-        runs_dir.mkdir(parents=True, exist_ok=True)
     version = tracker.__version__
-    if not ours:  # marks the folder as a compare output from the start, so an interrupted one is continued
-        write_text_atomic(out / "experiment.json", json.dumps({"experiment": str(exp.path), "version": version,
-                                                               "complete": False}, indent=1))
-    for stale in runs_dir.glob(".*.tmp-*"):  # left by an interrupted run
-        shutil.rmtree(stale, ignore_errors=True)
-    warming = warm_joblib_workers(jobs) if backend == "joblib" and jobs > 1 else None
-    sequence_paths, sequence_hashes = prepare_sequences(exp, out, version, say)
-    models = prepare_models(exp, out, version, say)
-    scales = prepare_scales(exp)
-    check_grid(exp, sequence_paths, models, scales)
+    warming = None
+    # a refusal while the experiment is prepared (a prior that does not fit a sequence) leaves nothing behind
+    with undone_unless_started(*(() if ours else (first_missing(out),)), on=(InputError,)):
+        with writing(runs_dir):
+            runs_dir.mkdir(parents=True, exist_ok=True)
+        if not ours:  # marks the folder as a compare output from the start, so an interrupted one is continued
+            _write_progress(out, exp, version, None)
+        for stale in runs_dir.glob(".*.tmp-*"):  # left by an interrupted run
+            shutil.rmtree(stale, ignore_errors=True)
+        warming = warm_joblib_workers(jobs) if backend == "joblib" and jobs > 1 else None
+        sequence_paths, sequence_hashes = prepare_sequences(exp, out, version, say)
+        models = prepare_models(exp, out, version, say)
+        scales = prepare_scales(exp)
+        check_grid(exp, sequence_paths, models, scales)
     specs = expand_runs(exp, sequence_paths, sequence_hashes, models, scales, runs_dir, version)
     per_worker = threads or share_of_cores(jobs if backend == "joblib" or not address else 1)
     specs = [replace(s, threads=per_worker) for s in specs]
     unique = list({s.key: s for s in specs}.values())  # two rows that differ only in label run once
+    _write_progress(out, exp, version, len(unique))
     todo = [s for s in unique if not (runs_dir / s.key / "result.json").exists()]
     say(f"{len(unique)} runs: {len(unique) - len(todo)} finished before (skipped), {len(todo)} to run "
         f"({backend}, {jobs} job(s), {per_worker} thread(s) each)")
@@ -356,9 +369,9 @@ def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str
     t0 = time.perf_counter()
     bar = None
     if progress and todo:
-        from tqdm import tqdm
+        from tracker.app.console import progress_bar
 
-        bar = tqdm(total=len(todo), desc="runs", unit="run")
+        bar = progress_bar(total=len(todo), desc="runs", unit="run", shown=True)
     try:
         for res in run_all(todo, jobs, backend, address):
             summaries[res["run"]["key"]] = res
@@ -378,14 +391,31 @@ def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str
             "ran_now": len(todo), "wall_seconds_now": wall,
             "run_seconds_now": sum(r.get("wall_seconds", 0.0) for r in summaries.values()),
             "jobs": jobs, "backend": backend, "threads_per_worker": per_worker, "version": version,
-            "data_root": None if exp.data_root is None else str(exp.data_root)}
-    write_text_atomic(out / "experiment.json", json.dumps(meta, indent=1))
+            "data_root": None if exp.data_root is None else str(exp.data_root), "complete": True}
     summary = write_report(exp, results, out, meta)
     from tracker.app.report_html import compare_command, write_html_report
 
-    command = compare_command(experiment, out, jobs, backend, address, data_root, videos)
+    command = command or compare_command(experiment, out, jobs, backend, address, data_root, videos)
     summary.update(write_html_report(exp, results, out, summary["tables"], meta, command, videos, say))
+    write_text_atomic(out / "experiment.json", json.dumps(meta, indent=1))  # last: complete once all is written
     return summary
+
+
+def _write_progress(out: Path, exp: Experiment, version: str, runs: int | None) -> None:
+    """``experiment.json`` of an experiment under way: not complete, with its number of runs once known."""
+    write_text_atomic(out / "experiment.json", json.dumps({"experiment": str(exp.path), "version": version,
+                                                           "runs": runs, "complete": False}, indent=1))
+
+
+def finished_runs(out: str | Path) -> tuple[int, int | None]:
+    """How many runs of the compare output ``out`` have finished, and how many it has (None before that is
+    known)."""
+    out = Path(out)
+    try:
+        total = json.loads((out / "experiment.json").read_text(encoding="utf-8")).get("runs")
+    except (OSError, ValueError, AttributeError):
+        total = None
+    return sum(1 for _ in (out / "runs").glob("*/result.json")), total
 
 
 def _running_means(summaries: dict) -> str:

@@ -1,4 +1,5 @@
-"""Finding plugins: the built-in prior and likelihood modules, entry points, and modules named by the user.
+"""Finding plugins: the built-in prior and likelihood modules (each package lists its own), entry points, and modules
+named by the user.
 
 Importing a plugin module runs its ``register_prior`` / ``register_likelihood``
 decorators (:mod:`tracker.engine.registry`).
@@ -7,7 +8,6 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
-import pkgutil
 import sys
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -22,18 +22,14 @@ _loaded = False
 
 
 def load_plugins() -> None:
-    """Import every module of the built-in plugin packages but their ``SUPPORT_MODULES`` (the models and shared
-    parts, which the plugins import when they build or train) and every ``pose_tracker.plugins`` entry point
-    (once per process)."""
+    """Import the modules each built-in plugin package lists in ``BUILTIN_MODULES`` (the ones that register its
+    priors or likelihoods) and every ``pose_tracker.plugins`` entry point (once per process)."""
     global _loaded
     if _loaded:
         return
     for package in _BUILTIN_PACKAGES:
-        pkg = importlib.import_module(package)
-        support = set(getattr(pkg, "SUPPORT_MODULES", ()))
-        for info in pkgutil.iter_modules(pkg.__path__):
-            if info.name not in support:
-                importlib.import_module(f"{package}.{info.name}")
+        for module in importlib.import_module(package).BUILTIN_MODULES:
+            importlib.import_module(module)
     for ep in entry_points(group=ENTRY_POINT_GROUP):
         try:
             ep.load()

@@ -213,11 +213,19 @@ def _plotted_rows(rows: list[str], groups: dict[tuple[str, str], list[str]]) -> 
 
 
 def _plot(path: Path, lines: dict[str, list[str]], seqs: list[str], by: dict) -> None:
+    """:func:`per_frame_figure` written to ``path`` (PNG), cropped to what is drawn (labels and legend whole)."""
+    fig = per_frame_figure(lines, seqs, by)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, bbox_inches="tight", pad_inches=0.1)
+
+
+def per_frame_figure(lines: dict[str, list[str]], seqs: list[str], by: dict):
     """Per-frame absolute MPJPE of each line (a row, or a ``train_seeds`` group's rows together), mean over its
-    runs with a ±1 std band, one panel per sequence.
+    runs with a ±1 std band, one panel per sequence (``by``: the results by ``(row, sequence)``).
 
     Each prior gets its own colour (up to 20 distinct ones) and each view set its own line style, so rows
-    stay apart however many there are; the legend sits to the right of the panels."""
+    stay apart however many there are; the legend sits to the right of the panels. The y label is short
+    enough for the smallest panel."""
     from matplotlib import colormaps
     from matplotlib.figure import Figure
     from matplotlib.ticker import MaxNLocator
@@ -247,10 +255,9 @@ def _plot(path: Path, lines: dict[str, list[str]], seqs: list[str], by: dict) ->
         ax.set_title(s)
         ax.set_xlabel("frame")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-        ax.set_ylabel(f"{CORE_METRICS[0].title} (mm)")
+        ax.set_ylabel(f"{CORE_METRICS[0].title.split(' (')[0]} (mm)")  # "MPJPE, absolute (mm)"
         ax.set_ylim(bottom=0)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp)
+    return fig

@@ -434,8 +434,9 @@ def _videos_html(exp, results: list[dict], runs_dir: Path, taken: set[str], say:
     parts = [f"<p class=\"note\">For every sequence{' and grid variant' if any(p.variant for p in picks) else ''}: "
              "the rows with the lowest (left) and the highest (right) marker error (the first table's metric), "
              "mean over seeds. Each side shows one run, the seed whose own mean error is the closest to its row's "
-             "mean over seeds: its estimate (the mean pose; left segments red, right blue, centre yellow) with the "
-             f"ground truth in green, over the first camera of the view set, {TILE_WIDTH} px wide per side.</p>"]
+             "mean over seeds: its estimate (the mean pose; left segments red, right light blue, centre yellow) "
+             "with the ground truth in green, over the first camera of the view set, "
+             f"{TILE_WIDTH} px wide per side.</p>"]
     links, sequences, made = [], {}, 0
     for pick in picks:
         title = pick.sequence + (f": {pick.variant}" if pick.variant else "")

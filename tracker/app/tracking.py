@@ -135,6 +135,7 @@ class TrackingResult:
             "invocation": self.invocation, "started": self.started, "finished": self.finished,
             **self.settings,
             "frames": frames, "frames_known": self.first_tracked, "frames_tracked": len(self.tracked_frames),
+            "complete": len(self.poses) >= frames,  # false for the partial result of an interrupted run
             "metrics": metrics_document(self.per_frame_metrics),
             "seconds_per_frame": self.seconds_per_frame,
             "tracked_frames": self.tracked_frames, "first_tracked_frame": self.first_tracked,

@@ -19,6 +19,8 @@ _ENDS = surface_grid(2, 32)
 
 #: Outline colours (RGB) for left, right and central segments.
 LEFT_COLOUR, RIGHT_COLOUR, CENTRE_COLOUR = (255, 60, 60), (60, 140, 255), (255, 230, 0)
+#: The three colours as captions and documents name them (hue 0, 215 and 54 degrees).
+COLOUR_NAMES = {"left": "red", "right": "light blue", "centre": "yellow"}
 
 
 def segment_polygons(model: BodyModel, pose: np.ndarray, rig: CameraRig) -> list[list[np.ndarray | None]]:
@@ -72,7 +74,7 @@ def as_rgb(image: np.ndarray) -> np.ndarray:
 
 def draw_model(image: np.ndarray, model: BodyModel, polygons: list[np.ndarray | None],
                thickness: int = 1, colour: tuple[int, int, int] | None = None) -> np.ndarray:
-    """Draw one view's segment outlines on a copy of ``image`` (left red, right blue, centre yellow)."""
+    """Draw one view's segment outlines on a copy of ``image`` (left red, right light blue, centre yellow)."""
     out = as_rgb(image)
     for seg, poly in zip(model.segments, polygons):
         if poly is not None:

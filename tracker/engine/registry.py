@@ -2,9 +2,10 @@
 
 A plugin module registers a *builder* for its prior or likelihood; the API and
 the command line look builders up here, and the command line's choices and
-per-plugin options come from these entries. Built-in plugins are the modules of
-the ``priors`` and ``likelihoods`` packages (each registers itself on import;
-the application layer imports them all, :func:`tracker.app.plugins.load_plugins`);
+per-plugin options come from these entries. Built-in plugins are the modules
+the ``priors`` and ``likelihoods`` packages list in ``BUILTIN_MODULES`` (each
+registers itself on import; the application layer imports them,
+:func:`tracker.app.plugins.load_plugins`);
 a package of your own registers through the ``pose_tracker.plugins``
 entry-point group, or any module can be imported with
 ``python -m tracker --plugin MODULE_OR_FILE``. This module holds only the

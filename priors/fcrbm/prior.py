@@ -1,5 +1,5 @@
 """The FCRBM motion prior: every particle carries a style label, and its pose is drawn by the FCRBM with the label
-clamped (Taylor 2009, Ch. 5; the model is :mod:`priors.fcrbm_model`). Registered as ``fcrbm``.
+clamped (Taylor 2009, Ch. 5; the model is :mod:`priors.fcrbm.model`). Registered as ``fcrbm``.
 
 An equal share of the particles carries each label and the filter weighs the labels against each other
 (mixture tracking, :mod:`tracker.engine.mixture`, switching with probability ``style_switch`` per frame). The filter's
@@ -16,7 +16,7 @@ import numpy as np
 
 from priors.common import gibbs_steps_option, loaded, source_of
 from priors.conditional import ConditionalPrior
-from priors.parts import GroundDiffusion, GrowingModels
+from priors.parts import GroundDiffusion, GrowingModels, HeightOffset, PostureOffset
 from priors.settings import CRBM_TRAIN_OPTIONS, STYLE_TEMPERATURE, FCRBMConfig
 from tracker.core.errors import InputError
 from tracker.engine.mixture import Mixing, switching
@@ -26,7 +26,7 @@ from tracker.engine.registry import Option, PriorContext, TrainingData, register
 if TYPE_CHECKING:  # the model and torch load when the prior is built or trained, not when it registers
     import torch
 
-    from priors.fcrbm_model import FCRBMModel
+    from priors.fcrbm.model import FCRBMModel
 
 
 def transition_styles(n_labels: int, first: int, second: int, frames: int, start: int, length: int) -> np.ndarray:
@@ -105,7 +105,8 @@ class FCRBMPrior(ConditionalPrior):
     summary_kind = "posterior"
 
     def __init__(self, models: Sequence[FCRBMModel], gibbs_steps: int = 30, *, device: str = "cpu",
-                 ground: GroundDiffusion = GroundDiffusion(), style_switch: float = 0.05, style: str | None = None,
+                 ground: GroundDiffusion = GroundDiffusion(), height: HeightOffset | None = None,
+                 posture: PostureOffset | None = None, style_switch: float = 0.05, style: str | None = None,
                  style_temperature: float = STYLE_TEMPERATURE):
         grown = GrowingModels(models, "FCRBM")
         first = grown.first
@@ -115,7 +116,7 @@ class FCRBMPrior(ConditionalPrior):
         for what, (value, ok) in checks.items():
             if not ok:
                 raise InputError(f"FCRBM prior: bad {what} {value!r}")
-        super().__init__(grown, device=device, ground=ground)
+        super().__init__(grown, device=device, ground=ground, height=height, posture=posture)
         self.labels = list(first.labels)
         self.style = None if style in (None, "") else str(style)
         self.schedule = None if self.style is None else parse_style_schedule(self.style, self.labels)
@@ -154,7 +155,7 @@ class FCRBMPrior(ConditionalPrior):
     def restart(self, state: PriorState, recent: np.ndarray, n_particles: int,
                 rng: np.random.Generator) -> PriorState:
         """:meth:`start` from ``recent``, the clock carried on past the lost frame."""
-        new = self.start(recent, n_particles, rng)
+        new = super().restart(state, recent, n_particles, rng)
         clock = np.full(n_particles, int(np.asarray(state["clock"])[0]) + 1, np.int64)
         style = self.scheduled(clock) if self.schedule is not None else new["style"]
         return {**new, "clock": clock, "style": style}
@@ -203,8 +204,9 @@ def train_fcrbm_prior(data: TrainingData, options: dict, rng: np.random.Generato
                       checkpoint: Path | None = None) -> FCRBMModel:
     """``train --prior fcrbm``: an FCRBM of ``options['order']`` (and the lower orders it grows from) on the clips
     of ``data``, labelled by ``options['labels']`` (one per clip, in clip order)."""
-    from priors.crbm_training import growth_orders, parse_history_noise
-    from priors.fcrbm_model import parse_labels, train_fcrbm
+    from priors.crbm.training import growth_orders, parse_history_noise
+    from priors.fcrbm.model import parse_labels
+    from priors.fcrbm.training import train_fcrbm
 
     if options["labels"] is None:
         raise InputError("the FCRBM needs one label per training clip: --labels walk,walk,run (labels = "
@@ -239,18 +241,18 @@ def _crbm_option(name: str, **changes) -> Option:
 FCRBM_TRAIN_OPTIONS = (
     Option("labels", str, None, "one style label per training clip, in clip order, comma-separated "
                                 "(e.g. walk,walk,run)"),
-    _crbm_option("order", default=FCRBMConfig.order, help=f"order N (default {FCRBMConfig.order})"),
-    _crbm_option("hidden", default=FCRBMConfig.hidden, help=f"hidden units (default {FCRBMConfig.hidden})"),
-    Option("factors", int, FCRBMConfig.factors, "factors per sub-model (default 100)", minimum=1,
+    _crbm_option("order", default=FCRBMConfig.order, help="order N"),
+    _crbm_option("hidden", default=FCRBMConfig.hidden),
+    Option("factors", int, FCRBMConfig.factors, "factors per sub-model", minimum=1,
            maximum=100000),
-    Option("features", int, FCRBMConfig.features, "real-valued style features (default 20)", minimum=1,
+    Option("features", int, FCRBMConfig.features, "real-valued style features", minimum=1,
            maximum=100000),
-    _crbm_option("epochs", default=FCRBMConfig.epochs, help=f"passes through the data (default {FCRBMConfig.epochs})"),
+    _crbm_option("epochs", default=FCRBMConfig.epochs),
     _crbm_option("cd_k"),
     _crbm_option("batch_size"),
-    Option("learning_rate", float, FCRBMConfig.learning_rate, "learning rate (default 1e-2)", minimum=0.0),
+    Option("learning_rate", float, FCRBMConfig.learning_rate, "learning rate", minimum=0.0),
     Option("autoregressive_learning_rate", float, FCRBMConfig.autoregressive_learning_rate,
-           "learning rate of the autoregressive and label-to-feature weights (default 1e-3)", minimum=0.0),
+           "learning rate of the autoregressive and label-to-feature weights", minimum=0.0),
     _crbm_option("history_noise"),
     _crbm_option("grow_from"),
 )
@@ -262,6 +264,8 @@ FCRBM_TRAIN_OPTIONS = (
     model_files="one", train=train_fcrbm_prior, train_options=FCRBM_TRAIN_OPTIONS,
     options=(gibbs_steps_option(30),
              *GroundDiffusion.OPTIONS,
+             *HeightOffset.OPTIONS,
+             *PostureOffset.OPTIONS,
              Option("style_switch", float, 0.05, "probability per frame that the style switches to another label "
                                                  "(default 0.05)", minimum=0.0, maximum=1.0),
              Option("style", str, None, "give every particle this label and never switch (the oracle), or a "
@@ -271,12 +275,15 @@ FCRBM_TRAIN_OPTIONS = (
                     f"to 1/T when the labels are weighed (default {STYLE_TEMPERATURE:g})", minimum=1.0,
                     maximum=1e6)))
 def build_fcrbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> FCRBMPrior:
-    from priors.fcrbm_model import FCRBMModel, load_fcrbm
+    from priors.fcrbm.file import load_fcrbm
+    from priors.fcrbm.model import FCRBMModel
 
     model = loaded(model_files[0], load_fcrbm, FCRBMModel, "FCRBM", device=context.device)
     model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps,
                            source_of(model_files[0]))
     return FCRBMPrior([model], options["gibbs_steps"], device=context.device,
-                      ground=GroundDiffusion(options["root_noise"]), style_switch=options["style_switch"],
+                      ground=GroundDiffusion(options["root_noise"]),
+                      height=HeightOffset(options["height_spread"], options["height_drift"]),
+                      posture=PostureOffset(options["posture_gain"]), style_switch=options["style_switch"],
                       style=options["style"],
                       style_temperature=options["style_temperature"])

@@ -22,18 +22,18 @@ the statistics of eqs. 5.14-5.23 (:meth:`FCRBM.free_energy_gradients`: the gradi
 probabilities in both phases; binary hidden samples drive the reconstructions), momentum 0.9, weight decay on the
 weights, learning rate 1e-2 except the autoregressive parameters ``Av``, ``Ap``, the autoregressive part of the
 tied ``Z`` and the label-to-feature ``R``, which learn at 1e-3 (Sec. 4.2). Gaussian noise on the history as for the
-CRBM (:func:`priors.crbm_training.history_noise_scale`), and the labels are balanced by repeating the windows of the rarer
+CRBM (:func:`priors.crbm.training.history_noise_scale`), and the labels are balanced by repeating the windows of the rarer
 ones (the paper repeats its shorter sequences).
 
 Generation: alternating Gibbs sampling from the last history frame with the labels clamped (binary hidden samples,
 expected visible values, probabilities on the final step). Blends and transitions interpolate the label vector
-(:func:`priors.fcrbm.generate`, :func:`priors.fcrbm.transition_styles`).
+(:func:`priors.fcrbm.prior.generate`, :func:`priors.fcrbm.prior.transition_styles`).
 
-Tracking (:class:`priors.fcrbm.FCRBMPrior`, registered as ``fcrbm``): each particle carries a discrete style label besides its
+Tracking (:class:`priors.fcrbm.prior.FCRBMPrior`, registered as ``fcrbm``): each particle carries a discrete style label besides its
 pose history, and its pose is drawn with its label clamped. An equal share of the particles carries
 each label and the filter weighs the labels against each other (mixture tracking, :mod:`tracker.engine.mixture`,
 switching with probability ``style_switch`` per frame). The filter's posterior over the style is the weighted histogram of the
-particles' labels (:meth:`priors.fcrbm.FCRBMPrior.summarize`), recorded per frame in ``result.json``. Particles
+particles' labels (:meth:`priors.fcrbm.prior.FCRBMPrior.summarize`), recorded per frame in ``result.json``. Particles
 that share a label share the effective weights ``Wv diag(s) Wh^T``, so sampling works on one ``K x H`` matrix per
 label (:meth:`FCRBM.gibbs`).
 """
@@ -41,25 +41,16 @@ from __future__ import annotations
 
 import math
 import re
-import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Callable, ClassVar, Sequence
+from typing import ClassVar, Sequence
 
-import numpy as np
 import torch
 
-from priors.common import (
-    TrainedModel, check_weights, checked_model_data, read_model_file, torch_generator,
-)
-from priors.contrastive import (
-    balanced_starts, finish_epoch, minibatches, momentum_step, window_index,
-)
-from priors.crbm_model import below_, bernoulli, uniform16
-from priors.crbm_training import history_noise_scale, make_windows
+from priors.common import TrainedModel
+from priors.crbm.model import below_, uniform16
 from priors.settings import FCRBMConfig
 from tracker.core.errors import InputError
-from tracker.core.representation import step_rms
 
 FORMAT = "pose-tracker fcrbm v1"
 
@@ -196,12 +187,12 @@ class FCRBM:
               init: torch.Tensor | None = None, grouped: bool | None = None) -> torch.Tensor:
         """Next frames ``B x K`` by alternating Gibbs sampling with the labels ``y`` ``B x P`` clamped, from ``init``
         (default: the last history frame): binary hidden samples, expected visible values, hidden probabilities
-        on the final step (as :meth:`priors.crbm_model.CRBM.gibbs`).
+        on the final step (as :meth:`priors.crbm.model.CRBM.gibbs`).
 
         Rows with the same label vector share the effective weights ``Wv diag(s) Wh^T`` ``K x H``; with at most
         :data:`GROUPED_STYLES_MAX` distinct rows (``grouped=None``) sampling runs on those matrices, rows sorted
         by style, else on the factored form. Both draw the same random numbers (one ``B x H`` array of uniform
-        integers per step, :func:`priors.crbm_model.uniform16`, its rows taken in the order of the rows sorted by style)
+        integers per step, :func:`priors.crbm.model.uniform16`, its rows taken in the order of the rows sorted by style)
         and agree to rounding. Sampling writes into its arrays in place (``out=``), so parameters must not require
         gradients (training uses the explicit CD statistics of :meth:`free_energy_gradients`).
         """
@@ -298,132 +289,3 @@ class FCRBMModel(TrainedModel):
         if label not in self.labels:
             raise InputError(f"style {label!r} is not a label of this FCRBM (its labels: {', '.join(self.labels)})")
         return self.labels.index(label)
-
-
-def load_fcrbm(path: str | Path, device: str = "cpu") -> FCRBMModel:
-    """An FCRBM model file (with the lower-order models it grows from), every part checked: a missing key, a
-    weight of the wrong shape, a non-finite weight or normaliser, a bad label set or an unknown setting is an
-    :class:`InputError` naming the file."""
-    path = Path(path)
-    return _from_document(read_model_file(path, FORMAT, "FCRBM"), path, device)
-
-
-def _check_labels(labels: Any, path: Path) -> list[str]:
-    if not isinstance(labels, list) or not labels or not all(isinstance(t, str) for t in labels):
-        raise InputError("FCRBM model file's labels must be a non-empty list of strings", path)
-    if len(set(labels)) != len(labels) or not all(LABEL_PATTERN.match(t) for t in labels):
-        raise InputError(f"FCRBM model file's labels {labels} are repeated or malformed", path)
-    return labels
-
-
-def _from_document(doc: dict, path: Path, device: str) -> FCRBMModel:
-    try:
-        unknown = sorted(set(doc["config"]) - set(FCRBMConfig.__dataclass_fields__))
-        if unknown:
-            raise InputError(f"FCRBM model file has unknown settings {', '.join(unknown)}", path)
-        try:
-            cfg = FCRBMConfig(**doc["config"]).check()
-        except (TypeError, ValueError, InputError) as exc:
-            raise InputError(f"FCRBM model file has bad settings ({getattr(exc, 'reason', exc)})", path) from None
-        labels = _check_labels(doc["labels"], path)
-        clip_labels = [str(t) for t in doc["clip_labels"]]
-        if set(clip_labels) - set(labels) or len(clip_labels) != len(doc["sources"]):
-            raise InputError("FCRBM model file's clip labels do not match its labels and sources", path)
-        params = doc["params"]
-        if not isinstance(params, dict) or any(not isinstance(params.get(k), torch.Tensor) for k in FCRBM.PARAMS):
-            raise InputError(f"FCRBM model file lacks weights {', '.join(FCRBM.PARAMS)}", path)
-        for k in ("Wv", "Wh", "Z"):
-            if params[k].ndim != 2:
-                raise InputError(f"FCRBM weight {k} must be 2-D, got shape {tuple(params[k].shape)}", path)
-        K, H, F, L = params["Wv"].shape[0], params["Wh"].shape[0], params["Wv"].shape[1], params["Z"].shape[0]
-        net = FCRBM(K, H, cfg.order, len(labels), L, F, device=device)
-        check_weights(params, net.shapes(), "FCRBM weight", f"order {cfg.order} with {K} visible, {H} hidden units, "
-                      f"{F} factors, {L} features and {len(labels)} labels", path)
-        net.load_state_dict(params)
-        normaliser, fps, body_model, dof_names, sources, step = checked_model_data(doc, K, "FCRBM", path)
-        growth = [_from_document(g, path, device) for g in doc.get("growth", [])]
-        if any(g.labels != labels for g in growth):
-            raise InputError("FCRBM model file's growth models have other labels", path)
-        return FCRBMModel(fcrbm=net, labels=labels, normaliser=normaliser, config=cfg, fps=fps, body_model=body_model,
-                          dof_names=dof_names, sources=sources, clip_labels=clip_labels, pose_step_rms=step,
-                          reconstruction_errors=[float(e) for e in doc["reconstruction_errors"]],
-                          training_seconds=float(doc["training_seconds"]), growth=growth)
-    except InputError:
-        raise
-    except KeyError as exc:
-        raise InputError(f"FCRBM model file lacks {exc.args[0]!r}", path) from None
-    except (TypeError, ValueError, AttributeError, RuntimeError, IndexError) as exc:
-        raise InputError(f"FCRBM model file is malformed ({type(exc).__name__}: {str(exc)[:100]})", path) from None
-
-
-# ---------------------------------------------------------------------------
-# Training
-# ---------------------------------------------------------------------------
-
-def train_fcrbm(clips: Sequence[np.ndarray], clip_labels: Sequence[str], config: FCRBMConfig, fps: float,
-                dof_names: Sequence[str], body_model: str = "15-cone", sources: Sequence[str] = (),
-                progress: Callable[[int, float], None] | None = None, device: str = "cpu", *,
-                rng: np.random.Generator, labels: Sequence[str] | None = None) -> FCRBMModel:
-    """Train an FCRBM on pose clips (each ``T x D`` at ``fps``), clip ``i`` labelled ``clip_labels[i]``, with CD-k;
-    every random draw comes from ``rng``. ``labels`` fixes the label order (default: first appearance).
-    ``progress(epoch, reconstruction_error)`` is called after every epoch."""
-    cfg = config.check()
-    sources = list(sources) or [f"clip {i + 1}" for i in range(len(clips))]
-    if len(clip_labels) != len(clips):
-        raise InputError(f"{len(clip_labels)} label(s) for {len(clips)} training clip(s)")
-    labels = list(labels) if labels is not None else list(dict.fromkeys(clip_labels))
-    t0 = time.perf_counter()
-    g = torch_generator(rng, device)
-    data = make_windows(clips, cfg.order, dof_names)
-    frames = data.frames.to(device)
-    K, N, H = frames.shape[1], cfg.order, cfg.hidden
-    # The label of every window: the clip its start lies in (make_windows keeps T_i - 1 frames of clip i).
-    ends = torch.tensor(np.cumsum([len(c) - 1 for c in clips]))
-    clip_of = torch.searchsorted(ends, data.starts, right=True)
-    label_of_clip = torch.tensor([labels.index(t) for t in clip_labels])
-    window_label = label_of_clip[clip_of]
-    for i, label in enumerate(labels):
-        if not bool((window_label == i).any()):
-            short = [s for s, t in zip(sources, clip_labels) if t == label]
-            raise InputError(f"label {label!r} has no clip longer than {N + 2} frames to train order {N} on",
-                             ", ".join(Path(s).name for s in short) or None)
-    starts = balanced_starts(data.starts, window_label) if cfg.balance else data.starts
-    frame_label = torch.zeros(len(frames), dtype=torch.long)
-    frame_label[data.starts] = window_label
-    frame_label = frame_label.to(device)
-    starts = starts.to(device)
-    net = FCRBM(K, H, N, len(labels), cfg.features, cfg.factors, generator=g, device=device)
-    noise = history_noise_scale(data).to(device) if cfg.history_noise == "auto" else \
-        torch.full((K,), float(cfg.history_noise), device=device)
-    noise = noise.repeat(N)
-    rates = {k: cfg.autoregressive_learning_rate if k in FCRBM.SLOW else cfg.learning_rate for k in FCRBM.PARAMS}
-    ar_share = cfg.autoregressive_learning_rate / cfg.learning_rate if cfg.learning_rate else 0.0
-    velocity = {k: torch.zeros_like(v) for k, v in net.params.items()}
-    model = FCRBMModel(fcrbm=net, labels=labels, normaliser=data.normaliser, config=cfg, fps=fps,
-                       body_model=body_model, dof_names=list(dof_names), sources=sources,
-                       clip_labels=list(clip_labels), pose_step_rms=step_rms(clips))
-    for epoch in range(cfg.epochs):
-        err_sum, count = 0.0, 0
-        for batch in minibatches(starts, cfg.batch_size, g):
-            window = frames[window_index(batch, N + 1)]
-            v0, n = window[:, -1], len(batch)
-            hist = window[:, :-1].reshape(n, N * K)
-            if cfg.history_noise:
-                hist = hist + torch.randn(hist.shape, generator=g, device=device) * noise
-            y = one_hot(frame_label[batch], len(labels))
-            s = net.style_factors(y)
-            a_hat, b_hat = net.biases(hist, s)
-            h = bernoulli(net.hidden_probabilities(v0, s, b_hat), g)
-            for _ in range(cfg.cd_k):
-                vk = net.visible_means(h, s, a_hat)
-                h = bernoulli(net.hidden_probabilities(vk, s, b_hat), g)
-            pos, neg = net.free_energy_gradients(v0, hist, y), net.free_energy_gradients(vk, hist, y)
-            ascent = {k: neg[k] - pos[k] for k in pos}  # lower F at the data, raise it at the reconstructions
-            ar = ascent.pop("Z_autoregressive")
-            ascent["Z"] = ascent["Z"] - ar + ar_share * ar
-            momentum_step(net.params, velocity, ascent, rates, cfg.momentum, cfg.weight_decay, FCRBM.DECAYED)
-            err_sum += float(((v0 - vk) ** 2).sum())
-            count += n * K
-        finish_epoch(model.reconstruction_errors, err_sum, count, epoch, "FCRBM", progress)
-    model.training_seconds = time.perf_counter() - t0
-    return model

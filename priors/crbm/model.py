@@ -18,8 +18,8 @@ Generation (Sec. 4.2.3): alternating Gibbs sampling from ``v = v_{t-1}``, with
 binary hidden samples, expected visible values and hidden probabilities on the
 final step. "Best guess" prediction descends the free energy (eq. 4.19).
 
-Training is :mod:`priors.crbm_training`, reading a model file :mod:`priors.crbm_file`, the tracking prior
-:mod:`priors.crbm`.
+Training is :mod:`priors.crbm.training`, reading a model file :mod:`priors.crbm.file`, the tracking prior
+:mod:`priors.crbm.prior`.
 """
 from __future__ import annotations
 

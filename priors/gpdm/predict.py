@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import torch
 
-from priors.gpdm_model import GPDM, GPDMConfig, _cholesky, _Sparse
+from priors.gpdm.model import GPDM, GPDMConfig, _cholesky, _Sparse
 
 
 def prepare(model: GPDM) -> "GPDMPredictor":

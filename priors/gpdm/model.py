@@ -32,17 +32,18 @@ dynamics term; only the kernel's rank is limited to ``m``.
 Prediction (eqs. 4.4-4.5): ``mu_X(x) = X_out^T K_X^-1 k_X(x)``,
 ``sigma_X^2(x) = k_X(x, x) - k_X(x)^T K_X^-1 k_X(x)``, and the same for the
 pose through the observation GP; a sparse model predicts through its inducing
-points (the DTC predictive mean and variance). :func:`priors.gpdm_predict.prepare` computes
-every factor once; :class:`~priors.gpdm_predict.GPDMSampler` is the tracking prior's batched step.
+points (the DTC predictive mean and variance). :func:`priors.gpdm.predict.prepare` computes
+every factor once; :class:`~priors.gpdm.predict.GPDMSampler` is the tracking prior's batched step.
 
-Training and model files are :mod:`priors.gpdm_training`; the tracking prior (registered as ``gpdm``) is
-:mod:`priors.gpdm`.
+Training and model files are :mod:`priors.gpdm.training`; the tracking prior (registered as ``gpdm``) is
+:mod:`priors.gpdm.prior`.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import ClassVar, Sequence
 
 import numpy as np
 import torch
@@ -50,6 +51,7 @@ import torch
 from priors.settings import (  # the settings (priors.settings), read from here too
     AUTO_INDUCING, EXACT_MAX_FRAMES, MIN_INDUCING, SPARSE_METHODS, GPDMConfig,
 )
+from priors.common import ModelData, normaliser_to_tensors, torch_save_atomic
 from tracker.core.errors import InputError
 
 
@@ -341,3 +343,49 @@ class GPDM:
 
     def parameters(self) -> list[torch.Tensor]:
         return [self.X, self.log_alpha, self.log_beta]
+
+
+# ---------------------------------------------------------------------------
+# Model files (read back by :mod:`priors.gpdm.file`)
+# ---------------------------------------------------------------------------
+
+def gpdm_document(model: GPDM, extra: dict | None = None) -> dict:
+    """The model file's dictionary (tensors and plain values; ``torch.load(weights_only=True)`` reads it)."""
+    return {"format": FORMAT, "config": asdict(model.config), "lengths": list(model.lengths),
+            "X": model.X.detach().clone(), "Y": model.Y.clone(), "W": model.W.clone(),
+            "log_alpha": model.log_alpha.detach().clone(), "log_beta": model.log_beta.detach().clone(),
+            "active": None if model.active is None else model.active.clone(),
+            "objective_history": [float(v) for v in model.objective_history], "extra": extra or {}}
+
+
+def save_gpdm(path: str | Path, model: GPDM, extra: dict | None = None, overwrite: bool = True) -> None:
+    """Write a trained GPDM (latent points, data, scales, hyperparameters, config) and ``extra`` metadata
+    (plain values or tensors) to a ``torch.save`` file loadable with ``weights_only=True``, atomically
+    (:func:`priors.common.torch_save_atomic`; an existing file is refused unless ``overwrite``)."""
+    torch_save_atomic(gpdm_document(model, extra), Path(path), overwrite)
+
+
+@dataclass(kw_only=True)
+class GPDMPriorModel(ModelData):
+    """A GPDM trained on pose clips, with the normaliser and data settings it was trained with
+    (:class:`~priors.common.ModelData`)."""
+
+    gpdm: GPDM
+
+    KIND: ClassVar[str] = "GPDM"
+
+    def save(self, path: str | Path, overwrite: bool = False) -> None:
+        """The model file at ``path`` (atomically); an existing one is refused unless ``overwrite``."""
+        save_gpdm(path, self.gpdm, overwrite=overwrite, extra={
+            "fps": float(self.fps), "body_model": self.body_model, "dof_names": list(self.dof_names),
+            "sources": list(self.sources), "pose_step_rms": torch.tensor(self.pose_step_rms),
+            "normaliser": normaliser_to_tensors(self.normaliser),
+            "training_seconds": float(self.gpdm.training_seconds)})
+
+    def summary(self) -> str:
+        """One line on how training went."""
+        h, c = self.gpdm.objective_history, self.gpdm.config
+        fit = f"objective {h[0]:.1f} -> {h[-1]:.1f}, " if h else ""
+        g = self.gpdm
+        size = (f"{len(g.Y)} frames, {len(g.active)} inducing" if g.sparse else f"{len(g.Y)} frames, exact")
+        return f"{c.latent_dim}D GPDM ({c.dynamics} dynamics, order {c.order}; {size}): {fit}{g.training_seconds:.1f} s"

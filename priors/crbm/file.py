@@ -7,7 +7,7 @@ from pathlib import Path
 import torch
 
 from priors.common import check_weights, checked_model_data, read_model_file
-from priors.crbm_model import CRBM, FORMAT, INPUT_SETTINGS, CRBMConfig, CRBMModel
+from priors.crbm.model import CRBM, FORMAT, INPUT_SETTINGS, CRBMConfig, CRBMModel
 from tracker.core.errors import InputError
 
 def load_crbm(path: str | Path, device: str = "cpu") -> CRBMModel:

@@ -21,8 +21,8 @@ import torch
 
 from priors.common import read_model_file, torch_generator, torch_save_atomic
 from priors.contrastive import finish_epoch, minibatches, momentum_step
-from priors.crbm_file import model_from_document
-from priors.crbm_model import CHECKPOINT_FORMAT, CRBM, INPUT_SETTINGS, CRBMConfig, CRBMModel, bernoulli
+from priors.crbm.file import model_from_document
+from priors.crbm.model import CHECKPOINT_FORMAT, CRBM, INPUT_SETTINGS, CRBMConfig, CRBMModel, bernoulli
 from priors.settings import PACE_SPREAD_FOR_INPUT
 from tracker.core.errors import InputError
 from tracker.core.representation import FeatureNormaliser, clip_features, clip_log_pace, step_rms

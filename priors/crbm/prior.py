@@ -1,6 +1,6 @@
 """The CRBM motion prior (Taylor 2009, Sec. 6.3-6.4): a CRBM drawing each particle's next frame, plus parts.
 
-The model is :mod:`priors.crbm_model` (trained by :mod:`priors.crbm_training`, read by :mod:`priors.crbm_file`);
+The model is :mod:`priors.crbm.model` (trained by :mod:`priors.crbm.training`, read by :mod:`priors.crbm.file`);
 the pose step and the parts are :class:`priors.conditional.ConditionalPrior`'s. Registered as the ``crbm``
 prior (``train`` and ``track --prior crbm``); several model files all of one order form an ensemble
 (:class:`priors.ensemble.EnsemblePrior`).
@@ -25,7 +25,7 @@ from tracker.engine.registry import Option, PriorContext, TrainingData, register
 if TYPE_CHECKING:  # the model and torch load when the prior is built or trained, not when it registers
     import torch
 
-    from priors.crbm_model import CRBMModel
+    from priors.crbm.model import CRBMModel
 
 #: Default Gibbs steps per sample of the CRBM prior. Chosen on the tuning folds of the leave-one-subject-out
 #: protocol (folds 2 and 7, CRBM-3, 1000 particles, 5 seeds; docs/methods_report.md): 30, 10 and 5 steps gave the same
@@ -58,7 +58,7 @@ class CRBMPrior(ConditionalPrior):
     def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = GIBBS_STEPS, *, device: str = "cpu",
                  mode: str = "gibbs", ground: GroundDiffusion = GroundDiffusion(), pace: PaceInput | None = None,
                  height: HeightOffset | None = None, posture: PostureOffset | None = None):
-        from priors.crbm_model import CRBM
+        from priors.crbm.model import CRBM
 
         grown = GrowingModels(models, "CRBM")
         first = grown.first
@@ -131,8 +131,8 @@ PACE_OPTIONS = tuple(replace(o, default=None, default_note=f"{o.default:g}") for
 def train_crbm_from_data(data: TrainingData, options: dict, rng: np.random.Generator,
                          progress: Callable[[int, int, dict], None] | None = None, checkpoint: Path | None = None,
                          resume: bool = False) -> CRBMModel:
-    """``train --prior crbm``: :func:`priors.crbm_training.train_crbm_prior` (imported, with torch, when called)."""
-    from priors.crbm_training import train_crbm_prior
+    """``train --prior crbm``: :func:`priors.crbm.training.train_crbm_prior` (imported, with torch, when called)."""
+    from priors.crbm.training import train_crbm_prior
 
     return train_crbm_prior(data, options, rng, progress, checkpoint, resume)
 
@@ -150,8 +150,8 @@ def train_crbm_from_data(data: TrainingData, options: dict, rng: np.random.Gener
 def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> CRBMPrior | EnsemblePrior:
     """The CRBM prior of ``model_files``: models of increasing order grow the history; several files all of one
     order (each with the growth models it carries) form an ensemble, each drawing its share of the particles."""
-    from priors.crbm_file import load_crbm
-    from priors.crbm_model import CRBMModel
+    from priors.crbm.file import load_crbm
+    from priors.crbm.model import CRBMModel
 
     models = [loaded(m, load_crbm, CRBMModel, "CRBM", device=context.device) for m in model_files]
     for given, m in zip(model_files, models):

@@ -1,0 +1,88 @@
+"""Training an FCRBM by contrastive divergence (Taylor & Hinton 2009, Sec. 4.2; the model is
+:mod:`priors.fcrbm.model`)."""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+import torch
+
+from priors.common import torch_generator
+from priors.contrastive import balanced_starts, finish_epoch, minibatches, momentum_step, window_index
+from priors.crbm.model import bernoulli
+from priors.crbm.training import history_noise_scale, make_windows
+from priors.fcrbm.model import FCRBM, FCRBMModel, one_hot
+from priors.settings import FCRBMConfig
+from tracker.core.errors import InputError
+from tracker.core.representation import step_rms
+
+
+def train_fcrbm(clips: Sequence[np.ndarray], clip_labels: Sequence[str], config: FCRBMConfig, fps: float,
+                dof_names: Sequence[str], body_model: str = "15-cone", sources: Sequence[str] = (),
+                progress: Callable[[int, float], None] | None = None, device: str = "cpu", *,
+                rng: np.random.Generator, labels: Sequence[str] | None = None) -> FCRBMModel:
+    """Train an FCRBM on pose clips (each ``T x D`` at ``fps``), clip ``i`` labelled ``clip_labels[i]``, with CD-k;
+    every random draw comes from ``rng``. ``labels`` fixes the label order (default: first appearance).
+    ``progress(epoch, reconstruction_error)`` is called after every epoch."""
+    cfg = config.check()
+    sources = list(sources) or [f"clip {i + 1}" for i in range(len(clips))]
+    if len(clip_labels) != len(clips):
+        raise InputError(f"{len(clip_labels)} label(s) for {len(clips)} training clip(s)")
+    labels = list(labels) if labels is not None else list(dict.fromkeys(clip_labels))
+    t0 = time.perf_counter()
+    g = torch_generator(rng, device)
+    data = make_windows(clips, cfg.order, dof_names)
+    frames = data.frames.to(device)
+    K, N, H = frames.shape[1], cfg.order, cfg.hidden
+    # The label of every window: the clip its start lies in (make_windows keeps T_i - 1 frames of clip i).
+    ends = torch.tensor(np.cumsum([len(c) - 1 for c in clips]))
+    clip_of = torch.searchsorted(ends, data.starts, right=True)
+    label_of_clip = torch.tensor([labels.index(t) for t in clip_labels])
+    window_label = label_of_clip[clip_of]
+    for i, label in enumerate(labels):
+        if not bool((window_label == i).any()):
+            short = [s for s, t in zip(sources, clip_labels) if t == label]
+            raise InputError(f"label {label!r} has no clip longer than {N + 2} frames to train order {N} on",
+                             ", ".join(Path(s).name for s in short) or None)
+    starts = balanced_starts(data.starts, window_label) if cfg.balance else data.starts
+    frame_label = torch.zeros(len(frames), dtype=torch.long)
+    frame_label[data.starts] = window_label
+    frame_label = frame_label.to(device)
+    starts = starts.to(device)
+    net = FCRBM(K, H, N, len(labels), cfg.features, cfg.factors, generator=g, device=device)
+    noise = history_noise_scale(data).to(device) if cfg.history_noise == "auto" else \
+        torch.full((K,), float(cfg.history_noise), device=device)
+    noise = noise.repeat(N)
+    rates = {k: cfg.autoregressive_learning_rate if k in FCRBM.SLOW else cfg.learning_rate for k in FCRBM.PARAMS}
+    ar_share = cfg.autoregressive_learning_rate / cfg.learning_rate if cfg.learning_rate else 0.0
+    velocity = {k: torch.zeros_like(v) for k, v in net.params.items()}
+    model = FCRBMModel(fcrbm=net, labels=labels, normaliser=data.normaliser, config=cfg, fps=fps,
+                       body_model=body_model, dof_names=list(dof_names), sources=sources,
+                       clip_labels=list(clip_labels), pose_step_rms=step_rms(clips))
+    for epoch in range(cfg.epochs):
+        err_sum, count = 0.0, 0
+        for batch in minibatches(starts, cfg.batch_size, g):
+            window = frames[window_index(batch, N + 1)]
+            v0, n = window[:, -1], len(batch)
+            hist = window[:, :-1].reshape(n, N * K)
+            if cfg.history_noise:
+                hist = hist + torch.randn(hist.shape, generator=g, device=device) * noise
+            y = one_hot(frame_label[batch], len(labels))
+            s = net.style_factors(y)
+            a_hat, b_hat = net.biases(hist, s)
+            h = bernoulli(net.hidden_probabilities(v0, s, b_hat), g)
+            for _ in range(cfg.cd_k):
+                vk = net.visible_means(h, s, a_hat)
+                h = bernoulli(net.hidden_probabilities(vk, s, b_hat), g)
+            pos, neg = net.free_energy_gradients(v0, hist, y), net.free_energy_gradients(vk, hist, y)
+            ascent = {k: neg[k] - pos[k] for k in pos}  # lower F at the data, raise it at the reconstructions
+            ar = ascent.pop("Z_autoregressive")
+            ascent["Z"] = ascent["Z"] - ar + ar_share * ar
+            momentum_step(net.params, velocity, ascent, rates, cfg.momentum, cfg.weight_decay, FCRBM.DECAYED)
+            err_sum += float(((v0 - vk) ** 2).sum())
+            count += n * K
+        finish_epoch(model.reconstruction_errors, err_sum, count, epoch, "FCRBM", progress)
+    model.training_seconds = time.perf_counter() - t0
+    return model

@@ -1,0 +1,2 @@
+"""The Gaussian process dynamical model (Wang 2005): its model, prediction, training, model file and tracking
+prior."""

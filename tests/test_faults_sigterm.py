@@ -1,0 +1,296 @@
+"""SIGTERM (``kill``, ``docker stop``, a cluster's preemption) stops ``track``, ``train`` and ``compare`` as Ctrl-C
+does: what can be resumed is kept, one line names the command that continues, exit status 143; and the continued
+run gives the numbers of an uninterrupted one, whenever the signal came (before the first frame, before the first
+checkpoint, in the middle). A run killed outright (SIGKILL) before its first checkpoint continues too."""
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from data_tools.samples import sample_walks
+from tests.test_bad_input_readers import tiny_sequence
+from tests.test_faults_disk import run_cli, track_args
+from tracker.app import cli
+
+ASF, WALKS = sample_walks()
+REPO = Path(__file__).resolve().parents[1]
+
+
+def sigterm() -> None:
+    """SIGTERM to this process; its handler (set by the command line) raises in the main thread at once."""
+    os.kill(os.getpid(), signal.SIGTERM)
+    for _ in range(200):  # the handler runs between two bytecodes: well before this ends
+        time.sleep(0.005)
+    raise AssertionError("SIGTERM was not answered")
+
+
+def one_warning(err: str, *fragments: str) -> str:
+    lines = [line for line in err.replace("\r", "\n").splitlines() if line.strip()]
+    assert lines and "warning: interrupted" in lines[-1] and "Traceback" not in err, err[-2000:]
+    assert sum("interrupted" in line for line in lines) == 1, err[-2000:]
+    for f in fragments:
+        assert f in lines[-1], (f, lines[-1])
+    return lines[-1]
+
+
+@pytest.fixture(autouse=True)
+def quick_random_walk_scale():
+    """The random-walk priors' scale, fixed (the default retargets the shipped walks, seconds per run): what is
+    tested here is how a run stops and continues, not its prior. (Its own patcher: the tests undo theirs.)"""
+    import tracker.app.api as api
+
+    patch = pytest.MonkeyPatch()
+    patch.setattr(api, "random_walk_scale", lambda seq, train_mocap=None: np.full(seq.model.n_dofs, 0.02))
+    yield
+    patch.undo()
+
+
+@pytest.fixture
+def seq(tmp_path):
+    return tiny_sequence(tmp_path / "seq", frames=8)
+
+
+def poses(out: Path) -> np.ndarray:
+    with np.load(out / "estimates.npz") as f:
+        return f["poses"]
+
+
+# -- track ------------------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("moment", ["before the first frame", "before the first checkpoint", "in the middle"])
+def test_track_stopped_by_sigterm_resumes_to_the_uninterrupted_result(moment, seq, tmp_path, capsys, monkeypatch):
+    argv = track_args(seq, tmp_path / "cut", "--checkpoint-every", "3", "--seed", "4")
+    assert run_cli(track_args(seq, tmp_path / "whole", "--seed", "4"), capsys)[0] == 0
+    real = cli.track
+    at = {"before the first frame": 0, "before the first checkpoint": 2, "in the middle": 4}[moment]
+
+    def track(*args, on_frame=None, **kwargs):
+        if at == 0:
+            sigterm()
+
+        def frame(step, err):
+            on_frame(step, err)
+            if step.frame == at + 1:  # the frames tracked so far: 2 .. at+1
+                sigterm()
+        return real(*args, on_frame=frame, **kwargs)
+
+    monkeypatch.setattr(cli, "track", track)
+    code, err = run_cli(argv, capsys)
+    monkeypatch.undo()
+    out = tmp_path / "cut"
+    assert code == 143
+    if at == 0:  # nothing was tracked: nothing stays, and the same command runs it
+        one_warning(err, "before the first frame", "run the same command again")
+        assert not out.exists()
+        assert run_cli(argv, capsys)[0] == 0
+    else:
+        # the frame being reported when the signal came is not kept: the resumed run tracks it again
+        one_warning(err, f"after {at - 1} frame(s)", f"resume with: pose-tracker track --resume {out}")
+        partial = json.loads((out / "result.json").read_text())
+        assert partial["complete"] is False and partial["frames_tracked"] == at - 1
+        assert (out / "checkpoint.npz").exists()  # written at the signal, as Ctrl-C writes it
+        assert run_cli(["track", "--resume", str(out)], capsys)[0] == 0
+    assert np.array_equal(poses(out), poses(tmp_path / "whole"))
+    result = json.loads((out / "result.json").read_text())
+    assert result["complete"] is True
+    assert result["metrics"] == json.loads((tmp_path / "whole" / "result.json").read_text())["metrics"]
+
+
+def test_a_run_killed_before_its_first_checkpoint_continues_from_frame_0(seq, tmp_path, capsys, monkeypatch):
+    """Killed (SIGKILL: nothing answers it) once its arguments were saved and before any checkpoint: ``--resume``
+    tracks from frame 0 with the saved arguments, and the same command again continues the run likewise."""
+    argv = track_args(seq, tmp_path / "cut", "--checkpoint-every", "0", "--seed", "4")
+    assert run_cli(track_args(seq, tmp_path / "whole", "--seed", "4"), capsys)[0] == 0
+
+    def killed(*args, **kwargs):  # what a SIGKILL leaves: the saved arguments, the cached hashes, no checkpoint
+        raise SystemExit(137)
+
+    monkeypatch.setattr(cli, "track", killed)
+    with pytest.raises(SystemExit):
+        cli.main(argv)
+    monkeypatch.undo()
+    out = tmp_path / "cut"
+    assert (out / cli.TRACK_ARGS).exists() and not (out / "checkpoint.npz").exists()
+    code, err = run_cli(["track", "--resume", str(out)], capsys)
+    assert code == 0 and "tracking from the first frame" in err, err
+    assert np.array_equal(poses(out), poses(tmp_path / "whole"))
+
+    again = tmp_path / "again"
+    with pytest.raises(SystemExit):
+        monkeypatch.setattr(cli, "track", killed)
+        cli.main(track_args(seq, again, "--checkpoint-every", "0", "--seed", "4"))
+    monkeypatch.undo()
+    code, err = run_cli(track_args(seq, again, "--checkpoint-every", "0", "--seed", "4"), capsys)
+    assert code == 0 and "holds this run, unfinished: continuing it" in err, err
+    assert np.array_equal(poses(again), poses(tmp_path / "whole"))
+    assert not (again / cli.TRACK_ARGS).exists()
+
+
+def test_another_command_into_an_unfinished_run_is_refused_in_one_line(seq, tmp_path, capsys, monkeypatch):
+    out = tmp_path / "cut"
+    monkeypatch.setattr(cli, "track", lambda *a, **k: (_ for _ in ()).throw(SystemExit(137)))
+    with pytest.raises(SystemExit):
+        cli.main(track_args(seq, out, "--seed", "4"))
+    monkeypatch.undo()
+    code, err = run_cli(track_args(seq, out, "--seed", "5"), capsys)
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and "unfinished run of other arguments (seed)" in lines[0], err
+    assert f"pose-tracker track --resume {out}" in lines[0] and "--overwrite" in lines[0]
+    assert run_cli(track_args(seq, out, "--seed", "5", "--overwrite"), capsys)[0] == 0
+
+
+def test_a_real_sigterm_to_track_keeps_a_checkpoint_and_exits_143(seq, tmp_path):
+    """The signal from outside, as ``kill`` sends it, while the filter runs."""
+    out = tmp_path / "cut"
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    args = [sys.executable, "-m", "tracker", "--threads", "1", "track", str(seq), "--prior", "zero-velocity",
+            "--particles", "3000", "--annealing-layers", "3", "--seed", "4", "--checkpoint-every", "1"]
+    proc = subprocess.Popen([*args, "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=env)
+    deadline = time.time() + 120
+    while not (out / "checkpoint.npz").exists() and time.time() < deadline and proc.poll() is None:
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 143, err[-1000:]
+    one_warning(err, f"resume with: pose-tracker track --resume {out}")
+    assert json.loads((out / "result.json").read_text())["complete"] is False
+    r = subprocess.run([*args[:3], "track", "--resume", str(out)], capture_output=True, text=True, env=env)
+    assert r.returncode == 0, r.stderr[-1000:]
+    whole = tmp_path / "whole"
+    assert subprocess.run([*args, "--out", str(whole)], capture_output=True, env=env).returncode == 0
+    assert np.array_equal(poses(out), poses(whole))
+
+
+# -- train ------------------------------------------------------------------------------------------------------
+
+def crbm_parameters(path: Path) -> dict[str, torch.Tensor]:
+    from priors.crbm_file import load_crbm
+
+    return load_crbm(path).crbm.state_dict()
+
+
+TRAIN = ["train", "--prior", "crbm", "--mocap", str(WALKS[0]), "--order", "1", "--epochs", "6", "--hidden", "8",
+         "--checkpoint-every", "3"]
+
+
+@pytest.fixture(scope="module")
+def whole_model(tmp_path_factory):
+    path = tmp_path_factory.mktemp("whole") / "whole.pt"
+    assert cli.main(["-q", *TRAIN, "--out", str(path)]) == 0
+    return crbm_parameters(path)
+
+
+@pytest.mark.parametrize("moment", ["before the first epoch", "before the first checkpoint", "in the middle"])
+def test_train_stopped_by_sigterm_resumes_to_the_uninterrupted_model(moment, whole_model, tmp_path, capsys,
+                                                                      monkeypatch):
+    base = TRAIN
+    argv = [*base, "--out", str(tmp_path / "cut.pt")]
+    at = {"before the first epoch": 0, "before the first checkpoint": 2, "in the middle": 4}[moment]
+    real = cli.train
+
+    def train(*args, progress=None, **kwargs):
+        if at == 0:
+            sigterm()
+
+        def report(done, total, metrics):
+            progress(done, total, metrics)
+            if done == at:
+                sigterm()
+        return real(*args, progress=report, **kwargs)
+
+    monkeypatch.setattr(cli, "train", train)
+    code, err = run_cli(argv, capsys)
+    monkeypatch.undo()
+    assert code == 143 and not (tmp_path / "cut.pt").exists()
+    checkpoint = tmp_path / "cut.pt.checkpoint"
+    if at == 4:
+        one_warning(err, f"continue with: pose-tracker {' '.join(argv)} --resume")
+        assert checkpoint.exists()
+    else:
+        one_warning(err)
+        assert "nothing" in err and not checkpoint.exists()
+        assert not Path(f"{checkpoint}.inputs.json").exists()  # nothing stays behind
+    code, err = run_cli([*argv, "--resume"], capsys)
+    assert code == 0, err
+    assert (at == 4) != ("training from the start" in err), err
+    whole, cut = whole_model, crbm_parameters(tmp_path / "cut.pt")
+    assert all(torch.equal(whole[k], cut[k]) for k in whole)
+    assert not checkpoint.exists()
+
+
+# -- compare ----------------------------------------------------------------------------------------------------
+
+def table_numbers(out: Path) -> list[dict]:
+    with open(out / "table.csv", newline="") as f:
+        return [{k: v for k, v in row.items() if "second" not in k} for row in csv.DictReader(f)]
+
+
+@pytest.fixture
+def experiment(tmp_path_factory, quick_random_walk_scale):
+    """A tiny experiment (two runs) and its uninterrupted tables."""
+    folder = tmp_path_factory.mktemp("experiment")
+    seq = tiny_sequence(folder / "seq", frames=6)
+    path = folder / "exp.toml"
+    path.write_text(f'seed = 11\nseeds = 1\n[tracking]\nparticles = 20\nannealing_layers = 1\n'
+                    f'[[sequence]]\nname = "walk"\npath = "{seq}"\n'
+                    '[[prior]]\nname = "zero-velocity"\n[[prior]]\nname = "constant-velocity"\n')
+    assert cli.main(["-q", "compare", str(path), "--no-videos", "--out", str(folder / "whole")]) == 0
+    return path, table_numbers(folder / "whole")
+
+
+@pytest.mark.parametrize("moment", ["while preparing", "in the first run", "between runs"])
+def test_compare_stopped_by_sigterm_continues_to_the_uninterrupted_tables(moment, experiment, tmp_path, capsys,
+                                                                          monkeypatch):
+    import tracker.app.api as api
+    import tracker.app.compare as comparing
+
+    argv = ["compare", str(experiment[0]), "--no-videos", "--out"]
+    if moment == "while preparing":
+        real_scales = comparing.prepare_scales
+
+        def scales(exp):
+            sigterm()
+            return real_scales(exp)
+        monkeypatch.setattr(comparing, "prepare_scales", scales)
+    elif moment == "in the first run":
+        real_track = api.track
+
+        def track(*args, on_frame=None, **kwargs):
+            def frame(step, err):
+                on_frame(step, err)
+                if step.frame == 3:
+                    sigterm()
+            return real_track(*args, on_frame=frame, **kwargs)
+        monkeypatch.setattr(api, "track", track)
+    else:
+        real_run = comparing.execute_run
+
+        def execute(spec):
+            summary = real_run(spec)
+            sigterm()
+            return summary
+        monkeypatch.setattr(comparing, "execute_run", execute)
+    out = tmp_path / "cut"
+    code, err = run_cli([*argv, str(out)], capsys)
+    monkeypatch.undo()
+    finished = 1 if moment == "between runs" else 0
+    assert code == 143
+    line = one_warning(err, f"continue with: pose-tracker {' '.join([*argv, str(out)])}")
+    assert ("nothing run yet" in line) if moment == "while preparing" else (f"{finished} of 2 runs" in line), line
+    assert not list((out / "runs").glob(".*.tmp-*"))  # the unfinished run's folder is removed
+    assert json.loads((out / "experiment.json").read_text())["complete"] is False
+    code, err = run_cli([*argv, str(out)], capsys)
+    assert code == 0 and f"{finished} finished before (skipped)" in err, err
+    assert table_numbers(out) == experiment[1]
+    assert json.loads((out / "experiment.json").read_text())["complete"] is True
