@@ -32,6 +32,7 @@ import numpy as np
 
 from priors.ensemble import Composite
 from tracker.core.errors import InputError
+from tracker.engine.components import Component, parse_components
 from tracker.engine.mixture import Mixing, mixing_of
 from tracker.engine.prior import MotionPrior, PriorState, label_for, reindex_state, restart
 from tracker.engine.registry import PRIORS, Option, PriorContext, register_prior, resolve_options
@@ -188,19 +189,40 @@ def numbered(names: Sequence[str]) -> tuple[str, ...]:
 # Registration
 # ---------------------------------------------------------------------------
 
+def component_options(component: Component, index: int, owner: str) -> dict:
+    """Every option of ``component``'s prior, from those it writes (checked) or the default."""
+    entry = PRIORS.get(component.prior)
+    written = dict(component.options)
+    if len(written) != len(component.options):
+        raise InputError(f"{owner}: component {index + 1} ({component.prior}) gives an option twice")
+    return resolve_options(f"{owner}: component {index + 1} ({component.prior})", entry.options, written)
+
+
 def check_components(value: str, owner: str) -> None:
-    names = [n.strip() for n in value.split(",")]
-    if len(names) < 2 or not all(names):
-        raise InputError(f"{owner}: components must name two or more priors, comma-separated "
-                         f"(e.g. crbm,zero-velocity), got {value!r}")
-    if "mixture" in names:
-        raise InputError(f"{owner}: a mixture cannot be a component of a mixture")
+    """The ``components`` option: its form, registered priors (no mixture), each component's options, and model
+    files only for learned priors."""
+    for k, c in enumerate(parse_components(value, owner)):
+        if c.prior == "mixture":
+            raise InputError(f"{owner}: a mixture cannot be a component of a mixture")
+        entry = PRIORS.get(c.prior)
+        if entry.model_files == "none" and (c.models or c.takes):
+            raise InputError(f"{owner}: component {k + 1} ({c.prior}) takes no model files")
+        if entry.model_files == "one" and (len(c.models) > 1 or (c.takes or 0) > 1):
+            raise InputError(f"{owner}: component {k + 1} ({c.prior}) takes one model file")
+        component_options(c, k, owner)
+
+
+def component_files(options: dict) -> list[Path]:
+    """The model files that the mixture's ``components`` option names (``model=FILE``), in order."""
+    return [Path(m) for c in parse_components(options["components"], "prior mixture") for m in c.models]
 
 
 MIXTURE_OPTIONS = (
     Option("components", str, "crbm,zero-velocity",
-           "the motion models mixed, comma-separated, each at its default options; each learned one takes the "
-           "next model file, in order (one file each)",
+           "the motion models mixed, comma-separated, each PRIOR[:key=value...]: model=FILE (repeatable) names "
+           "a learned component's model file, models=N takes the next N of the mixture's model files (a learned "
+           "component that names none takes the next one, in order), any other key is the component's own "
+           "option (crbm:model=crbm1.pt:gibbs_steps=10,zero-velocity); unset options take their defaults",
            check=check_components),
     Option("switch", float, SWITCH, "probability per frame that a particle's component changes (the transition of "
            "the IMM mixing step)", minimum=0.0, maximum=0.5),
@@ -211,25 +233,33 @@ MIXTURE_OPTIONS = (
 
 @register_prior("mixture", summary="several motion models, each drawing a share of the particles, weighed by "
                                    "their evidence (a learned prior that falls back on zero-velocity)",
-                options=MIXTURE_OPTIONS, model_files="any")
+                options=MIXTURE_OPTIONS, model_files="any", referenced_files=component_files)
 def build_mixture(context: PriorContext, model_files: Sequence[Path], options: dict) -> MixturePrior:
-    """The mixture of ``options["components"]`` at their default options, the learned ones taking one of
-    ``model_files`` each, in order."""
-    names = [n.strip() for n in options["components"].split(",")]
-    entries = [PRIORS.get(n) for n in names]
-    needed = sum(e.model_files != "none" for e in entries)
-    if needed != len(model_files):
-        learned = [e.name for e in entries if e.model_files != "none"]
-        raise InputError(f"the mixture of {', '.join(names)} takes one model file for each learned component "
-                         f"({', '.join(learned) or 'none'}): {needed}, got {len(model_files)}")
+    """The mixture of ``options["components"]``, each built by its own prior's builder with its own options and
+    model files: those it names (``model=FILE``), else the next of ``model_files`` in order (``models=N`` of
+    them; one for a learned component)."""
+    owner = "prior mixture"
+    components = parse_components(options["components"], owner)
+    entries = [PRIORS.get(c.prior) for c in components]
+    takes = [0 if c.models else (c.takes if c.takes is not None else int(e.model_files != "none"))
+             for c, e in zip(components, entries)]
+    if sum(takes) != len(model_files):
+        learned = [c.prior for c, n in zip(components, takes) if n]
+        raise InputError(f"the mixture of {', '.join(c.prior for c in components)} takes one model file for each "
+                         f"learned component that names none ({', '.join(learned) or 'none'}): {sum(takes)}, got "
+                         f"{len(model_files)}")
     files = iter(model_files)
-    components, labels = [], []
-    for e in entries:
-        given = [next(files)] if e.model_files != "none" else []
-        components.append(e.build(context, given, resolve_options(f"prior {e.name}", e.options, {})))
-        labels.append(e.name)
-    if len(set(labels)) < len(labels) and all(isinstance(f, (str, Path)) for f in model_files):
-        stems = iter(Path(f).stem for f in model_files)  # two models of one prior: told apart by their files
-        labels = [f"{e.name} ({next(stems)})" if e.model_files != "none" else e.name for e in entries]
-    return MixturePrior(components, numbered(labels), switch=options["switch"],
+    built, given_files = [], []
+    for k, (c, e, n) in enumerate(zip(components, entries, takes)):
+        given = [Path(m) for m in c.models] or [next(files) for _ in range(n)]
+        if e.model_files in ("one", "several") and not given:
+            raise InputError(f"{owner}: component {k + 1} ({c.prior}) needs a model file (model=FILE, or one of "
+                             "the mixture's model files)")
+        built.append(e.build(context, given, component_options(c, k, owner)))
+        given_files.append(given)
+    labels = [c.prior for c in components]
+    if len(set(labels)) < len(labels) and all(isinstance(f, (str, Path)) for g in given_files for f in g):
+        # two models of one prior: told apart by their files
+        labels = [f"{c.prior} ({Path(g[0]).stem})" if g else c.prior for c, g in zip(components, given_files)]
+    return MixturePrior(built, numbered(labels), switch=options["switch"],
                         temperature=options["evidence_temperature"])

@@ -175,7 +175,7 @@ def test_a_real_sigterm_to_track_keeps_a_checkpoint_and_exits_143(seq, tmp_path)
 # -- train ------------------------------------------------------------------------------------------------------
 
 def crbm_parameters(path: Path) -> dict[str, torch.Tensor]:
-    from priors.crbm_file import load_crbm
+    from priors.crbm.file import load_crbm
 
     return load_crbm(path).crbm.state_dict()
 

@@ -28,7 +28,9 @@ from data_tools.load import load_mocap, load_training_clips
 from data_tools.retarget import RetargetResult, retarget
 from data_tools.samples import sample_walks
 from data_tools.sequence import Sequence, read_sequence
-from tracker.app.defaults import TRACK_ANNEALING_LAYERS
+from tracker.app import schema
+from tracker.app.schema import FILTER_OPTIONS, RECORDED_SETTINGS, TRACK_SETTINGS
+from tracker.app.schema import TRACK_ANNEALING_LAYERS  # noqa: F401  (the API names the default: tracker.track)
 from tracker.app.plugins import (  # the discovery functions of the API
     available_likelihoods, available_priors, likelihood_entry, prior_entry,
 )
@@ -58,7 +60,7 @@ def make_rng(seed: SeedLike) -> np.random.Generator:
     if isinstance(seed, np.random.Generator):
         return seed
     if isinstance(seed, (int, np.integer)) and not 0 <= int(seed) < 2 ** 63:
-        raise InputError(f"seed must lie in 0..2^63-1, got {seed}")
+        raise InputError(f"seed must lie in 0..2^63-1, got {seed}")  # the schema's bounds of a seed
     return np.random.default_rng(seed)
 
 
@@ -316,7 +318,8 @@ def split_options(prior: str | MotionPrior, likelihood: str | Likelihood, option
         if kind is None:
             lists = "; ".join(f"{k} {p if isinstance(p, str) else 'object'}: {', '.join(sorted(declared[k])) or 'none'}"
                               for k, p in (("prior", prior), ("likelihood", likelihood)))
-            raise InputError(f"track takes no option {name!r} (the options of {lists})")
+            raise InputError(f"track takes no option {name!r} (the options of {lists}; the run's settings: "
+                             f"{', '.join(TRACK_SETTINGS)})")
         out[kind][name] = value
     return out["prior"], out["likelihood"]
 
@@ -326,45 +329,70 @@ def model_name(model: str | Path | Any) -> str:
     return str(model) if isinstance(model, (str, os.PathLike)) else f"{type(model).__name__} (in memory)"
 
 
+def split_settings(options: Mapping[str, Any]) -> tuple[dict, dict]:
+    """``options`` split into the run's settings (:data:`tracker.app.schema.TRACK_SETTINGS`) and the rest (the
+    plugins' options)."""
+    run = {k: v for k, v in options.items() if k in TRACK_SETTINGS}
+    return run, {k: v for k, v in options.items() if k not in TRACK_SETTINGS}
+
+
+def run_settings(given: Mapping[str, Any], sequence: Sequence) -> dict[str, Any]:
+    """Every setting of a run (:data:`tracker.app.schema.TRACK_SETTINGS`), from ``given`` (checked against its
+    option) or its default; ``views`` as the camera indices tracked (default all), ``seed`` as given (an int,
+    a ``SeedSequence`` or a ``Generator``: :func:`make_rng` checks it)."""
+    seed = given.get("seed", schema.setting("seed").default)
+    values = schema.check({k: v for k, v in given.items() if k != "seed" and v is not None}, "track")
+    out = {**schema.defaults(), **values, "seed": seed}
+    out["views"] = check_views(out["views"], sequence.n_views, sequence.root)
+    out["device"] = device_name(out["device"])
+    return out
+
+
 @records_call
 def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velocity", *,
           models: Seq[str | Path | Any] = (), likelihood: str | Likelihood = "edge-silhouette",
-          particles: int = 1000, views: Iterable[int] | None = None, frames: int | None = None,
-          seed: SeedLike = 0, annealing_layers: int = TRACK_ANNEALING_LAYERS, resampling: str = "systematic",
-          known_frames: int = 2, init: np.ndarray | None = None, train_mocap: Iterable[str | Path] | None = None,
-          step_std: np.ndarray | None = None, device: str = "cpu",
+          init: np.ndarray | None = None, train_mocap: Iterable[str | Path] | None = None,
+          step_std: np.ndarray | None = None,
           record: Iterable[str] | Mapping[str, Callable[[FrameStep], Any]] = DEFAULT_RECORD,
           on_frame: Callable[[FrameStep, float | None], None] | None = None,
-          checkpoint: str | Path | None = None, checkpoint_every: int = 0, resume: bool = False,
-          **options) -> TrackingResult:
+          checkpoint: str | Path | None = None, resume: bool = False, **settings) -> TrackingResult:
     """Track a person through ``sequence`` with a particle filter and return a :class:`TrackingResult`.
 
+    ``settings`` are the run's settings and the prior's and likelihood's options. The run's settings are
+    declared in :mod:`tracker.app.schema` (each with its type, default, bounds and unit; the list is at the end
+    of this docstring): ``particles`` (default 1000), ``views`` (camera indices, default all), ``frames`` (track
+    frames ``known_frames .. frames-1``, default to the end), ``seed`` (an int, a ``numpy.random.SeedSequence``
+    or a ``numpy.random.Generator``), ``annealing_layers`` (default :data:`TRACK_ANNEALING_LAYERS`, 3, the setting
+    that won on unseen people in ``docs/methods_report.md``; 1 is plain SIR), ``resampling``, ``known_frames``,
+    ``device`` (``"cpu"`` or ``"cuda"``), ``checkpoint_every`` and the annealing's ``survival_rate`` and
+    ``layer_diffusion_decay``. The filter starts from the ground truth's first poses (or ``init``, or a bodytrack
+    ``InitialPose.txt``).
+
     ``prior`` and ``likelihood`` are registered names or ready objects. A prior given by name is built from
-    ``models`` (model files, or the models :func:`train` returns) and a likelihood by name; ``options`` are
-    their options, each going to the one that declares it (``track(seq, "crbm", models=[model],
-    gibbs_steps=10, sharpness=40)``; ``pose-tracker track --prior crbm --help`` lists them); every declared
-    option, given or default, is recorded in ``result.json`` (``prior_options``, ``likelihood_options``) and in
-    the checkpoint's fingerprint. The filter tracks frames ``known_frames .. frames-1`` (default: to the end) from the ground truth's
-    first poses (or ``init``, or a bodytrack ``InitialPose.txt``) with ``particles`` particles in ``views``
-    (default all), ``annealing_layers`` layers per frame (default :data:`TRACK_ANNEALING_LAYERS`, 3, the setting
-    that won on unseen people in ``docs/methods_report.md``; 1 is plain SIR). Random-walk priors take their scale
-    from ``step_std`` or ``train_mocap`` (:func:`build_prior`). ``record`` chooses what is kept per frame
-    (:mod:`tracker.engine.recording`; add ``"particles"`` and ``"weights"`` to keep those); ``on_frame(step,
-    error_mm)`` sees every frame as it is tracked (``error_mm``: the frame's absolute MPJPE). ``result.save(dir)``
-    writes ``result.json`` and ``estimates.npz`` exactly as ``pose-tracker track`` does (into a non-empty folder only
-    with ``overwrite=True``, never into the sequence's folder); ``result.json`` holds every
-    metric of :data:`tracker.core.metrics.METRICS` and records this call (``invocation``: the function and the
-    arguments given) and when it ran (``started``, ``finished``; ISO 8601, UTC).
+    ``models`` (model files, or the models :func:`train` returns) and a likelihood by name; the other
+    ``settings`` are their options, each going to the one that declares it (``track(seq, "crbm",
+    models=[model], gibbs_steps=10, sharpness=40)``; ``pose-tracker track --prior crbm --help`` lists them).
+    Every setting and every declared option, given or default, is recorded in ``result.json`` (the run's settings
+    under their own names; ``prior_options``, ``likelihood_options``) and in the checkpoint's fingerprint.
+    Random-walk priors take their scale from ``step_std`` or ``train_mocap`` (:func:`build_prior`). ``record``
+    chooses what is kept per frame (:mod:`tracker.engine.recording`; add ``"particles"`` and ``"weights"`` to
+    keep those); ``on_frame(step, error_mm)`` sees every frame as it is tracked (``error_mm``: the frame's
+    absolute MPJPE). ``result.save(dir)`` writes ``result.json`` and ``estimates.npz`` exactly as ``pose-tracker
+    track`` does (into a non-empty folder only with ``overwrite=True``, never into the sequence's folder);
+    ``result.json`` holds every metric of :data:`tracker.core.metrics.METRICS` and records this call
+    (``invocation``: the function and the arguments given) and when it ran (``started``, ``finished``; ISO 8601,
+    UTC).
 
     With ``checkpoint`` (a file path) the filter's state is saved every ``checkpoint_every`` frames and on
     Ctrl-C, which raises :class:`~tracker.app.tracking.TrackingInterrupted` carrying the partial result;
     ``resume=True`` continues from the checkpoint to the result an uninterrupted run gives.
     """
     seq = sequence if isinstance(sequence, Sequence) else load_sequence(sequence)
-    views = check_views(views, seq.n_views, seq.root)
-    check_frames(seq, frames, known_frames, init)  # before anything is built or loaded
-    config = FilterConfig(n_particles=particles, resampling=resampling, annealing_layers=annealing_layers).check()
-    rng = make_rng(seed)
+    given, options = split_settings(settings)
+    run = run_settings(given, seq)
+    check_frames(seq, run["frames"], run["known_frames"], init)  # before anything is built or loaded
+    config = FilterConfig.from_options({o.name: run[o.name] for o in FILTER_OPTIONS})
+    rng = make_rng(run["seed"])
     prior_options, likelihood_options = split_options(prior, likelihood, options)
     if isinstance(prior, str):  # every declared option, checked, with its default: recorded in result.json
         prior_options = resolve_options(f"prior {prior}", prior_entry(prior).options, prior_options)
@@ -372,31 +400,33 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
         likelihood_options = resolve_options(f"likelihood {likelihood}", likelihood_entry(likelihood).options,
                                              likelihood_options)
     if isinstance(prior, str):
-        prior_obj = build_prior(prior, seq, models, train_mocap=train_mocap, step_std=step_std, device=device,
-                                **prior_options)
+        prior_obj = build_prior(prior, seq, models, train_mocap=train_mocap, step_std=step_std,
+                                device=run["device"], **prior_options)
     else:
         if models:
             raise InputError("models apply to a prior given by name, not to a prior object")
         prior_obj = prior
     if isinstance(likelihood, str):
-        lik_obj = build_likelihood(likelihood, seq, views, device=device, **likelihood_options)
+        lik_obj = build_likelihood(likelihood, seq, run["views"], device=run["device"], **likelihood_options)
     else:
         lik_obj = likelihood
+    recorded = {name: run[name] for name in RECORDED_SETTINGS if name != "frames"}  # frames: run_tracking's
+    recorded["seed"] = seed_description(run["seed"])
+    referenced = prior_entry(prior).referenced_files if isinstance(prior, str) else None
     settings = {
-        "prior": prior if isinstance(prior, str) else prior_obj.name,
-        "particles": config.n_particles, "views": views, "seed": seed_description(seed),
+        "prior": prior if isinstance(prior, str) else prior_obj.name, **recorded,
         "sequence": str(seq.root), "model": seq.model.name,
-        "annealing_layers": config.annealing_layers, "resampling": config.resampling,
         "prior_options": prior_options, "prior_settings": prior_obj.settings(),
-        "prior_models": [model_name(m) for m in models],
+        "prior_models": [model_name(m) for m in models]
+        + ([str(f) for f in referenced(prior_options)] if referenced is not None else []),
         "likelihood": likelihood if isinstance(likelihood, str) else lik_obj.name,
         "likelihood_options": likelihood_options, "likelihood_settings": lik_obj.settings(),
-        "device": device_name(device),
     }
     log.debug(f"tracking settings: {settings}")
     try:
-        result = run_tracking(seq, prior_obj, lik_obj, config, rng, views, frames, known_frames, init, record,
-                              on_frame, None if checkpoint is None else Path(checkpoint), checkpoint_every, resume,
+        result = run_tracking(seq, prior_obj, lik_obj, config, rng, run["views"], run["frames"],
+                              run["known_frames"], init, record, on_frame,
+                              None if checkpoint is None else Path(checkpoint), run["checkpoint_every"], resume,
                               fingerprint=settings)
     except TrackingInterrupted as stop:
         if stop.partial is not None:
@@ -404,3 +434,16 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
         raise
     result.settings = settings
     return result
+
+
+def _settings_table() -> str:
+    """The run's settings as the end of :func:`track`'s docstring lists them."""
+    lines = ["Settings (name, default, rule):", ""]
+    for o in TRACK_SETTINGS.values():
+        rule = o.rule or (f"one of {', '.join(o.choices)}" if o.choices else "")
+        unit = f" {o.unit}" if o.unit and o.default is not None else ""
+        lines.append(f"    - ``{o.name}`` = ``{o.default!r}``{unit}{'; ' + rule if rule else ''}: {o.help}")
+    return "\n".join(lines)
+
+
+track.__doc__ = (track.__doc__ or "") + "\n    " + _settings_table().replace("\n", "\n    ") + "\n"

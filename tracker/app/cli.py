@@ -26,6 +26,7 @@ from tracker.app.console import (PROG, close_bars, configure_logging, error_line
                                  progress_bar, shows_progress, stop_signals, verbosity)
 from tracker.app.parser import build_parser, given_options, parse_arguments
 from tracker.app.plugins import import_plugin, likelihood_entry, prior_entry
+from tracker.app.schema import TRACK_SETTINGS
 from tracker.app.threads import set_threads
 from tracker.core.errors import InputError
 
@@ -349,12 +350,9 @@ def cmd_track(args: argparse.Namespace) -> int:
                 run = track(seq, args.prior, models=args.model or (), likelihood=args.likelihood,
                             **given_options(args, prior_entry(args.prior).options),
                             **given_options(args, likelihood_entry(args.likelihood).options),
-                            particles=args.particles, views=views, frames=args.frames, seed=args.seed,
-                            annealing_layers=args.annealing_layers, resampling=args.resampling,
-                            known_frames=args.known_frames, init=init, train_mocap=args.train_mocap,
-                            device=args.device, on_frame=on_frame, checkpoint=checkpoint,
-                            checkpoint_every=args.checkpoint_every,
-                            resume=bool(args.resume) and checkpoint.exists())
+                            **{name: getattr(args, name) for name in TRACK_SETTINGS if name != "views"},
+                            views=views, init=init, train_mocap=args.train_mocap, on_frame=on_frame,
+                            checkpoint=checkpoint, resume=bool(args.resume) and checkpoint.exists())
             except TrackingInterrupted as stop:  # Ctrl-C or SIGTERM once the filter runs
                 for bar in bars:
                     bar.close()

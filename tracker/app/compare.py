@@ -69,20 +69,24 @@ def prepare_models(exp: Experiment, out: Path, version: str, say: Callable[[str]
 
     models = {}
     for p in exp.priors:
-        files = list(p.models)
-        for t in p.train:
-            ident = {"prior": p.name, "mocap": [[file_hash(m.path), m.start, m.frames]
+        files = []
+        for t in p.model_sources():  # given files, and trainings (a mixture's components: each its own prior)
+            if isinstance(t, Path):
+                files.append(t)
+                continue
+            name = t.prior or p.name
+            ident = {"prior": name, "mocap": [[file_hash(m.path), m.start, m.frames]
                                                 + ([] if m.joint_map is None else [m.joint_map]) for m in t.mocap],
                      "skeletons": None if t.skeletons is None else [file_hash(m) for m in t.skeletons],
                      "options": t.options, "seed": t.seed, "fps": exp.fps, "version": version}
             path = out / "models" / f"{config_hash(ident)}.pt"
             if not path.exists():
-                say(f"training {p.name} for {p.label!r} on {len(t.mocap)} clip(s)")
+                say(f"training {name} for {p.label!r} on {len(t.mocap)} clip(s)")
                 try:
                     clips = load_clips(t.mocap, exp.fps, t.skeletons)
                 except InputError as exc:
                     raise InputError(f"prior {p.label!r}: {exc}", exp.path) from None
-                model = train(p.name, clips, fps=exp.fps, seed=t.seed, **t.options)
+                model = train(name, clips, fps=exp.fps, seed=t.seed, **t.options)
                 with atomic_path(path) as tmp:
                     model.save(tmp)
             files.append(path)
@@ -186,10 +190,7 @@ def _execute_run(spec: RunSpec, final: Path, tmp: Path) -> dict:
         seed = run_seed(spec.seed_entropy, spec.seed_index)
         seq = load_sequence(spec.sequence_path)
         run = track(seq, spec.prior, models=spec.models, likelihood=spec.likelihood, **spec.prior_options,
-                    **spec.likelihood_options,
-                    particles=spec.particles, views=spec.views, frames=spec.frames, seed=seed,
-                    annealing_layers=spec.annealing_layers, resampling=spec.resampling,
-                    known_frames=spec.known_frames,
+                    **spec.likelihood_options, **spec.settings(), seed=seed,
                     step_std=None if spec.step_std is None else np.array(spec.step_std), on_frame=on_frame)
         log.write(f"done in {time.perf_counter() - t0:.1f} s\n")
     result = run.save(tmp, overwrite=True)  # every metric, as track writes it

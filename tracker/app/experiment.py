@@ -11,11 +11,12 @@ File layout (every key is checked, unknown ones refused)::
     baseline = "zero-velocity"               # the row others are compared with (default: the first prior)
     paired = "baseline"                      # paired differences against the baseline, or "all" pairs
 
-    [tracking]                               # grid axes; each a value or a list of values
-    particles = 1000
+    [tracking]                               # track's settings (tracker/app/schema.py), same names and defaults;
+    particles = 1000                         # particles, annealing_layers and views: a value or a list of values
     views = [[0, 1, 2, 3], [0]]              # view sets
     annealing_layers = 3                     # default: track's (3)
     frames = 150                             # track frames 0..frames-1 (default: whole sequences)
+    survival_rate = 0.5                      # also known_frames, resampling, ess_threshold, layer_diffusion_decay
 
     [[sequence]]                             # a sequence folder ...
     name = "bodytrack"
@@ -52,6 +53,16 @@ File layout (every key is checked, unknown ones refused)::
     train_seeds = [0, 1, 2, 3, 4]            # "over training seeds" table: the mean over the models, the spread
     train = [{ mocap = ["a.amc"] }]          # between models beside the spread over tracking seeds
 
+    [[prior]]
+    label = "CRBM + zero-velocity"           # a mixture: one [[prior.components]] table per component, each with
+    name = "mixture"                         # its prior, options and models = [...] or train = {...} (trained and
+    [[prior.components]]                     # cached like the others); written into the mixture's components
+    prior = "crbm"                           # option ("crbm:gibbs_steps=10,zero-velocity"), the models handed over
+    train = { mocap = ["a.amc"], options = { order = 1 } }   # in the components' order
+    options = { gibbs_steps = 10 }
+    [[prior.components]]
+    prior = "zero-velocity"
+
     [[likelihood]]                           # variants (default: one edge-silhouette)
     label = "bidirectional"
     name = "edge-silhouette"
@@ -84,6 +95,7 @@ import numpy as np
 
 from data_tools.fingerprints import config_hash, file_hash
 from tracker.core.errors import InputError
+from tracker.engine.registry import Option
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -92,9 +104,20 @@ else:  # pragma: no cover
 
 TOP_KEYS = {"description", "data_root", "seed", "seeds", "fps", "baseline", "paired", "tracking", "sequence",
             "prior", "likelihood"}
+#: The experiment's own settings at the top of the file (besides ``data_root`` and ``baseline``, which name a
+#: folder and a row).
+EXPERIMENT_OPTIONS = (
+    Option("description", str, "", "free text, the tables' title"),
+    Option("seed", int, 0, "master seed: seed index i of every configuration uses SeedSequence(seed).spawn(..)[i]",
+           minimum=0),
+    Option("seeds", int, 1, "tracking seeds (runs) per configuration", minimum=1),
+    Option("fps", float, 60.0, "frame rate of rendered sequences and trained models", minimum=1.0, maximum=1000.0,
+           unit="Hz"),
+    Option("paired", str, "baseline", "paired differences against the baseline, or between all pairs of rows",
+           choices=("baseline", "all")),
+)
 #: The environment variable that replaces an experiment file's ``data_root`` (``compare --data-root`` wins over it).
 DATA_ROOT_ENV = "POSE_TRACKER_DATA_ROOT"
-TRACKING_KEYS = {"particles", "views", "annealing_layers", "frames", "known_frames", "resampling"}
 SEQUENCE_KEYS = {"name", "path", "mocap", "skeleton", "then", "then_skeleton", "switch_at", "fade", "start", "frames",
                  "cameras", "views", "seed", "noise", "width", "height", "lighting_change", "occluder", "missing_camera",
                  "turn",
@@ -102,8 +125,10 @@ SEQUENCE_KEYS = {"name", "path", "mocap", "skeleton", "then", "then_skeleton", "
 #: A rendered sequence's keys that describe a change of activity (data_tools.transition) or how its clips are
 #: read (joint maps), not the rendering.
 TRANSITION_KEYS = {"then", "then_skeleton", "switch_at", "fade", "joint_map", "then_joint_map"}
-PRIOR_KEYS = {"label", "name", "options", "models", "train", "train_mocap", "train_seeds"}
+PRIOR_KEYS = {"label", "name", "options", "models", "train", "train_mocap", "train_seeds", "components"}
 TRAIN_KEYS = {"mocap", "skeletons", "options", "seed"}
+#: The keys of a ``[[prior.components]]`` table: one motion model of a prior with components (a mixture).
+COMPONENT_KEYS = {"prior", "options", "models", "train"}
 LIKELIHOOD_KEYS = {"label", "name", "options"}
 
 
@@ -130,10 +155,14 @@ class ClipSpec:
 
 @dataclass(frozen=True)
 class TrainSpec:
+    """A model the runner trains: clips, skeletons, training options and seed, and the prior it trains (None:
+    the entry's own; a mixture's component names its prior)."""
+
     mocap: tuple[ClipSpec, ...]
     skeletons: tuple[Path, ...] | None
     options: dict
     seed: int
+    prior: str | None = None
 
 
 @dataclass(frozen=True)
@@ -148,6 +177,13 @@ class PriorSpec:
     #: row's training seed; None for an ordinary entry.
     replicate_of: str | None = None
     training_seed: int | None = None
+    #: The model files and trainings in the order the prior takes them, where it is not ``models`` then ``train``
+    #: (a mixture's ``[[prior.components]]``, each taking its own); empty otherwise.
+    sources: tuple[Path | TrainSpec, ...] = ()
+
+    def model_sources(self) -> tuple[Path | TrainSpec, ...]:
+        """The prior's model files (given, or trained by the runner) in the order its builder takes them."""
+        return self.sources or (*self.models, *self.train)
 
 
 @dataclass(frozen=True)
@@ -240,13 +276,98 @@ def _replicates(w: "_Where", spec: PriorSpec, entry_doc: dict, entry: str) -> li
         raise w.error(entry, f"train_seeds must be a list of training seeds, e.g. [0, 1, 2], got {seeds!r}")
     if not spec.train:
         raise w.error(entry, "train_seeds repeats the entry's trainings: it needs train = [...]")
-    if any("seed" in t for t in _as_list(entry_doc.get("train", []))):
+    given = _as_list(entry_doc.get("train", [])) + [t for c in _as_list(entry_doc.get("components", []))
+                                                    if isinstance(c, dict) for t in _as_list(c.get("train", []))]
+    if any(isinstance(t, dict) and "seed" in t for t in given):
         raise w.error(entry, "give the training seeds either as train_seeds or as each training's seed, not both")
     seeds = [w.int_(s, f"{entry} train_seeds", 0) for s in seeds]
     if not seeds or len(set(seeds)) != len(seeds):
         raise w.error(entry, f"train_seeds must be distinct integers >= 0, got {entry_doc['train_seeds']!r}")
     return [replace(spec, label=f"{spec.label}, training seed {s}", replicate_of=spec.label, training_seed=s,
-                    train=tuple(replace(t, seed=s) for t in spec.train)) for s in seeds]
+                    train=tuple(replace(t, seed=s) for t in spec.train),
+                    sources=tuple(replace(t, seed=s) if isinstance(t, TrainSpec) else t for t in spec.sources))
+            for s in seeds]
+
+
+def _trainings(w: "_Where", prior: str, value: Any, entry: str) -> list[TrainSpec]:
+    """The ``train`` entries (a table or a list of tables) of the learned prior ``prior``."""
+    from tracker.app.plugins import prior_entry
+    from tracker.engine.registry import resolve_options
+
+    spec, out = prior_entry(prior), []
+    for j, t in enumerate(_as_list(value)):
+        te = f"{entry} train {j + 1}"
+        w.keys(t, TRAIN_KEYS, te)
+        if spec.train is None:
+            mixed = any(o.name == "components" for o in spec.options)
+            raise w.error(te, f"prior {prior} is not learned: it has nothing to train" + (
+                " (its learned components are trained in [[prior.components]] tables, each with its own train = "
+                "{ ... })" if mixed else ""))
+        try:
+            resolve_options(f"training {prior}", spec.train_options, t.get("options", {}))
+        except InputError as exc:
+            raise w.error(te, exc.reason) from None
+        mocap = tuple(_clip(w, m, te) for m in _as_list(t.get("mocap", [])))
+        if not mocap:
+            raise w.error(te, "needs mocap = [training clips]")
+        skels = tuple(w.file(m, te) for m in _as_list(t["skeletons"])) if "skeletons" in t else None
+        out.append(TrainSpec(mocap, skels, dict(t.get("options", {})), w.int_(t.get("seed", 0), te, 0), prior))
+    return out
+
+
+def _components(w: "_Where", doc: dict, options: dict, entry: str) -> tuple[dict, tuple[Path | TrainSpec, ...]]:
+    """A prior's ``[[prior.components]]`` tables (``prior``, ``options``, ``models`` or ``train``): the prior's
+    options with ``components`` written from them (without paths: a component's model files are the prior's, in
+    order, so that no path enters a run's hash), and the model files and trainings in that order."""
+    from tracker.engine.components import Component, written_value
+    from tracker.app.plugins import prior_entry
+    from tracker.engine.registry import resolve_options
+
+    if not any(o.name == "components" for o in prior_entry(doc["name"]).options):
+        raise w.error(entry, f"prior {doc['name']} has no components (a mixture has)")
+    if "components" in options:
+        raise w.error(entry, "give the components either as options.components or as [[prior.components]] tables, "
+                             "not both")
+    for key in ("models", "train"):
+        if key in doc:
+            raise w.error(entry, f"with [[prior.components]] each component gives its own {key}, not the prior")
+    tables = doc["components"]
+    if not isinstance(tables, list) or len(tables) < 2:
+        raise w.error(entry, "[[prior.components]] must give two or more components")
+    written, sources = [], []
+    for k, c in enumerate(tables):
+        ce = f"{entry} component {k + 1}"
+        w.keys(c, COMPONENT_KEYS, ce)
+        if "prior" not in c:
+            raise w.error(ce, "needs prior = NAME (a registered prior)")
+        try:
+            spec = prior_entry(c["prior"])
+            given = c.get("options", {})
+            if not isinstance(given, dict):
+                raise InputError(f"options must be a table, got {given!r}")
+            resolve_options(f"prior {c['prior']}", spec.options, given)
+            values = tuple((key, written_value(v)) for key, v in given.items())
+        except InputError as exc:
+            raise w.error(ce, exc.reason) from None
+        ce = f"{entry} component {k + 1} ({c['prior']})"
+        files = [w.file(m, ce, data=False) for m in _as_list(c.get("models", []))]
+        trains = _trainings(w, c["prior"], c.get("train", []), ce)
+        n = len(files) + len(trains)
+        if spec.model_files == "none" and n:
+            raise w.error(ce, f"prior {c['prior']} takes no model files")
+        if spec.model_files in ("one", "several") and not n:
+            raise w.error(ce, f"prior {c['prior']} needs models = [...] or train = ...")
+        if spec.model_files == "one" and n != 1:
+            raise w.error(ce, f"prior {c['prior']} takes exactly one model")
+        sources += files + trains
+        default = int(spec.model_files != "none")
+        written.append(Component(c["prior"], (), None if n == default else n, values).written())
+    options = {**options, "components": ",".join(written)}
+    try:
+        resolve_options(f"prior {doc['name']}", prior_entry(doc["name"]).options, options)
+    except InputError as exc:
+        raise w.error(entry, exc.reason) from None
+    return options, tuple(sources)
 
 
 def _as_list(value: Any) -> list:
@@ -277,12 +398,52 @@ def resolve_data_root(path: Path, declared: Any, given: str | Path | None = None
     return root.resolve()
 
 
+def _tracking(w: "_Where", table: Any) -> dict[str, Any]:
+    """The ``[tracking]`` table: every setting of :data:`tracker.app.schema.EXPERIMENT_SETTINGS`, given (checked
+    by its option: one line naming the file, the key and the rule) or its default; the settings of
+    :data:`~tracker.app.schema.GRID_AXES` as lists of values (``views``: of view sets, None for all views)."""
+    from tracker.app.schema import EXPERIMENT_SETTINGS, GRID_AXES, setting
+
+    table = w.keys(table, set(EXPERIMENT_SETTINGS), "[tracking]")
+    grid: dict[str, Any] = {}
+    for name in EXPERIMENT_SETTINGS:
+        option, entry = setting(name), f"[tracking] {name}"
+        value = table.get(name)
+        if name == "views":
+            if value is not None and not isinstance(value, list):
+                raise w.error(entry, f"expected a list of camera indices or a list of such lists, got {value!r}")
+            sets = [None] if value is None else (value if value and isinstance(value[0], list) else [value])
+            for vs in sets:
+                if vs is not None and (not isinstance(vs, list) or not vs or len(set(map(repr, vs))) != len(vs)):
+                    raise w.error(entry, f"each view set must list distinct camera indices, got {vs!r}")
+            grid[name] = [None if vs is None else list(_checked(w, option, vs, "[tracking]")) for vs in sets]
+        elif name in GRID_AXES:
+            values = _as_list(option.default if value is None else value)
+            if not values:
+                raise w.error(entry, "expected a value or a non-empty list, got []")
+            grid[name] = [_checked(w, option, v, "[tracking]") for v in values]
+        else:
+            grid[name] = option.default if value is None else _checked(w, option, value, "[tracking]")
+    if grid["frames"] is not None and grid["known_frames"] >= grid["frames"]:
+        raise w.error("[tracking] frames", f"must exceed known_frames ({grid['known_frames']}), got "
+                                           f"{grid['frames']}")
+    return grid
+
+
+def _checked(w: "_Where", option: Option, value: Any, table: str = "") -> Any:
+    """``value`` checked by ``option``; its refusal is one line naming the file, the ``table`` (``[tracking]``;
+    empty at the top level) and the key: ``exp.toml: [tracking] particles must be at least 1 ..., got 0``."""
+    try:
+        return option.parse(value, "")
+    except InputError as exc:
+        raise InputError(f"{table} {exc.reason[2:]}".strip(), w.path) from None
+
+
 def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Experiment:
     """Read and validate an experiment file; every problem is one :class:`InputError` naming the entry.
 
     ``data_root`` replaces the file's ``data_root`` (as does the environment variable ``POSE_TRACKER_DATA_ROOT``
     when ``data_root`` is None); see the module docstring."""
-    from tracker.app.defaults import TRACK_ANNEALING_LAYERS
     from tracker.app.plugins import likelihood_entry, prior_entry
     from tracker.engine.registry import resolve_options
 
@@ -298,44 +459,11 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
         raise InputError(f"not valid TOML ({exc})", path) from None
     w.keys(doc, TOP_KEYS, "")
     w.data_root = resolve_data_root(path, doc.get("data_root"), data_root)
-    seed = w.int_(doc.get("seed", 0), "seed", 0)
-    seeds = w.int_(doc.get("seeds", 1), "seeds", 1)
-    fps = doc.get("fps", 60.0)
-    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 1 <= fps <= 1000:
-        raise w.error("fps", f"expected a frame rate in 1..1000 Hz, got {fps!r}")
-    tracking = w.keys(doc.get("tracking", {}), TRACKING_KEYS, "[tracking]")
-    grid = {
-        "particles": [w.int_(p, "[tracking] particles", 1) for p in _as_list(tracking.get("particles", 1000))],
-        "annealing_layers": [w.int_(a, "[tracking] annealing_layers", 1)
-                             for a in _as_list(tracking.get("annealing_layers", TRACK_ANNEALING_LAYERS))],
-        "views": [],
-        "frames": tracking.get("frames"),
-        "known_frames": w.int_(tracking.get("known_frames", 2), "[tracking] known_frames", 1),
-        "resampling": tracking.get("resampling", "systematic"),
-    }
-    for axis in ("particles", "annealing_layers"):
-        if not grid[axis]:
-            raise w.error(f"[tracking] {axis}", "expected a value or a non-empty list, got []")
-    views = tracking.get("views")
-    if views is not None and not isinstance(views, list):
-        raise w.error("[tracking] views", f"expected a list of camera indices or a list of such lists, got {views!r}")
-    view_sets = [None] if views is None else (views if views and isinstance(views[0], list) else [views])
-    for vs in view_sets:
-        if vs is not None and (not isinstance(vs, list) or not vs or not all(
-                isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in vs) or len(set(vs)) != len(vs)):
-            raise w.error("[tracking] views", f"each view set must list distinct camera indices, got {vs!r}")
-    grid["views"] = view_sets
-    if grid["frames"] is not None:
-        grid["frames"] = w.int_(grid["frames"], "[tracking] frames", 2)
-        if grid["known_frames"] >= grid["frames"]:
-            raise w.error("[tracking] frames", f"must exceed known_frames ({grid['known_frames']}), got "
-                                               f"{grid['frames']}")
+    top = {o.name: o.default if doc.get(o.name) is None else _checked(w, o, doc[o.name]) for o in EXPERIMENT_OPTIONS}
+    seed, seeds, fps = top["seed"], top["seeds"], top["fps"]
+    grid = _tracking(w, doc.get("tracking", {}))
     from data_tools.skeleton_points import read_joint_map
     from data_tools.synth import SynthConfig
-    from tracker.engine.resampling import SCHEMES
-
-    if grid["resampling"] not in SCHEMES:
-        raise w.error("[tracking] resampling", f"expected one of {', '.join(SCHEMES)}, got {grid['resampling']!r}")
 
     sequences = []
     for i, s in enumerate(doc.get("sequence", [])):
@@ -396,21 +524,12 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
         except InputError as exc:
             raise w.error(entry, exc.reason) from None
         models = tuple(w.file(m, entry, data=False) for m in _as_list(p.get("models", [])))
-        trains = []
-        for j, t in enumerate(_as_list(p.get("train", []))):
-            te = f"{entry} train {j + 1}"
-            w.keys(t, TRAIN_KEYS, te)
-            if spec.train is None:
-                raise w.error(te, f"prior {p['name']} is not learned: it has nothing to train")
-            try:
-                resolve_options(f"training {p['name']}", spec.train_options, t.get("options", {}))
-            except InputError as exc:
-                raise w.error(te, exc.reason) from None
-            mocap = tuple(_clip(w, m, te) for m in _as_list(t.get("mocap", [])))
-            if not mocap:
-                raise w.error(te, "needs mocap = [training clips]")
-            skels = tuple(w.file(m, te) for m in _as_list(t["skeletons"])) if "skeletons" in t else None
-            trains.append(TrainSpec(mocap, skels, dict(t.get("options", {})), w.int_(t.get("seed", 0), te, 0)))
+        trains = _trainings(w, p["name"], p.get("train", []), entry)
+        options, sources = dict(p.get("options", {})), ()
+        if "components" in p:
+            options, sources = _components(w, p, options, entry)
+            models = tuple(s for s in sources if isinstance(s, Path))
+            trains = [s for s in sources if isinstance(s, TrainSpec)]
         if spec.model_files == "none" and (models or trains):
             raise w.error(entry, f"prior {p['name']} takes no model files")
         if spec.model_files in ("one", "several") and not (models or trains):
@@ -418,7 +537,7 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
         if spec.model_files == "one" and len(models) + len(trains) != 1:
             raise w.error(entry, f"prior {p['name']} takes exactly one model")
         train_mocap = tuple(_clip(w, m, entry) for m in _as_list(p["train_mocap"])) if "train_mocap" in p else None
-        prior = PriorSpec(label, p["name"], dict(p.get("options", {})), models, tuple(trains), train_mocap)
+        prior = PriorSpec(label, p["name"], options, models, tuple(trains), train_mocap, sources=sources)
         priors += _replicates(w, prior, p, entry) if "train_seeds" in p else [prior]
     if not priors:
         raise w.error("", "no [[prior]] entries")
@@ -442,11 +561,8 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
         group = [p.label for p in priors if p.replicate_of == baseline]
         raise w.error("baseline", f"{baseline!r} repeats its training (train_seeds): name one of its rows, e.g. "
                                   f"{group[0]!r}" if group else f"{baseline!r} is not a prior label")
-    paired = doc.get("paired", "baseline")
-    if paired not in ("baseline", "all"):
-        raise w.error("paired", f"expected 'baseline' or 'all', got {paired!r}")
-    return Experiment(path, str(doc.get("description", "")), seed, seeds, float(fps), baseline, paired, grid,
-                      sequences, priors, likelihoods, w.data_root)
+    return Experiment(path, top["description"], seed, seeds, fps, baseline, top["paired"], grid, sequences, priors,
+                      likelihoods, w.data_root)
 
 
 # -- runs ------------------------------------------------------------------------------------------------------
@@ -475,9 +591,18 @@ class RunSpec:
     seed_entropy: int
     out: str                     # the experiment's runs/ folder
     threads: int = 1
+    #: The filter's other settings (``ess_threshold``, ``survival_rate``, ``layer_diffusion_decay``).
+    filter_options: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
         return asdict(self)
+
+    def settings(self) -> dict[str, Any]:
+        """The run's settings by their names in :mod:`tracker.app.schema` (the keywords of ``tracker.track``),
+        its seed aside (:func:`run_seed`)."""
+        return {"particles": self.particles, "annealing_layers": self.annealing_layers, "views": self.views,
+                "frames": self.frames, "known_frames": self.known_frames, "resampling": self.resampling,
+                **self.filter_options}
 
 
 def row_label(prior: PriorSpec, likelihood: LikelihoodSpec, views, particles: int, layers: int,
@@ -514,7 +639,7 @@ def expand_runs(exp: Experiment, sequence_paths: dict[str, Path], sequence_hashe
                 "likelihood": lik.name, "likelihood_options": lik.options, "views": views,
                 "particles": particles, "annealing_layers": layers, "frames": exp.tracking["frames"],
                 "known_frames": exp.tracking["known_frames"], "resampling": exp.tracking["resampling"],
-                "seed": [exp.seed, i], "version": version,
+                "seed": [exp.seed, i], "version": version, **_filter_options(exp),
             }
             runs.append(RunSpec(
                 key=config_hash(identity), sequence=seq.name, sequence_path=str(sequence_paths[seq.name]),
@@ -523,5 +648,12 @@ def expand_runs(exp: Experiment, sequence_paths: dict[str, Path], sequence_hashe
                 step_std=step_std, likelihood=lik.name, likelihood_options=lik.options,
                 views=None if views is None else tuple(views), particles=particles, annealing_layers=layers,
                 frames=exp.tracking["frames"], known_frames=exp.tracking["known_frames"],
-                resampling=exp.tracking["resampling"], seed_index=i, seed_entropy=exp.seed, out=str(out)))
+                resampling=exp.tracking["resampling"], seed_index=i, seed_entropy=exp.seed, out=str(out),
+                filter_options=_filter_options(exp)))
     return runs
+
+
+def _filter_options(exp: Experiment) -> dict[str, Any]:
+    """The ``[tracking]`` settings of the filter that are not grid axes or a run's frames (a run's
+    :attr:`RunSpec.filter_options`)."""
+    return {k: exp.tracking[k] for k in ("ess_threshold", "survival_rate", "layer_diffusion_decay")}

@@ -15,12 +15,11 @@ from typing import Sequence
 import numpy as np
 
 from data_tools.checks import MAX_FPS, MAX_IMAGE_SIDE, MAX_MM_PER_UNIT, MAX_VIEWS, MIN_FPS, MIN_MM_PER_UNIT
-from tracker.app.defaults import TRACK_ANNEALING_LAYERS
 from tracker.app.plugins import available_likelihoods, available_priors, likelihood_entry, prior_entry
 from tracker.app.console import PROG, error_line
+from tracker.app.schema import add_flags, argument_type, setting
 from tracker.core.errors import InputError
 from tracker.engine.registry import Option
-from tracker.engine.resampling import SCHEMES
 
 
 def _number(kind: type, minimum: float, strict: bool, maximum: float | None = None, strict_max: bool = False):
@@ -49,15 +48,11 @@ _non_negative_float = _number(float, 0.0, strict=False)
 _positive_int = _number(int, 1, strict=False)
 _non_negative_int = _number(int, 0, strict=False)
 #: Plausible ranges of the command-line values that size arrays or scale arithmetic (the API checks its own).
-_seed = _number(int, 0, strict=False, maximum=2 ** 63 - 1)
+_seed = argument_type(setting("seed"))
 _fps = _number(float, MIN_FPS, strict=False, maximum=MAX_FPS)
 _length_unit = _number(float, MIN_MM_PER_UNIT, strict=False, maximum=MAX_MM_PER_UNIT)
 _image_side = _number(int, 1, strict=False, maximum=MAX_IMAGE_SIDE)
 _views = _number(int, 1, strict=False, maximum=MAX_VIEWS)
-#: Particles and annealing layers: far beyond any run (Taylor 2009 uses 200-1000 particles; Deutscher & Reid
-#: 10 layers), and a million particles already take gigabytes per frame.
-_particles = _number(int, 1, strict=False, maximum=1_000_000)
-_layers = _number(int, 1, strict=False, maximum=100)
 _JOINT_MAP_HELP = ("JSON or TOML file naming the file's joint for each body point (pelvis = \"Hips\", ...), for "
                    "skeletons whose names are not recognised (docs/guide/motion_capture.md)")
 
@@ -222,32 +217,19 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                         "ensemble of one order)")
     t.add_argument("--likelihood", default="edge-silhouette", choices=available_likelihoods(), metavar="NAME",
                    help="image likelihood (default edge-silhouette)")
-    t.add_argument("--particles", type=_particles, default=1000, help="number of particles (default 1000)")
-    t.add_argument("--views", default=None, help="comma-separated camera indices (default: all)")
-    t.add_argument("--frames", type=_positive_int, default=None,
-                   help="track frames 0..N-1 (default: the whole sequence)")
-    t.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
-    t.add_argument("--annealing-layers", type=_layers, default=TRACK_ANNEALING_LAYERS,
-                   help=f"annealed layers per frame (default {TRACK_ANNEALING_LAYERS}; 1 is plain SIR)")
-    t.add_argument("--resampling", default="systematic", choices=list(SCHEMES),
-                   help="resampling scheme (default systematic)")
+    add_flags(t, ("particles", "views", "frames", "seed", "annealing_layers", "resampling"))
     t.add_argument("--init", help="POSES.npz whose 'poses' are the known first frames (default: ground truth, or "
                                   "the bodytrack InitialPose.txt)")
-    t.add_argument("--known-frames", type=_positive_int, default=2,
-                   help="known frames the filter starts from (default 2, as in Taylor 2009)")
+    add_flags(t, ("known_frames",))
     t.add_argument("--train-mocap", nargs="+", default=None, metavar="FILE",
                    help="mocap clips whose frame-to-frame changes set the random-walk scale (default: the shipped "
                         "subject-7 walks 07_01 and 07_02); bodytrack folders use PoseParameters.txt")
-    t.add_argument("--device", default="cpu", metavar="DEVICE",
-                   help="where particles are scored: cpu (default: the compiled CPU path) or cuda, cuda:N (the GPU path: "
-                        "the likelihood's kinematics, projection and image lookups, and a learned prior's torch sampling)")
+    add_flags(t, ("device", "ess_threshold", "survival_rate", "layer_diffusion_decay"))
     t.add_argument("--out", help="output folder (required)")
     t.add_argument("--video", help="also write an overlay video of the estimates (.mp4)")
     t.add_argument("--overwrite", action="store_true",
                    help="write into a non-empty output folder, replacing the results there")
-    t.add_argument("--checkpoint-every", type=_non_negative_int, default=25, metavar="K",
-                   help="save the filter's state to OUTDIR/checkpoint.npz every K frames (default 25; 0: only "
-                        "on Ctrl-C); removed once the results are written")
+    add_flags(t, ("checkpoint_every",))
     t.add_argument("--resume", metavar="OUTDIR",
                    help="continue an interrupted run from OUTDIR/checkpoint.npz with its original settings "
                         "(give no other arguments)")

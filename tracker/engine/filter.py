@@ -49,41 +49,13 @@ from typing import Any, Callable, Iterable, Iterator, Mapping
 import numpy as np
 
 from tracker.core.blas import serial_blas
-from tracker.core.errors import InputError
+from tracker.engine.config import FilterConfig  # the filter's settings, declared with their options
 from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood
 from tracker.engine.prior import MotionPrior, PriorState, label_for, restart, summarize
 from tracker.engine.recording import DEFAULT_RECORD, FrameStep, Recording
 from tracker.engine.resampling import SCHEMES
 from tracker.engine.weighing import weighing_for
 from tracker.engine.weights import LogWeights, effective_sample_size
-
-
-@dataclass(frozen=True)
-class FilterConfig:
-    """Particle count, resampling scheme and ESS trigger, and the annealing options (layers per frame, target
-    survival rate, diffusion decay per layer)."""
-
-    n_particles: int = 1000
-    resampling: str = "systematic"
-    ess_threshold: float = 0.5
-    annealing_layers: int = 1
-    survival_rate: float = 0.5
-    layer_diffusion_decay: float = 0.5
-
-    def check(self) -> "FilterConfig":
-        if int(self.n_particles) < 1:
-            raise InputError(f"need at least one particle, got {self.n_particles}")
-        if self.resampling not in SCHEMES:
-            raise InputError(f"unknown resampling scheme {self.resampling!r}; choose from {', '.join(SCHEMES)}")
-        if not 0.0 <= self.ess_threshold <= 1.0:
-            raise InputError(f"ess_threshold must lie in [0, 1], got {self.ess_threshold}")
-        if int(self.annealing_layers) < 1:
-            raise InputError(f"annealing layers must be at least 1, got {self.annealing_layers}")
-        if not 0.0 < self.survival_rate < 1.0:
-            raise InputError(f"survival rate must lie in (0, 1), got {self.survival_rate}")
-        if not 0.0 < self.layer_diffusion_decay <= 1.0:
-            raise InputError(f"layer diffusion decay must lie in (0, 1], got {self.layer_diffusion_decay}")
-        return self
 
 
 @dataclass(frozen=True)

@@ -34,8 +34,12 @@ from tracker.core.errors import InputError
 
 @dataclass(frozen=True)
 class Option:
-    """One setting of a plugin: its keyword ``name`` (``--name-with-dashes`` on the command line), value type
-    (``int``, ``float``, ``str`` or ``bool``), default, help text, and optional bounds or choices."""
+    """One setting, declared once: its keyword ``name`` (``--name-with-dashes`` on the command line, the key of
+    an experiment file's table and of ``result.json``), value type (``int``, ``float``, ``str`` or ``bool``),
+    default, help text, optional bounds or choices, and the ``unit`` its values are in (``"mm"``, ``"frames"``,
+    ...; empty for a pure number). The options of plugins and the settings of a run
+    (:mod:`tracker.engine.config`, :mod:`tracker.app.schema`) are all of this one kind; ``many`` options hold a
+    tuple of values (``views``: ``0,2`` on the command line, a list elsewhere)."""
 
     name: str
     type: type
@@ -50,9 +54,15 @@ class Option:
     check: Callable[[str, str], Any] | None = None
     #: What the default is, in words, where it is not simply ``default`` (e.g. it depends on the model file).
     default_note: str = ""
+    #: The unit of the values (stated in help texts and documentation; keys carry no unit suffix).
+    unit: str = ""
+    #: Whether ``maximum`` itself is excluded.
+    strict_max: bool = False
+    #: A tuple of values of ``type`` (given as a list, or comma-separated text), each checked.
+    many: bool = False
 
     def described(self) -> str:
-        """The help text with the default stated (unless the text already states it)."""
+        """The help text with the default (and its unit) stated, unless the text already states it."""
         if "(default" in self.help:
             return self.help
         if self.default_note:
@@ -62,46 +72,86 @@ class Option:
         elif self.type is bool:
             default = "on" if self.default else "off"
         else:
-            default = format(self.default, "g") if isinstance(self.default, float) else str(self.default)
+            default = _text(self.default)
+            default += f" {self.unit}" if self.unit and self.unit != "%" else self.unit
         return f"{self.help} (default {default})"
 
     @property
     def flag(self) -> str:
         return "--" + self.name.replace("_", "-")
 
+    @property
+    def rule(self) -> str:
+        """The bounds in words (``"at least 1 and at most 1000000"``), empty for an unbounded option."""
+        bound = [] if self.minimum is None else \
+            [f"{'greater than' if self.strict else 'at least'} {_text(self.minimum)}"]
+        bound += [] if self.maximum is None else [f"{'less than' if self.strict_max else 'at most'} "
+                                                  f"{_text(self.maximum)}"]
+        return " and ".join(bound)
+
     def parse(self, value: Any, owner: str) -> Any:
-        """``value`` converted to the option's type and checked; an :class:`InputError` names the option."""
+        """``value`` converted to the option's type and checked; an :class:`InputError` names the owner and the
+        option and states the rule."""
         if value is None:
             return None
+        if self.many:
+            try:
+                items = value.split(",") if isinstance(value, str) else list(value)
+            except TypeError:
+                items = []
+            if not items:
+                raise InputError(f"{owner}: {self.name} must be a non-empty list of {_NOUNS[self.type]}s, "
+                                 f"got {value!r}")
+            return tuple(self._one(v.strip() if isinstance(v, str) else v, owner) for v in items)
+        return self._one(value, owner)
+
+    def _one(self, value: Any, owner: str) -> Any:
         try:
             if self.type is bool:
                 if isinstance(value, str):
                     if value.lower() not in ("true", "false", "1", "0", "yes", "no"):
                         raise ValueError(value)
                     value = value.lower() in ("true", "1", "yes")
+                elif not isinstance(value, (bool, int, np.integer)):
+                    raise TypeError(value)
                 out = bool(value)
             elif self.type is int:
-                if isinstance(value, float) and not value.is_integer():
+                if isinstance(value, bool) or (isinstance(value, float) and not value.is_integer()):
                     raise ValueError(value)
                 out = int(value)
+            elif self.type is float:
+                if isinstance(value, bool):
+                    raise ValueError(value)
+                out = float(value)
             else:
+                if not isinstance(value, str):
+                    raise TypeError(value)
                 out = self.type(value)
-        except (TypeError, ValueError):
-            raise InputError(f"{owner}: {self.name} must be {self.type.__name__}, got {value!r}") from None
+        except (TypeError, ValueError, OverflowError):
+            raise InputError(f"{owner}: {self.name} must be {_NOUNS.get(self.type, self.type.__name__)}, "
+                             f"got {value!r}") from None
         if self.type in (int, float):
             if not math.isfinite(out):
                 raise InputError(f"{owner}: {self.name} must be finite, got {value!r}")
             low = self.minimum is not None and (out < self.minimum or (self.strict and out == self.minimum))
-            if low or (self.maximum is not None and out > self.maximum):
-                bound = [] if self.minimum is None else \
-                    [f"{'greater than' if self.strict else 'at least'} {self.minimum:g}"]
-                bound += [] if self.maximum is None else [f"at most {self.maximum:g}"]
-                raise InputError(f"{owner}: {self.name} must be {' and '.join(bound)}, got {value!r}")
+            high = self.maximum is not None and (out > self.maximum or (self.strict_max and out == self.maximum))
+            if low or high:
+                raise InputError(f"{owner}: {self.name} must be {self.rule}, got {value!r}")
         if self.choices and out not in self.choices:
             raise InputError(f"{owner}: {self.name} must be one of {', '.join(map(str, self.choices))}, got {value!r}")
         if self.check is not None:
             self.check(out, owner)
         return out
+
+
+_NOUNS = {int: "an integer", float: "a number", bool: "true or false", str: "text"}
+
+
+def _text(value: Any) -> str:
+    """A number as help texts and messages write it (``1000000``, ``0.5``)."""
+    if isinstance(value, float):
+        return format(value, "g") if abs(value) < 1e6 or not value.is_integer() else str(int(value))
+    return str(value)
 
 
 def resolve_options(owner: str, declared: Sequence[Option], given: Mapping[str, Any]) -> dict[str, Any]:
@@ -184,6 +234,9 @@ class PriorEntry:
     train: Callable[..., Any] | None = None
     train_options: tuple[Option, ...] = ()
     resumable: bool = False
+    #: The model files a prior's options name (a mixture's components, ``crbm:model=crbm1.pt``), beside the
+    #: model files it is given: ``referenced_files(options) -> [path, ...]``; they enter the run's fingerprint.
+    referenced_files: Callable[[dict], Sequence[Path]] | None = None
 
 
 @dataclass(frozen=True)
@@ -232,21 +285,22 @@ LIKELIHOODS: Registry[LikelihoodEntry] = Registry("likelihood")
 
 def register_prior(name: str, *, summary: str = "", options: Sequence[Option] = (), model_files: str = "none",
                    train: Callable[..., Any] | None = None, train_options: Sequence[Option] = (),
-                   resumable: bool = False):
+                   resumable: bool = False, referenced_files: Callable[[dict], Sequence[Path]] | None = None):
     """Decorator registering ``build(context, model_files, options) -> MotionPrior`` under ``name``.
 
     ``model_files`` says whether the prior takes none, ``"one"`` or ``"several"`` model files, or ``"any"``
     number that its builder checks (a mixture: one per learned component); ``train``
     (learned priors) is ``train(data: TrainingData, options, rng, progress, checkpoint) -> model`` with
     ``model.save(path)`` and ``model.summary()``, configured by ``train_options``; a ``resumable`` one also
-    takes ``resume=True`` to continue from ``checkpoint``.
+    takes ``resume=True`` to continue from ``checkpoint``; ``referenced_files(options)`` lists the model files
+    that the options name (:attr:`PriorEntry.referenced_files`).
     """
     if model_files not in ("none", "one", "several", "any"):
         raise ValueError(f"model_files must be 'none', 'one', 'several' or 'any', got {model_files!r}")
 
     def decorate(build):
         PRIORS.add(PriorEntry(name, build, summary, tuple(options), model_files, train, tuple(train_options),
-                              resumable))
+                              resumable, referenced_files))
         return build
     return decorate
 
