@@ -246,7 +246,9 @@ class _Where:
         base = self.data_root if data and self.data_root is not None else self.path.parent
         p = p if p.is_absolute() else (base / p)
         if not (p.is_dir() if folder else p.is_file()):
-            raise self.error(entry, f"{'folder' if folder else 'file'} not found: {p}")
+            cmu = data and self.data_root is not None and "mocap/cmu/" in value.replace("\\", "/")
+            hint = f"; `pose-tracker fetch --for {self.path}` downloads the CMU trials it names" if cmu else ""
+            raise self.error(entry, f"{'folder' if folder else 'file'} not found: {p}{hint}")
         return p.resolve()
 
     def int_(self, value: Any, entry: str, minimum: int) -> int:
@@ -394,7 +396,8 @@ def resolve_data_root(path: Path, declared: Any, given: str | Path | None = None
         root, source = Path(declared).expanduser(), "data_root"
         root = root if root.is_absolute() else path.parent / root
     if not root.is_dir():
-        raise InputError(f"data root not found: {root} ({source})", path)
+        raise InputError(f"data root not found: {root} ({source}); `pose-tracker fetch --for {path}` downloads the "
+                         f"CMU trials the file names into it", path)
     return root.resolve()
 
 
