@@ -1,6 +1,7 @@
 """A mixture of motion models, weighed by their evidence: a learned prior that falls back on another.
 
-(This module is the prior; the filter's mechanism of components kept apart is :mod:`tracker.engine.mixture`.)
+(This module is the prior; the filter's mechanism of components kept apart is :mod:`tracker.engine.mixture`, and
+the way the particles are split among the models is :class:`priors.ensemble.Composite`'s.)
 
 A learned prior is only as good as its training motion: on motion it never saw it pulls every particle toward
 what it knows, and no single particle can escape. The mixture gives each of several priors (for example a
@@ -10,18 +11,17 @@ tempered by ``temperature`` (mixture tracking, :mod:`tracker.engine.mixture`); e
 from all particles, a particle's component changing with probability ``switch`` in the transition of the IMM
 mixing step, so a component that loses its weight is refilled from the winner's particles and takes over again
 when its motion returns.
-A model that keeps components of its own (an FCRBM inferring its style label) takes part with each of its labels
-as a component (its labels then switch among themselves as it says, but are weighed with the mixture's
-``temperature``, not its own). The estimate is the mixture's posterior mean; the per-frame summary is the posterior over the
-components.
+A model that keeps components of its own (a :class:`~tracker.engine.mixture.ComponentPrior`, such as an FCRBM
+inferring its style label) takes part with each of its components (they then switch among themselves as it
+says, but are weighed with the mixture's ``temperature``, not its own). The estimate is the mixture's posterior
+mean; the per-frame summary is the posterior over the components.
 
 A particle that switches component brings its own history; the new component derives the state it keeps per
-particle from it (:meth:`~tracker.engine.prior.MotionPrior.adopt`: the step out of the newest pose, GPDM latent
+particle from it (:func:`~tracker.engine.prior.adopt`: the step out of the newest pose, GPDM latent
 coordinates) on the next frame, and keeps the slow quantities (a pace, a height offset) its share had.
 
-State: ``component`` ``(P,)`` (fixed per particle position: contiguous blocks of equal size), ``arrived``
-``(P,)`` (the particles that switched component and have not been drawn from since), and ``model_k`` the state
-of component ``k``, one row per particle of which the rows of its own positions are in use.
+State (:class:`~priors.ensemble.Composite`'s): ``component`` ``(P,)`` (fixed per particle position: contiguous
+blocks of equal size), ``arrived`` ``(P,)`` and ``model_k`` the state of component ``k``.
 """
 from __future__ import annotations
 
@@ -30,10 +30,11 @@ from typing import Sequence
 
 import numpy as np
 
+from priors.ensemble import Composite
 from tracker.core.errors import InputError
 from tracker.engine.components import Component, parse_components
-from tracker.engine.mixture import Mixture
-from tracker.engine.prior import MotionPrior, PriorState, reindex_state, scatter_state
+from tracker.engine.mixture import Mixing, mixing_of
+from tracker.engine.prior import MotionPrior, PriorState, label_for, reindex_state, restart
 from tracker.engine.registry import PRIORS, Option, PriorContext, register_prior, resolve_options
 
 #: Probability per frame that a particle's component changes, in the IMM mixing step's transition.
@@ -42,12 +43,13 @@ SWITCH = 0.05
 TEMPERATURE = 10.0
 
 
-class MixturePrior(MotionPrior):
+class MixturePrior(Composite):
     """Motion models each drawing a fixed share of the particles, weighed by their evidence (module docstring).
 
     ``components``: the priors; ``labels``: their names in the summary (default: their names, numbered where
     one repeats); ``switch`` in [0, 1): the probability per frame that a particle's component changes (the IMM
-    transition); ``temperature`` >= 1: the evidence's temperature.
+    transition); ``temperature`` >= 1: the evidence's temperature. The filter keeps the components apart
+    (:class:`~tracker.engine.mixture.ComponentPrior`).
     """
 
     summary_kind = "posterior"
@@ -61,32 +63,25 @@ class MixturePrior(MotionPrior):
             raise InputError(f"the mixture's switching probability must lie in [0, 1), got {switch}")
         if not temperature >= 1.0:
             raise InputError(f"the mixture's evidence temperature must be at least 1, got {temperature}")
-        self.components = components
+        super().__init__(components)
         self.switch, self.temperature = float(switch), float(temperature)
         self.labels = tuple(labels) if labels is not None else numbered([c.name for c in components])
         if len(self.labels) != len(components) or len(set(self.labels)) != len(components):
             raise InputError(f"a mixture needs one distinct label per component, got {list(self.labels)}")
-        self.summary_names = tuple(n for label, c in zip(self.labels, components) for n in
-                                   ([f"{label} {s}" for s in c.summary_names] if self._labelled(c) else [label]))
-        self.order = max(c.order for c in components)
+        self.inner = [mixing_of(c) for c in components]  # the components' own components, where kept apart
+        sizes = [1 if m is None else m.transition.shape[0] for m in self.inner]
+        #: How many filter components each model takes, and the first of them ``(C,)``.
+        self.sizes, self.first = sizes, np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+        self.summary_names = tuple(n for label, inner in zip(self.labels, self.inner) for n in
+                                   ([label] if inner is None else [f"{label} {s}" for s in inner.names]))
         self.name = "mixture of " + " + ".join(self.labels)
 
-    # -- the layout of the particles ----------------------------------------------------------------------------
-
-    def _layout(self, n_particles: int) -> np.ndarray:
+    def layout(self, n_particles: int) -> np.ndarray:
         """Each position's component ``(P,)``: contiguous blocks of (nearly) equal size."""
         C = len(self.components)
         if n_particles < C:
             raise InputError(f"a mixture of {C} motion models needs at least {C} particles, got {n_particles}")
         return np.arange(n_particles) * C // n_particles
-
-    # -- the interface ------------------------------------------------------------------------------------------
-
-    def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
-        state: dict = {"component": self._layout(n_particles), "arrived": np.zeros(n_particles, bool)}
-        for c, prior in enumerate(self.components):
-            state[f"model_{c}"] = prior.start(known, n_particles, rng)
-        return state
 
     def restart(self, state: PriorState, recent: np.ndarray, n_particles: int,
                 rng: np.random.Generator) -> PriorState:
@@ -97,25 +92,8 @@ class MixturePrior(MotionPrior):
         for c, prior in enumerate(self.components):
             first = np.flatnonzero(state["component"] == c)[0]
             own = reindex_state(state[f"model_{c}"], np.full(n_particles, first))
-            new[f"model_{c}"] = prior.restart(own, recent, n_particles, rng)
+            new[f"model_{c}"] = restart(prior, own, recent, n_particles, rng)
         return new
-
-    def sample(self, history: np.ndarray, available: int, state: PriorState,
-               rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
-        component, arrived = state["component"], state["arrived"]
-        poses = np.empty((history.shape[0], history.shape[2]))
-        new: dict = {"component": component, "arrived": np.zeros(len(component), bool)}
-        for c, prior in enumerate(self.components):
-            m = np.flatnonzero(component == c)
-            own = reindex_state(state[f"model_{c}"], m)
-            moved = np.flatnonzero(arrived[m])
-            if len(moved):
-                part = prior.adopt(reindex_state(own, moved), history[m[moved]], available, rng)
-                own = scatter_state(own, moved, part)
-            h = history[m, history.shape[1] - prior.order:]
-            poses[m], drawn = prior.sample(h, min(available, prior.order), own, rng)
-            new[f"model_{c}"] = scatter_state(state[f"model_{c}"], m, drawn)
-        return poses, new
 
     def reindex(self, state: PriorState, idx: np.ndarray) -> PriorState:
         """After resampling picked particles ``idx``: a position whose new particle came from its own component
@@ -129,40 +107,46 @@ class MixturePrior(MotionPrior):
             new[f"model_{c}"] = prior.reindex(state[f"model_{c}"], rows)
         return new
 
-    def mixture(self, state: PriorState) -> Mixture:
+    # -- components kept apart (tracker.engine.mixture.ComponentPrior) ------------------------------------------
+
+    def mixing(self) -> Mixing:
         """The filter's components: one per motion model, or, for a model that keeps components of its own (an
-        FCRBM's style labels), one per model and label, the labels switching among themselves as the model
-        says. Between models a particle switches with probability ``switch``, to each label of the other model
-        alike."""
-        outer = state["component"]
-        inner = [p.mixture(state[f"model_{c}"]) for c, p in enumerate(self.components)]
-        sizes = [1 if m is None else m.n_components for m in inner]
-        start = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-        flat = start[outer]
+        FCRBM's style labels), one per model and component, those switching among themselves as the model
+        says. Between models a particle switches with probability ``switch``, to each component of the other
+        model alike. Named as :attr:`summary_names`."""
+        sizes, start = self.sizes, self.first
         C = len(self.components)
         transition = np.zeros((sum(sizes), sum(sizes)))
         for a in range(C):
-            if inner[a] is not None:
-                in_block = outer == a
-                flat[in_block] += inner[a].component[in_block]
             for b in range(C):
-                block = (1.0 - self.switch) * (np.ones((1, 1)) if inner[a] is None else inner[a].transition) \
+                block = (1.0 - self.switch) * (np.ones((1, 1)) if self.inner[a] is None else
+                                               self.inner[a].transition) \
                     if a == b else np.full((sizes[a], sizes[b]), self.switch / (C - 1) / sizes[b])
                 transition[start[a]:start[a] + sizes[a], start[b]:start[b] + sizes[b]] = block
-        return Mixture(flat, transition, self.temperature)
+        return Mixing(self.summary_names, transition, self.temperature)
+
+    def component_of(self, state: PriorState) -> np.ndarray:
+        """Each particle's filter component ``(P,)``: its model's first, plus its own component in that model."""
+        outer = state["component"]
+        flat = self.first[outer]
+        for a, prior in enumerate(self.components):
+            if self.inner[a] is not None:
+                in_block = outer == a
+                flat[in_block] += np.asarray(prior.component_of(state[f"model_{a}"]))[in_block]
+        return flat
 
     def relabel(self, state: PriorState, flat: np.ndarray) -> PriorState:
-        """A model that keeps components of its own learns its particles' new labels from the filter's components
-        ``flat`` ``(P,)`` (:meth:`mixture`'s numbering over models and their labels)."""
+        """A model that keeps components of its own learns its particles' new ones from the filter's components
+        ``flat`` ``(P,)`` (:meth:`mixing`'s numbering over models and their components)."""
         outer, new = state["component"], dict(state)
-        first = 0
         for c, prior in enumerate(self.components):
-            inner = prior.mixture(state[f"model_{c}"])
-            if inner is not None:
-                labels = np.where(outer == c, flat - first, inner.component)
-                new[f"model_{c}"] = prior.relabel(state[f"model_{c}"], labels)
-            first += 1 if inner is None else inner.n_components
+            if self.inner[c] is not None:
+                own = state[f"model_{c}"]
+                labels = np.where(outer == c, flat - self.first[c], prior.component_of(own))
+                new[f"model_{c}"] = prior.relabel(own, labels)
         return new
+
+    # -- what it reports -----------------------------------------------------------------------------------------
 
     def diffusion_std(self) -> np.ndarray:
         """The root-mean-square of the components' one-step scales ``(D,)``."""
@@ -170,30 +154,26 @@ class MixturePrior(MotionPrior):
 
     def summarize(self, state: PriorState, weights: np.ndarray) -> np.ndarray:
         """The posterior over :attr:`summary_names` under the normalised ``weights`` ``(P,)``: each model's
-        particles' weights summed, split over its labels for a model whose summary is a posterior over labels."""
+        particles' weights summed, split over its own components for a model that keeps components apart."""
         out = []
         for c, prior in enumerate(self.components):
             m = np.flatnonzero(state["component"] == c)
             total = float(weights[m].sum())
-            if not self._labelled(prior):
+            if self.inner[c] is None:
                 out.append([total])
                 continue
-            split = np.asarray(prior.summarize(reindex_state(state[f"model_{c}"], m), weights[m]), float)
+            own = np.asarray(prior.component_of(state[f"model_{c}"]))[m]
+            split = np.bincount(own, weights=weights[m], minlength=self.inner[c].transition.shape[0])
             out.append(split / split.sum() * total if split.sum() > 0 else np.full(len(split), total / len(split)))
         values = np.concatenate(out)
         return values / values.sum() if values.sum() > 0 else np.full(len(values), 1.0 / len(values))
-
-    @staticmethod
-    def _labelled(prior: MotionPrior) -> bool:
-        """Whether ``prior``'s per-frame summary is a posterior over labels (an FCRBM's styles)."""
-        return prior.summary_kind == "posterior" and bool(prior.summary_names)
 
     def settings(self) -> dict:
         return {"components": list(self.labels), "switch": self.switch, "evidence_temperature": self.temperature,
                 "component_settings": {n: c.settings() for n, c in zip(self.labels, self.components)}}
 
     def label_for(self, available: int) -> str:
-        return " + ".join(c.label_for(min(available, c.order)) for c in self.components)
+        return " + ".join(label_for(c, min(available, c.order)) for c in self.components)
 
 
 def numbered(names: Sequence[str]) -> tuple[str, ...]:

@@ -37,16 +37,16 @@ def test_each_particle_keeps_its_member_and_only_its_members_state_moves():
     prior = EnsemblePrior([Step([1.0, 0.0]), Step([0.0, 1.0])])
     rng = np.random.default_rng(0)
     state = prior.start(np.zeros((1, 2)), 5, rng)
-    assert state["member"].tolist() == [0, 1, 0, 1, 0]
+    assert state["component"].tolist() == [0, 1, 0, 1, 0]
     history = np.zeros((5, 1, 2))
     poses, state = prior.sample(history, 1, state, rng)
-    assert np.array_equal(poses[state["member"] == 0], [[1, 0]] * 3)
-    assert np.array_equal(poses[state["member"] == 1], [[0, 1]] * 2)
-    assert state["member_0"]["count"].tolist() == [1, 0, 1, 0, 1]  # the rows of member 0's particles only
-    assert state["member_1"]["count"].tolist() == [0, 1, 0, 1, 0]
+    assert np.array_equal(poses[state["component"] == 0], [[1, 0]] * 3)
+    assert np.array_equal(poses[state["component"] == 1], [[0, 1]] * 2)
+    assert state["model_0"]["count"].tolist() == [1, 0, 1, 0, 1]  # the rows of member 0's particles only
+    assert state["model_1"]["count"].tolist() == [0, 1, 0, 1, 0]
     state = prior.reindex(state, np.array([1, 1, 1, 3, 3]))  # resampling keeps member 1's particles only
     poses, state = prior.sample(poses[[1, 1, 1, 3, 3], None], 1, state, rng)
-    assert np.array_equal(poses, [[0, 2]] * 5) and state["member_1"]["count"].tolist() == [2] * 5
+    assert np.array_equal(poses, [[0, 2]] * 5) and state["model_1"]["count"].tolist() == [2] * 5
     # The summary: each member's particles under the whole set's weights, summed (the weighted mean count).
     weights = np.array([0.1, 0.2, 0.3, 0.2, 0.2])
     assert prior.summarize(state, weights)[0] == pytest.approx(2.0)
@@ -67,7 +67,7 @@ def test_the_filter_moves_particles_to_the_member_the_images_support():
     seen = []
     pf = ParticleFilter(prior, Truth(), FilterConfig(n_particles=200), np.random.default_rng(1))
     pf.run(np.zeros((1, 2)), [Frame(k, ()) for k in range(6)], on_state=lambda st, rec: seen.append(st))
-    assert np.mean(seen[-1].prior_state["member"] == 1) > 0.95
+    assert np.mean(seen[-1].prior_state["component"] == 1) > 0.95
 
 
 def test_an_ensemble_of_mixed_priors_is_refused():

@@ -146,12 +146,12 @@ def test_mixture_inference_keeps_a_share_of_particles_on_every_label(model, clip
     assert list(state["style"]) == [0, 1, 0, 1, 0, 1, 0, 1, 0]  # particle i carries label i mod L
     _, after = prior.sample(np.repeat(clips[0][None, 10:12], 9, axis=0), 2, state, rng)
     assert np.array_equal(after["style"], state["style"])  # the labels never switch on their own
-    mix = prior.mixture(after)
+    mix = prior.mixing().at(prior.component_of(after))
     assert np.array_equal(mix.component, after["style"]) and mix.temperature == 20
     assert np.allclose(mix.transition, [[0.9, 0.1], [0.1, 0.9]])
     moved = prior.relabel(prior.reindex(after, np.zeros(9, int)), mix.component)
     assert np.array_equal(moved["style"], state["style"]) and np.all(moved["clock"] == after["clock"])
-    assert FCRBMPrior([model], style="run").mixture(after) is None  # an oracle has nothing to infer
+    assert FCRBMPrior([model], style="run").mixing() is None  # an oracle has nothing to infer
     with pytest.raises(InputError, match="style temperature"):
         FCRBMPrior([model], style_temperature=0.5)
 

@@ -9,6 +9,7 @@ from priors.gpdm.predict import prepare
 from priors.gpdm.training import train_gpdm
 from priors.parts import GroundDiffusion, HeightOffset
 from tracker.core.errors import InputError
+from tracker.engine.prior import summarize, summary_of
 
 
 def noise_row(noise, i: int):
@@ -481,8 +482,8 @@ def test_gpdm_height_offsets_start_spread_drift_are_summarised_and_batched_equal
     option = {o.name: o for o in prior_entry("gpdm").options}["height_spread"]
     assert option.default == 50.0 and "(default 50)" in option.described()
     plain = GPDMPrior(gpdm_prior_model, height=HeightOffset(0.0))
-    assert "height_offset" not in plain.start(known, 10, np.random.default_rng(0)) and plain.summary_names == ()
-    assert plain.summarize(plain.start(known, 10, np.random.default_rng(0)), np.full(10, 0.1)) is None
+    assert "height_offset" not in plain.start(known, 10, np.random.default_rng(0)) and summary_of(plain)[0] == ()
+    assert summarize(plain, plain.start(known, 10, np.random.default_rng(0)), np.full(10, 0.1)) is None
     for bad in ((-1.0, 0.0), (0.0, float("nan"))):
         with pytest.raises(InputError, match="height"):
             HeightOffset(*bad)

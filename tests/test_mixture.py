@@ -6,7 +6,7 @@ import pytest
 from tracker.core.errors import InputError
 from tracker.engine.filter import FilterConfig, ParticleFilter
 from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood
-from tracker.engine.mixture import Mixture, mixture_weights, resample_components, switching
+from tracker.engine.mixture import Mixing, Mixture, mixture_weights, resample_components, switching
 from tracker.engine.prior import MotionPrior
 from tracker.engine.resampling import SCHEMES
 from tracker.engine.weights import LogWeights
@@ -29,8 +29,11 @@ class ModePrior(MotionPrior):
         v = np.where(state["mode"] == 0, 1.0, -1.0)[:, None]
         return history[:, -1] + v + 0.3 * rng.standard_normal((len(history), 1)), state
 
-    def mixture(self, state):
-        return Mixture(state["mode"], switching(2, self.switch), self.temperature)
+    def mixing(self):
+        return Mixing(("forward", "back"), switching(2, self.switch), self.temperature)
+
+    def component_of(self, state):
+        return state["mode"]
 
     def relabel(self, state, component):
         return {"mode": np.array(component)}
@@ -151,14 +154,13 @@ def test_annealing_redraws_each_component_from_its_own_particles():
     mode = state.prior_state["mode"]
     x = np.where(mode == 0, 0.0, 10.0)[:, None] + np.random.default_rng(2).random((100, 1))  # 1 far from the truth
     frame_lik = pf.likelihood.prepare(Frame(0, ()))
-    out, _, st, weights = pf._anneal(x, state.history, state.prior_state, frame_lik(x), frame_lik,
-                                     pf._mixture(state.prior_state))
+    out, _, st, weights = pf._anneal(x, state.history, state.prior_state, frame_lik(x), frame_lik)
     assert np.all(np.abs(out[mode == 1, 0] - 10.5) < 3) and np.all(np.abs(out[mode == 0, 0]) < 3)
     assert np.array_equal(st["mode"], mode) and np.all(np.isfinite(weights.log_w))
 
 
 def test_annealed_components_are_weighed_on_the_priors_own_samples(monkeypatch):
-    import tracker.engine.filter as engine
+    import tracker.engine.mixture as engine
 
     seen = []
 
@@ -254,3 +256,97 @@ def test_a_tempered_mixture_still_follows_the_change_of_mode():
     forward = out["prior_summary"][:, 0]
     assert np.all(forward[5:20] > 0.8) and np.all(forward[26:] < 0.2)
     assert np.max(np.abs(out["mean_poses"][:, 0] - truth)) < 2.0
+
+
+class Walker(MotionPrior):
+    """A 1-D random walk with unit steps of noise 0.5, no components."""
+
+    order = 1
+    name = "walker"
+
+    def sample(self, history, available, state, rng):
+        return history[:, -1] + 1.0 + 0.5 * rng.standard_normal((len(history), 1)), state
+
+    def diffusion_std(self):
+        return np.array([0.5])
+
+
+class OneComponent(Walker):
+    """The walker as a mixture of one component: every particle in component 0, nothing to switch to."""
+
+    def start(self, known, n_particles, rng):
+        return {"component": np.zeros(n_particles, np.int64)}
+
+    def mixing(self):
+        return Mixing(("only",), np.ones((1, 1)))
+
+    def component_of(self, state):
+        return state["component"]
+
+    def relabel(self, state, component):
+        return {"component": np.array(component)}
+
+
+@pytest.mark.parametrize("layers", [1, 3])
+def test_a_mixture_of_one_component_tracks_as_the_plain_prior(layers):
+    """Mixture tracking is a strategy of the filter, not a branch in it: with one component it weighs and draws as
+    plain SIR does when that resamples every frame (the same particles every frame), recovery included."""
+    truth = np.arange(1, 16, dtype=float)
+
+    class Lost(Around):  # frame 6 is explained only well behind the particles: only the recovery's draws fit
+        def prepare(self, frame):
+            inner = super().prepare(frame)
+
+            class Score(FrameLikelihood):
+                def __call__(self, poses):
+                    ll = inner(poses)
+                    return np.where(poses[:, 0] < truth[5] - 0.8, ll, -np.inf) if frame.index == 6 else ll
+            return Score()
+
+    config = FilterConfig(n_particles=50, ess_threshold=1.0, annealing_layers=layers)
+    runs = [ParticleFilter(prior, Lost(truth), config, np.random.default_rng(4)).run(
+        np.zeros((1, 1)), [Frame(k, ()) for k in range(len(truth))],
+        record=("particles", "mean_poses", "resampled", "recovered")) for prior in (Walker(), OneComponent())]
+    assert runs[0]["recovered"][6] and runs[1]["recovered"][6]
+    # the same particles drawn every frame (a different draw moves a particle by about 0.5, not by rounding: the
+    # weights, and so the estimate a recovery restarts from, agree to rounding, not to the bit)
+    assert np.allclose(runs[0]["particles"], runs[1]["particles"], rtol=0, atol=1e-12)
+    assert np.array_equal(runs[0]["resampled"], runs[1]["resampled"]) and runs[0]["resampled"].all()
+    assert np.allclose(runs[0]["mean_poses"], runs[1]["mean_poses"], rtol=0, atol=1e-12)
+
+
+def test_the_filter_chooses_its_weighing_once_and_knows_nothing_of_components():
+    """The filter's code names no part of the component API: the strategy object is chosen from the prior
+    (tracker.engine.weighing) and the filter only calls it."""
+    import ast
+    import inspect
+
+    import tracker.engine.filter as engine
+    from tracker.engine.mixture import MixtureTracking
+    from tracker.engine.weighing import PlainSIR, Weighing
+
+    tree = ast.parse(inspect.getsource(engine))
+    used = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
+    used |= {n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute)}
+    used |= {a.name for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) for a in n.names}
+    modules = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+    component_api = {"Mixture", "Mixing", "MixtureTracking", "ComponentPrior", "mixing", "mixing_of", "mixture",
+                     "component_of", "relabel", "mixture_weights", "resample_components"}
+    assert not used & component_api and "tracker.engine.mixture" not in modules
+    rng = np.random.default_rng(0)
+    plain = ParticleFilter(Walker(), Around([0.0]), FilterConfig(n_particles=4), rng).weighing
+    mixed = ParticleFilter(ModePrior(), Around([0.0]), FilterConfig(n_particles=4), rng).weighing
+    assert isinstance(plain, PlainSIR) and isinstance(mixed, MixtureTracking)
+    assert isinstance(plain, Weighing) and isinstance(mixed, Weighing)
+
+
+def test_the_motion_prior_core_is_small_and_the_rest_optional():
+    from tracker.engine.prior import label_for, restart, summarize, summary_of
+
+    core = {n for n in vars(MotionPrior) if not n.startswith("_")}
+    assert core == {"order", "name", "start", "sample", "reindex", "diffusion_std", "settings"}
+    walker = Walker()
+    assert summary_of(walker) == ((), "posterior") and summarize(walker, None, np.ones(3) / 3) is None
+    assert label_for(walker, 1) == "walker"
+    assert restart(walker, None, np.zeros((1, 1)), 3, np.random.default_rng(0)) is None  # start from the estimates
+    assert summary_of(ModePrior()) == (("forward", "back"), "posterior")  # the kind defaults to a posterior

@@ -173,9 +173,12 @@ class Styled(Drift):
         speed = np.where(state["style"] == 1, 10.0, 0.0)[:, None] * np.array([1.0, 0.0, 0.0])
         return history[:, -1] + speed + self.std * rng.standard_normal(history[:, -1].shape), state
 
-    def mixture(self, state):
-        from tracker.engine.mixture import Mixture, switching
-        return Mixture(state["style"], switching(2, 0.1), 10.0)
+    def mixing(self):
+        from tracker.engine.mixture import Mixing, switching
+        return Mixing(("slow", "fast"), switching(2, 0.1), 10.0)
+
+    def component_of(self, state):
+        return state["style"]
 
     def relabel(self, state, component):
         return {**state, "style": np.array(component)}
@@ -188,7 +191,7 @@ def test_a_model_with_components_of_its_own_takes_part_with_each_of_them():
     prior = MixturePrior([Drift(0.0, name="still"), Styled(0.0, name="styled")], switch=0.2)
     assert prior.summary_names == ("still", "styled slow", "styled fast")
     state = prior.start(np.zeros((1, D)), 8, np.random.default_rng(0))
-    mix = prior.mixture(state).check(8)
+    mix = prior.mixing().at(prior.component_of(state)).check(8)
     assert list(mix.component) == [0, 0, 0, 0, 1, 2, 1, 2]
     assert np.allclose(mix.transition, [[0.8, 0.1, 0.1], [0.2, 0.72, 0.08], [0.2, 0.08, 0.72]])
     relabelled = prior.relabel(state, np.array([0, 0, 0, 0, 2, 2, 1, 1]))
@@ -277,5 +280,5 @@ def test_an_ensemble_component_adopts_arriving_particles_member_by_member(mocap_
     history = np.stack([poses[2 * i:2 * i + 2] for i in range(4)]) + 0.0
     adopted = ensemble.adopt(state, history, 2, rng)
     for i in range(4):
-        member = adopted[f"member_{i % 2}"]
+        member = adopted[f"model_{i % 2}"]
         assert np.allclose(member["step"][i], pending_step(history[i])), i

@@ -94,7 +94,7 @@ def built(models, walk_07_01):
 
 def members(prior) -> list:
     """The priors a composite prior samples with (a mixture's components), or the prior itself."""
-    return list(getattr(prior, "components", None) or getattr(prior, "members", None) or [prior])
+    return list(getattr(prior, "components", None) or [prior])
 
 
 class TestRegisteredPriors(PriorContract):
@@ -114,8 +114,8 @@ class TestRegisteredPriors(PriorContract):
     def components(self, prior, state):
         """A mixture's components, or an ensemble's members (each samples its particles with its own model)."""
         found = super().components(prior, state)
-        if found is None and isinstance(state, dict) and "member" in state:
-            return np.asarray(state["member"])
+        if found is None and isinstance(state, dict) and "component" in state:
+            return np.asarray(state["component"])
         return found
 
     def frames_before_batch_check(self, prior):

@@ -20,8 +20,7 @@ TINY_SHELL = {"pose-tracker demo": "pose-tracker demo --frames 6", "--frame 40":
               "--particles 2000": "--particles 200", "--frames 150": "--frames 6",
               "--out crbm.pt": "--order 1 --epochs 2 --out crbm.pt"}
 #: The shared clips the README's own-mocap block names, linked into the folder it runs in.
-CLIPS = ("16/16_15.amc", "16/16.asf", "02/02_01.amc", "02/02.asf", "07/07_01.amc", "07/07.asf",
-         "91/91_straight_walk.amc", "91/91.asf")
+CLIPS = ("16/16_15.amc", "16/16.asf", "02/02_01.amc", "02/02.asf", "07/07_01.amc", "07/07_02.amc", "07/07.asf")
 
 
 def blocks(language: str) -> list[str]:

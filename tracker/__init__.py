@@ -9,6 +9,7 @@ The public API (``import tracker``)::
     tracker.track -> TrackingResult (.save writes result.json)     tracking
     tracker.show(seq, frame=0, poses=..., out="f.png", video=...)   the body model drawn over the views
     tracker.compare(experiment.toml, out, jobs=2)                  experiments (tables, plots)
+    tracker.fetch(["07_01"], data_root=DIR), fetch(experiment=...)  CMU trials downloaded and checked
     tracker.set_threads(n)                                         threads for BLAS, OpenCV, torch
     tracker.marker_error, tracker.sequence_error, tracker.summarize_runs
     tracker.register_prior, tracker.register_likelihood, tracker.Option,
@@ -45,7 +46,7 @@ _EXPORTS = {
     "track": "tracker.app.api", "available_priors": "tracker.app.api", "available_likelihoods": "tracker.app.api",
     "random_walk_scale": "tracker.app.api", "show": "tracker.app.api",
     "TrackingResult": "tracker.app.tracking", "compare": "tracker.app.compare",
-    "load_experiment": "tracker.app.experiment", "set_threads": "tracker.app.threads",
+    "load_experiment": "tracker.app.experiment", "fetch": "tracker.app.fetching", "set_threads": "tracker.app.threads",
     "SynthConfig": "data_tools.synth", "sample_walks": "data_tools.samples",
     "marker_error": "tracker.core.metrics", "sequence_error": "tracker.core.metrics",
     "summarize_runs": "tracker.core.metrics",

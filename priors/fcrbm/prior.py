@@ -19,7 +19,7 @@ from priors.conditional import ConditionalPrior
 from priors.parts import GroundDiffusion, GrowingModels, HeightOffset, PostureOffset
 from priors.settings import CRBM_TRAIN_OPTIONS, STYLE_TEMPERATURE, FCRBMConfig
 from tracker.core.errors import InputError
-from tracker.engine.mixture import Mixture, switching
+from tracker.engine.mixture import Mixing, switching
 from tracker.engine.prior import PriorState
 from tracker.engine.registry import Option, PriorContext, TrainingData, register_prior
 
@@ -97,7 +97,7 @@ class FCRBMPrior(ConditionalPrior):
     ``(P,)``, the label indices, and ``clock`` ``(P,)``, the sequence frame the next sample is for (which a style
     schedule reads). An unknown style is inferred by mixture tracking: every label keeps an equal share of the
     particles, and the filter moves weight between the labels by their tempered evidence and switches with
-    probability ``style_switch`` per frame (:meth:`mixture`). ``style`` fixes every particle's label (no switching: the
+    probability ``style_switch`` per frame (:meth:`mixing`). ``style`` fixes every particle's label (no switching: the
     oracle), or follows a schedule. :meth:`summarize` gives the filter's posterior over the labels.
     """
 
@@ -165,13 +165,17 @@ class FCRBMPrior(ConditionalPrior):
         frames, indices = self.schedule
         return indices[np.searchsorted(frames, clock, side="right") - 1]
 
-    def mixture(self, state: PriorState) -> Mixture | None:
-        """For an unknown style: one component per label (the particles carrying it), the
-        switching probability ``style_switch`` between them, the evidence tempered by ``style_temperature``."""
+    def mixing(self) -> Mixing | None:
+        """For an unknown style, the labels are components the filter keeps apart
+        (:class:`~tracker.engine.mixture.ComponentPrior`): one per label (the particles carrying it), switching with
+        probability ``style_switch``, the evidence tempered by ``style_temperature``; None for a known style."""
         if self.schedule is not None or len(self.labels) < 2:
             return None
-        return Mixture(np.asarray(state["style"]), switching(len(self.labels), self.style_switch),
-                       self.style_temperature)
+        return Mixing(tuple(self.labels), switching(len(self.labels), self.style_switch), self.style_temperature)
+
+    def component_of(self, state: PriorState) -> np.ndarray:
+        """Each particle's label ``(P,)``."""
+        return np.asarray(state["style"])
 
     def relabel(self, state: PriorState, component: np.ndarray) -> PriorState:
         return {**state, "style": np.array(component, np.int64)}

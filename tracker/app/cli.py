@@ -197,6 +197,14 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_fetch(args: argparse.Namespace) -> int:
+    from tracker.app.fetching import fetch
+
+    fetch(args.trials, experiment=args.experiment, data_root=args.data_root, mirror=args.mirror,
+          timeout=args.timeout)
+    return 0
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     from tracker.app.demo import run_demo
 
@@ -440,8 +448,7 @@ def cmd_track(args: argparse.Namespace) -> int:
 
 
 COMMANDS = {"convert": cmd_convert, "synth": cmd_synth, "show": cmd_show, "train": cmd_train, "track": cmd_track,
-            "compare": cmd_compare, "demo": cmd_demo}
-COMMANDS["corpus"] = cmd_corpus
+            "compare": cmd_compare, "demo": cmd_demo, "fetch": cmd_fetch, "corpus": cmd_corpus}
 
 
 def _plugins_from_argv(argv: list[str]) -> list[str]:

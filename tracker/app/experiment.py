@@ -246,7 +246,9 @@ class _Where:
         base = self.data_root if data and self.data_root is not None else self.path.parent
         p = p if p.is_absolute() else (base / p)
         if not (p.is_dir() if folder else p.is_file()):
-            raise self.error(entry, f"{'folder' if folder else 'file'} not found: {p}")
+            cmu = data and self.data_root is not None and "mocap/cmu/" in value.replace("\\", "/")
+            hint = f"; `pose-tracker fetch --for {self.path}` downloads the CMU trials it names" if cmu else ""
+            raise self.error(entry, f"{'folder' if folder else 'file'} not found: {p}{hint}")
         return p.resolve()
 
     def int_(self, value: Any, entry: str, minimum: int) -> int:
@@ -259,7 +261,7 @@ def _clips(w: "_Where", value: Any, entry: str) -> list[ClipSpec]:
     """The training clips of one entry: a path, folder or glob pattern (:func:`~data_tools.load.expand_mocap`:
     every mocap file a folder holds, recursively, or the pattern matches, in sorted order), or
     ``{ path = "...", start = 0, frames = 600, joint_map = "map.toml" }`` (its settings apply to every file)."""
-    from data_tools.load import expand_mocap
+    from data_tools.load import expand_mocap, is_pattern
     from data_tools.skeleton_points import read_joint_map
 
     settings: dict = {}
@@ -274,6 +276,9 @@ def _clips(w: "_Where", value: Any, entry: str) -> list[ClipSpec]:
     if not isinstance(value, str) or not value:
         raise w.error(entry, f"expected a path, got {value!r}")
     base = w.data_root if w.data_root is not None else w.path.parent
+    path = Path(value).expanduser()
+    if not is_pattern(value) and not (path if path.is_absolute() else base / path).exists():
+        w.file(value, entry)  # the refusal of a missing file, with what fetches it
     try:
         files = expand_mocap(value, base)
     except InputError as exc:
@@ -407,7 +412,8 @@ def resolve_data_root(path: Path, declared: Any, given: str | Path | None = None
         root, source = Path(declared).expanduser(), "data_root"
         root = root if root.is_absolute() else path.parent / root
     if not root.is_dir():
-        raise InputError(f"data root not found: {root} ({source})", path)
+        raise InputError(f"data root not found: {root} ({source}); `pose-tracker fetch --for {path}` downloads the "
+                         f"CMU trials the file names into it", path)
     return root.resolve()
 
 

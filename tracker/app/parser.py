@@ -293,6 +293,25 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                    help="leave out report.html's overlay videos of the best and the worst prior (a few seconds "
                         "each: one per sequence and view set)")
 
+    f = sub.add_parser("fetch", parents=[plugin_flag], help="download CMU mocap trials into a data root, checked",
+                       description="Download CMU motion capture trials (and their subjects' skeletons) from the "
+                                   "CMU database (http://mocap.cs.cmu.edu) or a mirror into DATA_ROOT/mocap/cmu/"
+                                   "<subject>/, where experiment files look for them. Each file is checked by "
+                                   "parsing it (skeleton bones and lengths, the trial's frame count) before it is "
+                                   "put in place; files already there that pass the check are not downloaded "
+                                   "again.")
+    f.add_argument("dataset", nargs="?", choices=["cmu"], metavar="cmu", help="the database (cmu)")
+    f.add_argument("trials", nargs="*", metavar="TRIAL", help="CMU trials as SUBJECT_TRIAL, e.g. 07_01 16_15")
+    f.add_argument("--for", dest="experiment", default=None, metavar="EXPERIMENT",
+                   help="also every CMU trial this experiment file (.toml) names, into its data root")
+    f.add_argument("--data-root", default=None, metavar="DIR",
+                   help="folder to place the files under (default: $POSE_TRACKER_DATA_ROOT, else the experiment "
+                        "file's data_root)")
+    f.add_argument("--mirror", default=None, metavar="URL",
+                   help="base URL of a copy laid out as http://mocap.cs.cmu.edu/subjects (URL/07/07_01.amc)")
+    f.add_argument("--timeout", type=_positive_float, default=30.0,
+                   help="seconds to wait for the server (default 30)")
+
     d = sub.add_parser("demo", parents=[plugin_flag], help="render, track and score a shipped walk: a first run that needs no data of your own",
                        description="Render 1.5 s of the shipped CMU walk 07_02 into 4 cameras, train a CRBM on "
                                    "the other shipped walk, track with the zero-velocity prior, the CRBM and the "

@@ -26,7 +26,7 @@ from tracker.core.kinematics import markers as model_markers
 from tracker.core.metrics import METRICS, PCK_THRESHOLD_MM, frame_metrics, marker_error
 from tracker.engine.filter import FilterConfig, ParticleFilter
 from tracker.engine.likelihood import Likelihood
-from tracker.engine.prior import MotionPrior
+from tracker.engine.prior import MotionPrior, summary_of
 from tracker.engine.recording import DEFAULT_RECORD, RECORDERS, STAGES, FrameStep
 
 
@@ -56,7 +56,7 @@ class TrackingResult:
     records: dict[str, np.ndarray]
     settings: dict[str, Any] = field(default_factory=dict)
     summary_names: list[str] = field(default_factory=list)
-    #: The prior's :attr:`~tracker.engine.prior.MotionPrior.summary_kind`.
+    #: What the prior's summary is (:func:`~tracker.engine.prior.summary_of`).
     summary_kind: str = "posterior"
     frames: int | None = None
     per_frame_metrics: dict[str, np.ndarray] | None = None
@@ -281,8 +281,8 @@ def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, conf
                   "wall_seconds": RECORDERS["wall_seconds"], **dict(record)}
     else:
         record = list(record) + [k for k in ("mean_poses", "best_poses", "wall_seconds") if k not in record]
-    names = list(prior.summary_names)
-    summary = (names, prior.summary_kind)
+    summary = summary_of(prior)
+    names = list(summary[0])
     if names and isinstance(record, dict):
         record.setdefault("prior_summary", lambda s: s.prior_summary)
     elif names and "prior_summary" not in record:

@@ -18,11 +18,10 @@ resamples, and diffuses with the prior's one-step scale times
 ``layer_diffusion_decay^m``; the last layer's weights are the frame's weights
 and every frame ends with resampling.
 
-A prior may split the particles into components that resampling keeps apart (mixture tracking, for a
-discrete hypothesis such as the FCRBM's style label; :mod:`tracker.engine.mixture`): then the weights are
-normalised within components and times the components' weights, and every frame resamples each component.
-Annealing layers anneal each component on its own, and the components are weighed on the likelihood of the
-prior's own samples, before the layers moved them.
+How a frame's likelihood becomes the weights and how the particles are redrawn is a strategy chosen once per
+filter from the prior (:func:`tracker.engine.weighing.weighing_for`): plain SIR as above, or mixture tracking
+for a prior whose particles are split into components kept apart (:mod:`tracker.engine.mixture`). The strategy
+also says which particles annealing layers sharpen and redraw together.
 
 If every weight is ``-inf`` (no particle explains the frame) the filter
 records the frame as recovered, re-diffuses the particles around the last
@@ -52,10 +51,10 @@ import numpy as np
 from tracker.core.blas import serial_blas
 from tracker.engine.config import FilterConfig  # the filter's settings, declared with their options
 from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood
-from tracker.engine.mixture import Mixture, mixture_weights, resample_components
-from tracker.engine.prior import MotionPrior, PriorState
+from tracker.engine.prior import MotionPrior, PriorState, label_for, restart, summarize
 from tracker.engine.recording import DEFAULT_RECORD, FrameStep, Recording
 from tracker.engine.resampling import SCHEMES
+from tracker.engine.weighing import weighing_for
 from tracker.engine.weights import LogWeights, effective_sample_size
 
 
@@ -106,28 +105,24 @@ def choose_beta(log_lik: np.ndarray, survival_rate: float, iterations: int = 40)
 
 
 @dataclass
-class Proposal:
-    """One frame's proposal: poses ``x`` ``P x D`` drawn by the prior from the histories ``P x N x D``, the
-    prior's next state, and the mixture's components (None: plain SIR)."""
+class Weighed:
+    """One frame's particles weighed: the poses ``x`` ``P x D`` and the histories ``P x N x D`` they came from
+    (both moved by annealing layers, or re-diffused), the prior's next state, the log-weights and the normalised
+    weights ``(P,)``, and whether no particle explained the frame (the filter re-diffused)."""
 
     x: np.ndarray
     history: np.ndarray
     prior_state: PriorState
-    mix: Mixture | None
-
-
-@dataclass
-class Weighed(Proposal):
-    """A proposal weighed by the frame (annealed, recovered, mixed): the log-weights and the normalised weights
-    ``(P,)``, and whether no particle explained the frame (the filter re-diffused)."""
-
-    weights: LogWeights = None
-    normalised: np.ndarray = None
-    recovered: bool = False
+    weights: LogWeights
+    normalised: np.ndarray
+    recovered: bool
 
 
 class ParticleFilter:
-    """SIR over poses with the prior's order as the augmented-state length."""
+    """SIR over poses with the prior's order as the augmented-state length.
+
+    ``weighing`` is the strategy that turns likelihoods into weights and resamples
+    (:mod:`tracker.engine.weighing`), chosen from the prior."""
 
     def __init__(self, prior: MotionPrior, likelihood: Likelihood, config: FilterConfig,
                  rng: np.random.Generator):
@@ -136,6 +131,7 @@ class ParticleFilter:
         self.config = config.check()
         self.rng = rng
         self.resample = SCHEMES[config.resampling]
+        self.weighing = weighing_for(prior, self.resample, self.config.n_particles)
 
     # -- one frame at a time -------------------------------------------------------------------------------
 
@@ -148,14 +144,8 @@ class ParticleFilter:
             recent = np.concatenate([np.repeat(recent[:1], N - len(recent), axis=0), recent])
         history = np.repeat(recent[None], P, axis=0)
         prior_state = self.prior.start(known, P, self.rng)
-        mix = self._mixture(prior_state)
-        weights = LogWeights.uniform(P) if mix is None else mix.start_weights()
+        weights = self.weighing.start_weights(prior_state)
         return FilterState(history, prior_state, weights, recent.copy(), min(len(known), N))
-
-    def _mixture(self, prior_state: PriorState) -> Mixture | None:
-        """The prior's components for ``prior_state`` (checked), or None for plain SIR."""
-        mix = self.prior.mixture(prior_state)
-        return None if mix is None else mix.check(self.config.n_particles)
 
     def step(self, state: FilterState, frame: Frame, load_seconds: float = 0.0,
              prepared: FrameLikelihood | None = None) -> tuple[FilterState, FrameStep]:
@@ -167,13 +157,12 @@ class ParticleFilter:
         t0 = time.perf_counter()
         frame_lik = self.likelihood.prepare(frame) if prepared is None else prepared
         t1 = time.perf_counter()
-        label = self.prior.label_for(state.available)
-        proposal = self._propose(state)
-        weighed = self._weigh(state, proposal, frame_lik)
+        label = label_for(self.prior, state.available)
+        weighed = self._weigh(state, frame_lik)
         W = weighed.normalised
         # (best a copy: a row of the particles would keep all of them alive in a recording of every frame)
         mean, best, ess = W @ weighed.x, weighed.x[int(np.argmax(W))].copy(), effective_sample_size(W)
-        summary = self.prior.summarize(weighed.prior_state, W)
+        summary = summarize(self.prior, weighed.prior_state, W)
         new_state, resampled = self._resample(state, weighed, mean, ess)
         t2 = time.perf_counter()
         step = FrameStep(index=state.tracked, frame=frame.index, particles=weighed.x, weights=weighed.weights,
@@ -182,79 +171,52 @@ class ParticleFilter:
                                   "filter": t2 - t1}, prior_label=label, prior_summary=summary)
         return new_state, step
 
-    def _propose(self, state: FilterState) -> "Proposal":
-        """Every particle's next pose from the prior, given its own history and state."""
-        mix = self._mixture(state.prior_state)
+    def _weigh(self, state: FilterState, frame_lik: FrameLikelihood) -> Weighed:
+        """Every particle's next pose from the prior, given its own history and state, weighed by the frame: the
+        likelihood of the prior's samples (its ``evidence``), sharpened through the annealing layers when
+        configured; re-diffused around the last estimate when no particle explains the frame; made weights by
+        the strategy."""
         x, prior_state = self.prior.sample(state.history, state.available, state.prior_state, self.rng)
-        return Proposal(x, state.history, prior_state, mix)
-
-    def _weigh(self, state: FilterState, proposal: "Proposal", frame_lik: FrameLikelihood) -> "Weighed":
-        """The proposal weighed by the frame: the likelihood of the prior's samples (the mixture's components
-        are judged on these), sharpened through the annealing layers when configured, re-diffused around the
-        last estimate when no particle explains the frame, and within a mixture's components times the
-        components' weights."""
-        x, history, prior_state, mix = proposal.x, proposal.history, proposal.prior_state, proposal.mix
+        history, carried = state.history, state.weights
         ll = evidence = frame_lik(x)
         if self.config.annealing_layers > 1:  # ll becomes the last layer's tempered log-likelihood
-            x, history, prior_state, annealed = self._anneal(x, history, prior_state, ll, frame_lik, mix)
+            x, history, prior_state, annealed = self._anneal(x, history, prior_state, ll, frame_lik)
             ll = annealed.log_w
-        weights = state.weights.add(ll)  # carried weights: uniform after an annealed frame, unless a mixture's
-        recovered = not weights.any_finite
-        carried_in = state.weights
-        if recovered:
-            x, history, weights = self._recover(state, frame_lik)
-            prior_state = self.prior.restart(state.prior_state, state.recent_estimates, self.config.n_particles,
-                                             self.rng)
-            mix = self._mixture(prior_state)
-            if mix is not None:  # the components start afresh, each with an equal weight
-                carried_in, ll = mix.start_weights(), weights.log_w
-                evidence = ll
-        if mix is None:
-            return Weighed(x, history, prior_state, mix, weights, weights.normalised, recovered)
-        W = mixture_weights(carried_in, ll, mix, evidence)  # within components, times the components' weights
-        if not W.any():  # only the recovery's all-minus-infinity frame gets here: its particles, unweighted
-            W = np.full(len(W), 1.0 / len(W))
-        weights = LogWeights(np.log(W, out=np.full(len(W), -np.inf), where=W > 0))
-        return Weighed(x, history, prior_state, mix, weights, W, recovered)
+        weighed = self.weighing.weigh(carried, ll, evidence, prior_state)
+        recovered = weighed is None
+        if recovered:  # no particle has any weight
+            x, history, prior_state, carried, ll = self._recover(state, frame_lik)
+            weighed = self.weighing.weigh(carried, ll, ll, prior_state)
+        return Weighed(x, history, prior_state, *weighed, recovered)
 
-    def _resample(self, state: FilterState, weighed: "Weighed", mean: np.ndarray, ess: float
+    def _resample(self, state: FilterState, weighed: Weighed, mean: np.ndarray, ess: float
                   ) -> tuple[FilterState, bool]:
-        """The state the next frame starts from: the histories moved on by the new poses, resampled when due
-        (every annealed frame and every mixture frame, else when the effective sample size falls below the
-        threshold), the prior's state reindexed with them; and whether it resampled."""
-        cfg, W, mix = self.config, weighed.normalised, weighed.mix
+        """The state the next frame starts from: the histories moved on by the new poses, resampled by the
+        strategy (due on every annealed frame, else when the effective sample size falls below the threshold),
+        the prior's state reindexed with them; and whether it resampled."""
+        cfg = self.config
         history = np.concatenate([weighed.history[:, 1:], weighed.x[:, None]], axis=1)
-        prior_state = weighed.prior_state
         recent = np.concatenate([state.recent_estimates[1:], mean[None]])
-        resampled = cfg.annealing_layers > 1 or mix is not None or ess < cfg.ess_threshold * cfg.n_particles
-        if mix is not None:  # every frame, each component redrawn from all particles (the IMM mixing step)
-            idx, carried = resample_components(W, mix, self.rng, self.resample)
+        due = cfg.annealing_layers > 1 or ess < cfg.ess_threshold * cfg.n_particles
+        idx, carried, prior_state = self.weighing.resample(weighed.weights, weighed.normalised,
+                                                           weighed.prior_state, due, self.rng)
+        if idx is not None:
             history = history[idx]
-            prior_state = self.prior.relabel(self.prior.reindex(prior_state, idx), mix.component)
-        elif resampled:
-            idx = self.resample(W, self.rng)
-            history = history[idx]
-            prior_state = self.prior.reindex(prior_state, idx)
-            carried = LogWeights.uniform(cfg.n_particles)
-        else:
-            carried = weighed.weights.renormalised()
         available = min(state.available + 1, self.prior.order)
-        return FilterState(history, prior_state, carried, recent, available, state.tracked + 1), bool(resampled)
+        return (FilterState(history, prior_state, carried, recent, available, state.tracked + 1),
+                idx is not None)
 
     def _anneal(self, x: np.ndarray, history: np.ndarray, prior_state: PriorState, ll: np.ndarray,
-                frame_lik: FrameLikelihood, mix: Mixture | None = None
-                ) -> tuple[np.ndarray, np.ndarray, PriorState, LogWeights]:
+                frame_lik: FrameLikelihood) -> tuple[np.ndarray, np.ndarray, PriorState, LogWeights]:
         """Deutscher & Reid's layers: sharpen, resample, diffuse less each layer; the last layer's weights.
 
-        With a mixture every component is annealed on its own (its exponents chosen on its particles, its
-        positions redrawn from its own particles), so the components keep their particles. The carried weights
-        are left out of the layers: they are equal within a component (:meth:`Mixture.start_weights`,
-        :func:`~tracker.engine.mixture.resample_components`), and uniform without a mixture, since every annealed
-        frame resamples."""
+        Each of the strategy's groups of particles is annealed on its own (its exponents chosen on its particles,
+        its positions redrawn from its own particles), so that a strategy that keeps components apart keeps
+        their particles. The carried weights are left out of the layers: every annealed frame resamples, which
+        leaves them equal within a group."""
         cfg = self.config
         diffusion = self.prior.diffusion_std()
-        groups = ([np.arange(len(ll))] if mix is None
-                  else [np.flatnonzero(mix.component == c) for c in range(mix.n_components)])
+        groups = self.weighing.groups(prior_state)
 
         def tempered(ll: np.ndarray) -> np.ndarray:
             out = np.full(len(ll), -np.inf)
@@ -267,7 +229,7 @@ class ParticleFilter:
                 break
             log_w, idx = tempered(ll), np.arange(len(ll))
             for g in groups:
-                if np.any(np.isfinite(log_w[g])):  # a component no particle of which fits is not resampled
+                if np.any(np.isfinite(log_w[g])):  # a group no particle of which fits is not resampled
                     idx[g] = g[self.resample(LogWeights(log_w[g]).normalised, self.rng, len(g))]
             x, history, ll = x[idx], history[idx], ll[idx]
             prior_state = self.prior.reindex(prior_state, idx)
@@ -276,14 +238,18 @@ class ParticleFilter:
         return x, history, prior_state, LogWeights(tempered(ll))
 
     def _recover(self, state: FilterState, frame_lik: FrameLikelihood
-                 ) -> tuple[np.ndarray, np.ndarray, LogWeights]:
-        """No particle explains the frame: re-diffuse around the last estimate, restart the histories there (and
-        the prior's own state from them, in :meth:`step`)."""
+                 ) -> tuple[np.ndarray, np.ndarray, PriorState, LogWeights, np.ndarray]:
+        """No particle explains the frame: re-diffuse around the last estimate and restart the histories there,
+        and the prior's own state from them. The new poses ``P x D``, histories, prior state, the carried
+        log-weights a particle set starts with, and the frame's log-likelihood of the new poses (zero where
+        nothing explains them either)."""
         P, D = state.history.shape[0], state.history.shape[2]
         x = state.recent_estimates[-1] + self.rng.standard_normal((P, D)) * self.prior.diffusion_std()
         history = np.repeat(state.recent_estimates[None], P, axis=0)
-        ll = frame_lik(x)
-        return x, history, LogWeights(ll if np.any(np.isfinite(ll)) else np.zeros(P))
+        ll = LogWeights(frame_lik(x)).log_w  # (a NaN value is a particle with no weight)
+        ll = ll if np.any(np.isfinite(ll)) else np.zeros(P)
+        prior_state = restart(self.prior, state.prior_state, state.recent_estimates, P, self.rng)
+        return x, history, prior_state, self.weighing.start_weights(prior_state), ll
 
     # -- a whole sequence ----------------------------------------------------------------------------------
 

@@ -1,11 +1,16 @@
 """Mixture tracking: a particle set split into components that resampling never merges.
 
-A prior whose particles carry a discrete hypothesis (the FCRBM's style label) can ask the filter to keep a
-fixed share of particles on every hypothesis (Vermaak, Doucet & Perez 2003, "Maintaining multi-modality
-through mixture tracking"), with switches between hypotheses as in the interacting multiple model filter (Blom
-& Bar-Shalom 1988). Without it, one frame on which a particle of the wrong hypothesis happens to fit the
-images best takes nearly all the weight, resampling copies it everywhere, and the right hypothesis is gone
-(measured on an activity switch: ``docs/methods_report.md``).
+A prior whose particles carry a discrete hypothesis (the FCRBM's style label, the motion model of a mixture of
+priors) can ask the filter to keep a fixed share of particles on every hypothesis (Vermaak, Doucet & Perez 2003,
+"Maintaining multi-modality through mixture tracking"), with switches between hypotheses as in the interacting
+multiple model filter (Blom & Bar-Shalom 1988). Without it, one frame on which a particle of the wrong hypothesis
+happens to fit the images best takes nearly all the weight, resampling copies it everywhere, and the right
+hypothesis is gone (measured on an activity switch: ``docs/methods_report.md``).
+
+Such a prior implements :class:`ComponentPrior`: its :class:`Mixing` (the components' names, the switching
+matrix, the evidence temperature), each particle's component, and how it relabels its particles after the
+mixing step drew them across components. The filter then weighs and resamples with :class:`MixtureTracking`
+instead of plain SIR (:mod:`tracker.engine.weighing` chooses, once per filter).
 
 The posterior is ``sum_c pi_c p_c(x)``: component weights ``pi`` ``(C,)`` and, within component ``c``, the
 particles at the positions where ``component == c`` with weights normalised within it. Each frame:
@@ -25,25 +30,64 @@ Arrays: ``component`` ``(P,)`` integers in ``0..C-1``, fixed per particle positi
 (row: from, column: to; rows sum to 1). Every mixture frame resamples (the filter's ESS threshold does not
 apply). With no switching (a zero off the diagonal) a component that lost all its weight stays lost.
 
-With annealing layers (:mod:`tracker.engine.filter`) each component is annealed on its own, so it keeps its
-particles; the weights within a component are its last layer's, and the components' evidence is the likelihood
-of the prior's own samples, before annealing moved them (annealing sharpens the pose within a hypothesis, and
-would otherwise flatter every hypothesis alike).
+With annealing layers (:mod:`tracker.engine.filter`) each component is annealed on its own
+(:meth:`MixtureTracking.groups`), so it keeps its particles; the weights within a component are its last
+layer's, and the components' evidence is the likelihood of the prior's own samples, before annealing moved them
+(annealing sharpens the pose within a hypothesis, and would otherwise flatter every hypothesis alike).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Protocol, runtime_checkable
 
 import numpy as np
 
 from tracker.core.errors import InputError
+from tracker.engine.prior import MotionPrior, PriorState
 from tracker.engine.weights import LogWeights
 
 
 @dataclass(frozen=True)
+class Mixing:
+    """How a prior's components mix, fixed for a run: their ``names`` ``(C,)`` (reported, e.g. in a mixture of
+    priors' posterior), the ``transition`` ``C x C`` per frame (row: from, column: to) and the ``temperature``
+    (>= 1) the likelihood is raised to ``1 / temperature`` by in the components' weights."""
+
+    names: tuple[str, ...]
+    transition: np.ndarray
+    temperature: float = 1.0
+
+    def at(self, component: np.ndarray) -> "Mixture":
+        """The particle set's :class:`Mixture` for the components ``component`` ``(P,)`` of its particles."""
+        return Mixture(np.asarray(component), self.transition, self.temperature)
+
+
+@runtime_checkable
+class ComponentPrior(Protocol):
+    """The optional capability of a prior whose particles are split into components the filter keeps apart.
+
+    ``mixing()``: the components' :class:`Mixing`, or None when this prior's particles need none kept apart (an
+    FCRBM told the style); ``component_of(state)``: each particle's component ``(P,)`` in the per-particle
+    ``state``; ``relabel(state, component)``: the ``state`` after the mixing step drew particles across components,
+    the particle at position ``i`` now belonging to ``component[i]``.
+    """
+
+    def mixing(self) -> Mixing | None: ...
+
+    def component_of(self, state: PriorState) -> np.ndarray: ...
+
+    def relabel(self, state: PriorState, component: np.ndarray) -> PriorState: ...
+
+
+def mixing_of(prior: MotionPrior) -> Mixing | None:
+    """The :class:`Mixing` of a prior with components kept apart, or None (a prior without the capability, or
+    one whose particles need none kept apart)."""
+    return prior.mixing() if isinstance(prior, ComponentPrior) else None
+
+
+@dataclass(frozen=True)
 class Mixture:
-    """The components of a particle set: ``component`` ``(P,)``, ``transition`` ``C x C`` per frame, and the
+    """The components of a particle set, one frame: ``component`` ``(P,)``, ``transition`` ``C x C`` per frame, and the
     ``temperature`` (>= 1) the likelihood is raised to ``1 / temperature`` by in the component weights."""
 
     component: np.ndarray
@@ -134,3 +178,49 @@ def resample_components(weights: np.ndarray, mix: Mixture, rng: np.random.Genera
         idx[m] = scheme(w / total, rng, len(m))
         carried[m] = np.log(total / len(m))
     return idx, LogWeights(carried)
+
+
+class MixtureTracking:
+    """Weighing and resampling with the components of ``prior`` (a :class:`ComponentPrior` whose :meth:`mixing`
+    is not None) kept apart: the :class:`~tracker.engine.weighing.Weighing` strategy of mixture tracking (module
+    docstring). ``scheme`` draws the indices (:data:`~tracker.engine.resampling.SCHEMES`); ``n_particles`` ``P``."""
+
+    def __init__(self, prior: MotionPrior, scheme: Callable[..., np.ndarray], n_particles: int):
+        mixing = mixing_of(prior)
+        if mixing is None:
+            raise ValueError(f"prior {prior.name!r} keeps no components apart")
+        self.prior, self.mixing, self.scheme, self.n_particles = prior, mixing, scheme, n_particles
+
+    def mixture(self, state: PriorState, checked: bool = True) -> Mixture:
+        """The particle set's components for the per-particle ``state``, checked unless ``checked`` is False (for
+        a state already checked where it was weighed)."""
+        mix = self.mixing.at(self.prior.component_of(state))
+        return mix.check(self.n_particles) if checked else mix
+
+    def start_weights(self, state: PriorState) -> LogWeights:
+        """Every component the same weight, shared equally by its particles."""
+        return self.mixture(state).start_weights()
+
+    def groups(self, state: PriorState) -> list[np.ndarray]:
+        """The particles of each component: annealing layers sharpen and redraw each on its own."""
+        component = self.mixture(state, checked=False).component
+        return [np.flatnonzero(component == c) for c in range(self.mixing.transition.shape[0])]
+
+    def weigh(self, carried: LogWeights, log_likelihood: np.ndarray, evidence: np.ndarray,
+              state: PriorState) -> tuple[LogWeights, np.ndarray] | None:
+        """The log-weights and normalised weights ``(P,)``: within components the carried weights times the
+        likelihood, times the components' weights from their ``evidence`` (:func:`mixture_weights`); None when
+        no particle has any weight (the filter recovers)."""
+        if not carried.add(log_likelihood).any_finite:
+            return None
+        W = mixture_weights(carried, log_likelihood, self.mixture(state), evidence)
+        return LogWeights(np.log(W, out=np.full(len(W), -np.inf), where=W > 0)), W
+
+    def resample(self, weights: LogWeights, normalised: np.ndarray, state: PriorState, due: bool,
+                 rng: np.random.Generator) -> tuple[np.ndarray | None, LogWeights, PriorState]:
+        """Every frame (``due`` does not matter): each component redrawn from all particles (the IMM mixing step,
+        :func:`resample_components`), the prior's state reindexed and relabelled; the indices ``(P,)``, the
+        carried log-weights and the state."""
+        mix = self.mixture(state, checked=False)  # the state weighed
+        idx, carried = resample_components(normalised, mix, rng, self.scheme)
+        return idx, carried, self.prior.relabel(self.prior.reindex(state, idx), mix.component)

@@ -13,12 +13,9 @@ so one seed fixes a whole run.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
-
-if TYPE_CHECKING:
-    from tracker.engine.mixture import Mixture
 
 #: A prior's own per-particle state: ``None``, an array with particles on the leading axis, or a dict of them.
 PriorState = Any
@@ -48,23 +45,23 @@ def scatter_state(full: PriorState, rows: np.ndarray, part: PriorState) -> Prior
 
 
 class MotionPrior(ABC):
-    """Samples ``p(x_t | x_{t-N} .. x_{t-1})`` for a batch of particles.
+    """Samples ``p(x_t | x_{t-N} .. x_{t-1})`` for a batch of particles: the core every prior implements.
 
-    A new prior implements :meth:`sample` and :meth:`diffusion_std`, sets
-    :attr:`order` and :attr:`name`, and registers a builder with
-    :func:`tracker.engine.registry.register_prior` so that the API and the
-    command line find it by name (see docs/extending.md).
+    A new prior implements :meth:`sample` and :meth:`diffusion_std`, sets :attr:`order` and :attr:`name`, and
+    registers a builder with :func:`tracker.engine.registry.register_prior` so that the API and the command line
+    find it by name (see docs/guide/extending.md). What else a prior can do is optional, each a small protocol it
+    implements by defining the methods: a per-frame summary (:class:`Summarizing`), a label per frame
+    (:class:`Labelling`), a restart after a lost frame (:class:`Restarting`), taking particles that come from
+    another motion model (:class:`Adopting`), and particles split into components the filter keeps apart
+    (:class:`tracker.engine.mixture.ComponentPrior`). The module functions :func:`summary_of`, :func:`summarize`,
+    :func:`label_for`, :func:`restart` and :func:`adopt` call a prior's own method, or give the default for a
+    prior without one.
     """
 
     #: How many past poses the prior conditions on.
     order: int = 1
     #: Name used on the command line and in results.
     name: str = "prior"
-    #: Names of the entries of :meth:`summarize`'s vector (none: the prior has no per-frame summary).
-    summary_names: tuple[str, ...] = ()
-    #: What the summary is: ``"posterior"`` (probabilities of the names, summing to 1) or ``"quantity"`` (posterior
-    #: means of the named quantities, e.g. a pace in mm/frame).
-    summary_kind: str = "posterior"
 
     def start(self, known: np.ndarray, n_particles: int, rng: np.random.Generator) -> PriorState:
         """Per-particle state from the known initial poses ``n0 x D`` (none by default)."""
@@ -81,53 +78,109 @@ class MotionPrior(ABC):
         order (Taylor 2009, Sec. 6.4: "growing" the history).
         """
 
-    def restart(self, state: PriorState, recent: np.ndarray, n_particles: int,
-                rng: np.random.Generator) -> PriorState:
-        """Per-particle state after the filter lost the person and re-diffused around its last estimates
-        ``recent`` ``N x D``; ``state`` is the state the lost frame started from. By default :meth:`start` from
-        ``recent``; a prior whose state counts frames (e.g. a schedule of style labels) carries the count on."""
-        return self.start(recent, n_particles, rng)
-
     def reindex(self, state: PriorState, idx: np.ndarray) -> PriorState:
         """Per-particle state after resampling picked particles ``idx``."""
         return reindex_state(state, idx)
-
-    def mixture(self, state: PriorState) -> "Mixture | None":
-        """The components the filter must keep apart (mixture tracking, :mod:`tracker.engine.mixture`) for the
-        per-particle ``state``, or None (the default): plain SIR."""
-        return None
-
-    def relabel(self, state: PriorState, component: np.ndarray) -> PriorState:
-        """The per-particle ``state`` after mixture resampling drew particles across components: the particle at
-        position ``i`` now belongs to ``component[i]`` (``(P,)``). Only priors with a :meth:`mixture` need it."""
-        return state
-
-    def adopt(self, state: PriorState, history: np.ndarray, available: int,
-              rng: np.random.Generator) -> PriorState:
-        """This prior's state for particles that arrive from another motion model of a mixture
-        (:mod:`priors.mixture`): ``history`` ``P x N x D`` their last poses (``N`` at least this prior's order,
-        ``available`` of them real), ``state`` the rows this prior held at the positions they take. By default
-        ``state`` unchanged, which is right for a prior whose state does not describe the newest pose (none, or
-        a slow quantity such as a pace or a height offset); a prior that carries something derived from the
-        particle's own poses (the step out of its newest pose, latent coordinates) derives it from ``history``."""
-        return state
 
     @abstractmethod
     def diffusion_std(self) -> np.ndarray:
         """Per-dof standard deviation ``(D,)`` (pose units per frame) of the prior's one-step noise: the scale
         annealed filter layers diffuse particles with."""
 
-    def summarize(self, state: PriorState, weights: np.ndarray) -> np.ndarray | None:
-        """A per-frame summary ``(len(summary_names),)`` of the per-particle ``state`` under the normalised
-        ``weights`` ``(P,)`` (e.g. the posterior over a style label the particles carry), recorded per frame as
-        ``prior_summary``; None (the default) for a prior without one."""
-        return None
-
     def settings(self) -> dict:
         """The prior's settings as plain JSON values, recorded in ``result.json`` (none by default)."""
         return {}
 
-    def label_for(self, available: int) -> str:
-        """Which model draws the next poses when ``available`` history slots are real (a prior that grows its
-        history through lower orders names the one in use); recorded per frame."""
-        return self.name
+
+# ---------------------------------------------------------------------------------------------------------------
+# Optional capabilities: a prior has one when it defines its members (no base class needed)
+# ---------------------------------------------------------------------------------------------------------------
+
+@runtime_checkable
+class Summarizing(Protocol):
+    """A prior with a per-frame summary of its per-particle state, recorded per frame as ``prior_summary``.
+
+    ``summary_names``: the entries of the summary; ``summarize(state, weights)`` gives ``(len(summary_names),)``
+    under the normalised ``weights`` ``(P,)``, or None when it has nothing to report. An optional
+    ``summary_kind`` says what the summary is: ``"posterior"`` (the default: probabilities of the names, summing
+    to 1, e.g. over a style label the particles carry) or ``"quantity"`` (posterior means of the named
+    quantities, e.g. a pace in mm/frame).
+    """
+
+    summary_names: tuple[str, ...]
+
+    def summarize(self, state: PriorState, weights: np.ndarray) -> np.ndarray | None: ...
+
+
+@runtime_checkable
+class Labelling(Protocol):
+    """A prior that names the model drawing the next poses when ``available`` history slots are real (one that
+    grows its history through lower orders names the one in use); recorded per frame."""
+
+    def label_for(self, available: int) -> str: ...
+
+
+@runtime_checkable
+class Restarting(Protocol):
+    """A prior whose state after a lost frame is not simply :meth:`MotionPrior.start` from the last estimates
+    (e.g. one whose state counts frames, or keeps a quantity of the person rather than of the lost frame)."""
+
+    def restart(self, state: PriorState, recent: np.ndarray, n_particles: int,
+                rng: np.random.Generator) -> PriorState: ...
+
+
+@runtime_checkable
+class Adopting(Protocol):
+    """A prior whose state describes the newest pose (the step out of it, latent coordinates), and so must derive
+    that state for particles arriving from another motion model of a composite prior."""
+
+    def adopt(self, state: PriorState, history: np.ndarray, available: int,
+              rng: np.random.Generator) -> PriorState: ...
+
+
+# The functions below look the optional members up by name: what ``isinstance(prior, Summarizing)`` checks, without
+# its cost (several microseconds a call on Python 3.11) on every frame.
+
+def summary_of(prior: MotionPrior) -> tuple[tuple[str, ...], str]:
+    """The names of ``prior``'s per-frame summary and what it is (:class:`Summarizing`); no names and
+    ``"posterior"`` for a prior without one."""
+    names = getattr(prior, "summary_names", None)
+    if names is None or not callable(getattr(prior, "summarize", None)):
+        return (), "posterior"
+    return tuple(names), getattr(prior, "summary_kind", "posterior")
+
+
+def summarize(prior: MotionPrior, state: PriorState, weights: np.ndarray) -> np.ndarray | None:
+    """``prior``'s summary ``(len(names),)`` of the per-particle ``state`` under the normalised ``weights``
+    ``(P,)``; None for a prior without one (:class:`Summarizing`)."""
+    if getattr(prior, "summary_names", None) is None:
+        return None
+    own = getattr(prior, "summarize", None)
+    return own(state, weights) if callable(own) else None
+
+
+def label_for(prior: MotionPrior, available: int) -> str:
+    """Which model of ``prior`` draws the next poses when ``available`` history slots are real: its own
+    :class:`Labelling` answer, else its name."""
+    own = getattr(prior, "label_for", None)
+    return own(available) if callable(own) else prior.name
+
+
+def restart(prior: MotionPrior, state: PriorState, recent: np.ndarray, n_particles: int,
+            rng: np.random.Generator) -> PriorState:
+    """Per-particle state after the filter lost the person and re-diffused around its last estimates ``recent``
+    ``N x D``; ``state`` is the state the lost frame started from. The prior's own :class:`Restarting` answer,
+    else :meth:`MotionPrior.start` from ``recent``."""
+    own = getattr(prior, "restart", None)
+    return own(state, recent, n_particles, rng) if callable(own) else prior.start(recent, n_particles, rng)
+
+
+def adopt(prior: MotionPrior, state: PriorState, history: np.ndarray, available: int,
+          rng: np.random.Generator) -> PriorState:
+    """``prior``'s state for particles that arrive from another motion model of a composite prior: ``history``
+    ``P x N x D`` their last poses (``N`` at least the prior's order, ``available`` of them real), ``state`` the
+    rows the prior held at the positions they take. The prior's own :class:`Adopting` answer, else ``state``
+    unchanged, which is right for a prior whose state does not describe the newest pose (none, or a slow quantity
+    such as a pace or a height offset)."""
+    own = getattr(prior, "adopt", None)
+    return own(state, history, available, rng) if callable(own) else state

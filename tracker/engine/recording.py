@@ -30,7 +30,7 @@ class FrameStep:
     resampling); :meth:`ParticleFilter.run <tracker.engine.filter.ParticleFilter.run>` adds ``wall``, the time
     the frame added to the run (less than the sum of the others where reading and filtering overlap).
     ``prior_label`` names the model that drew the frame's poses; ``prior_summary`` is the prior's
-    summary of its per-particle state under the weights (:meth:`~tracker.engine.prior.MotionPrior.summarize`),
+    summary of its per-particle state under the weights (:func:`~tracker.engine.prior.summarize`),
     or None.
     """
 

@@ -23,7 +23,8 @@ from typing import Any, Iterator, Sequence
 
 import numpy as np
 
-from tracker.engine.prior import MotionPrior, PriorState, reindex_state
+from tracker.engine.mixture import mixing_of
+from tracker.engine.prior import MotionPrior, PriorState, label_for, reindex_state
 
 
 def rollout(prior: MotionPrior, poses: np.ndarray, n_particles: int, seed: int,
@@ -80,10 +81,9 @@ class PriorContract:
     def components(self, prior: MotionPrior, state: PriorState) -> np.ndarray | None:
         """Each particle's component ``(P,)`` where the prior keeps groups of particles apart, each sampled
         with its own stream of random numbers (resampling within a group leaves every group's draws where
-        they were); None where it samples the whole batch at once. Default: the prior's
-        :meth:`~tracker.engine.prior.MotionPrior.mixture` components."""
-        mixture = prior.mixture(state)
-        return None if mixture is None else np.asarray(mixture.component)
+        they were); None where it samples the whole batch at once. Default: the components the prior keeps
+        apart (:class:`~tracker.engine.mixture.ComponentPrior`)."""
+        return None if mixing_of(prior) is None else np.asarray(prior.component_of(state))
 
     def frames_before_batch_check(self, prior: MotionPrior) -> int:
         """Steps to roll out before the batch and reindexing checks (2). A prior with a part that by design
@@ -132,7 +132,7 @@ class PriorContract:
         settings = prior.settings()
         assert isinstance(settings, dict)
         json.dumps(settings)  # written to result.json as it is: plain JSON values only
-        assert isinstance(prior.label_for(prior.order), str) and prior.name
+        assert isinstance(label_for(prior, prior.order), str) and prior.name
 
     def test_the_same_seed_draws_the_same_poses(self):
         prior, poses = self._prior_and_poses()
@@ -206,7 +206,7 @@ class PriorContract:
         history = np.repeat(poses[None, :1], prior.order, axis=1).repeat(P, axis=0)
         labels = []
         for available in range(1, prior.order + 1):
-            labels.append(prior.label_for(available))
+            labels.append(label_for(prior, available))
             new, state = prior.sample(history, available, state, rng)
             assert np.all(np.isfinite(new)), f"non-finite poses with {available} known frames"
             history = np.concatenate([history[:, 1:], new[:, None]], axis=1)
