@@ -316,3 +316,22 @@ train_mocap = ["{corpus / 'b'}"]
     refusal = r"prior 'crbm' train 1: the pattern matches no mocap file \(.amc, .bvh\): .*\*\.c3d$"
     with pytest.raises(InputError, match=refusal):
         load_experiment(tmp_path / "bad.toml")
+
+
+def test_experiment_labels_are_read_from_names_or_a_sidecar_as_the_file_loads(corpus, tmp_path):
+    from tracker.app.experiment import load_experiment
+
+    def experiment(labels: str) -> Path:
+        path = tmp_path / "fcrbm.toml"
+        path.write_text(f'[[sequence]]\nname = "w"\nmocap = "{corpus / "a" / "07_01.amc"}"\n[[prior]]\n'
+                        f'name = "fcrbm"\ntrain = {{ mocap = ["{corpus / "**" / "*.amc"}"], '
+                        f'options = {{ labels = "{labels}" }} }}\n')
+        return path
+
+    assert load_experiment(experiment("{}_{trial}")).priors[0].train[0].options["labels"] == "01,02"
+    (tmp_path / "styles.csv").write_text("file,style\n07_01,normal\n07_02,tired\n")
+    spec = load_experiment(experiment("styles.csv#style")).priors[0].train[0]  # beside the experiment file
+    assert spec.options["labels"] == "normal,tired"
+    (tmp_path / "styles.csv").write_text("file,style\n07_01,normal\n")
+    with pytest.raises(InputError, match=r"fcrbm.toml: prior 'fcrbm' train 1: .*07_02.amc: no labels"):
+        load_experiment(experiment("styles.csv#style"))

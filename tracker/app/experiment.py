@@ -329,8 +329,25 @@ def _trainings(w: "_Where", prior: str, value: Any, entry: str) -> list[TrainSpe
         if not mocap:
             raise w.error(te, "needs mocap = [training clips]")
         skels = tuple(w.file(m, te) for m in _as_list(t["skeletons"])) if "skeletons" in t else None
-        out.append(TrainSpec(mocap, skels, dict(t.get("options", {})), w.int_(t.get("seed", 0), te, 0), prior))
+        options = _read_labels(w, dict(t.get("options", {})), mocap, te)
+        out.append(TrainSpec(mocap, skels, options, w.int_(t.get("seed", 0), te, 0), prior))
     return out
+
+
+def _read_labels(w: "_Where", options: dict, mocap: tuple[ClipSpec, ...], entry: str) -> dict:
+    """``options`` with a ``labels`` pattern or sidecar file (:mod:`data_tools.corpus`; a sidecar is a data path)
+    read into one label per clip, in clip order: the labels themselves then identify the trained model, so that
+    an edited sidecar trains anew, and a clip without its label is refused as the file is read."""
+    from data_tools.corpus import is_label_source, label_source
+
+    if not is_label_source(options.get("labels")):
+        return options
+    base = w.data_root if w.data_root is not None else w.path.parent
+    try:
+        labels = label_source(options["labels"], base).training_labels([m.path for m in mocap])
+    except InputError as exc:
+        raise w.error(entry, str(exc)) from None
+    return {**options, "labels": ",".join(labels)}
 
 
 def _components(w: "_Where", doc: dict, options: dict, entry: str) -> tuple[dict, tuple[Path | TrainSpec, ...]]:
