@@ -7,9 +7,9 @@ one ``.npz`` file named by a SHA-256 key of everything that determines its numbe
 - the mocap file's bytes and its separate skeleton's bytes (an AMC's ASF), if any;
 - the joint map (its parsed content, not its file name), the length unit and the source rate given;
 - the frame rate the clip is resampled to;
-- the retarget version: a digest of the source of the converting code (the readers,
-  retargeting and the body model: every ``data_tools`` and ``tracker.core`` module, and the module of a
-  plugin's reader), so that any change to how files are converted makes new entries.
+- the retarget version: a digest of the source of the converting code (the readers, retargeting and the
+  geometry they use, :data:`CONVERSION_MODULES`, and the module of a plugin's reader), so that any change to
+  how files are converted makes new entries.
 
 Where it lives (:func:`cache_folder`): ``$POSE_TRACKER_CACHE`` when set (``off`` turns the cache off), else the
 platform's user cache folder (``$XDG_CACHE_HOME/pose-tracker``, ``~/.cache/pose-tracker``;
@@ -60,14 +60,22 @@ def cache_folder() -> Path | None:
     return (Path(xdg) if xdg else Path.home() / ".cache") / "pose-tracker"
 
 
-def _source_files(extra: tuple[str, ...]) -> list[Path]:
-    import data_tools
-    import tracker.core
+#: The modules whose code determines a converted clip's numbers: the built-in readers, retargeting and the
+#: geometry they use (a test checks that reading and retargeting import no other module of the package).
+CONVERSION_MODULES = (
+    "data_tools.asf_amc", "data_tools.bvh", "data_tools.checks", "data_tools.joint_names", "data_tools.load",
+    "data_tools.mocap", "data_tools.readers", "data_tools.retarget", "data_tools.skeleton_points",
+    "data_tools.textfiles", "tracker.core.arrays", "tracker.core.body", "tracker.core.errors",
+    "tracker.core.kinematics", "tracker.core.rotations", "tracker.core.timewarp",
+)
 
-    files = [*sorted(Path(data_tools.__file__).parent.glob("*.py")),
-             *sorted(Path(tracker.core.__file__).parent.glob("*.py"))]
-    for name in extra:
-        module = sys.modules.get(name)
+
+def _source_files(modules: tuple[str, ...]) -> list[Path]:
+    import importlib
+
+    files = []
+    for name in modules:
+        module = sys.modules.get(name) or importlib.import_module(name)
         path = getattr(module, "__file__", None)
         if path:
             files.append(Path(path))
@@ -75,13 +83,14 @@ def _source_files(extra: tuple[str, ...]) -> list[Path]:
 
 
 def retarget_version(reader_module: str | None = None) -> str:
-    """The version of the conversion: a digest of the converting code's source (every ``data_tools`` and
-    ``tracker.core`` module, and ``reader_module``'s, a plugin reader's), hex. A release that changes how files
-    convert changes that source, so its entries are new ones."""
+    """The version of the conversion: a digest of the converting code's source (:data:`CONVERSION_MODULES`, and
+    ``reader_module``, a plugin reader's), hex. A release that changes how files convert changes that source,
+    so its entries are new ones."""
     key = reader_module or ""
     if key not in _code_digest:
         h = hashlib.sha256(f"{CACHE_LAYOUT}\n".encode())
-        for path in _source_files((reader_module,) if reader_module else ()):
+        modules = CONVERSION_MODULES + ((reader_module,) if reader_module not in (None, *CONVERSION_MODULES) else ())
+        for path in _source_files(modules):
             try:
                 h.update(path.name.encode() + b"\0" + path.read_bytes())
             except OSError:  # a module without readable source: its name at least

@@ -335,3 +335,24 @@ def test_experiment_labels_are_read_from_names_or_a_sidecar_as_the_file_loads(co
     (tmp_path / "styles.csv").write_text("file,style\n07_01,normal\n")
     with pytest.raises(InputError, match=r"fcrbm.toml: prior 'fcrbm' train 1: .*07_02.amc: no labels"):
         load_experiment(experiment("styles.csv#style"))
+
+
+def test_the_retarget_version_covers_every_module_a_conversion_runs(corpus):
+    """Reading and retargeting an AMC and a BVH (the cache off) import no module of the package that the cache
+    key's digest leaves out: a new one would convert differently without making new entries."""
+    import subprocess
+    import sys
+
+    from data_tools.cache import CONVERSION_MODULES
+
+    code = ("import sys; from data_tools.load import load_training_clips; "
+            f"load_training_clips([{str(corpus / 'a' / '07_01.amc')!r}, {str(corpus / 'c' / '07_bvh_03.bvh')!r}],"
+            " fps=30.0, cache=None); "
+            "print(' '.join(m for m in sys.modules if m.split('.')[0] in ('data_tools', 'tracker', 'priors', "
+            "'likelihoods')))")
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    loaded = set(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                                check=True).stdout.split())
+    assert "data_tools.retarget" in loaded and "data_tools.bvh" in loaded
+    cache = {"data_tools.cache", "data_tools.files", "data_tools.fingerprints"}  # the cache itself: no numbers
+    assert loaded - set(CONVERSION_MODULES) - cache == {"data_tools", "tracker", "tracker.core"}
