@@ -47,7 +47,9 @@ def test_convert_bad_inputs_exit_2(mocap_dir, tmp_path):
 def test_demo(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path), "--frames", "8"]) == 0
     printed = capsys.readouterr()
-    assert "07_02" in printed.err and "mocap.cs.cmu.edu" in printed.out  # what it does on stderr, results on stdout
+    assert "02_01" in printed.err and "mocap.cs.cmu.edu" in printed.out  # what it does on stderr, results on stdout
+    (shows,) = [line for line in printed.out.splitlines() if line.startswith("What this shows: ")]
+    assert "on CMU subject 2, a person the CRBM never saw (it learned from subject 7's walks 07_01 and 07_02)" in shows
     for name in ("zero-velocity", "crbm", "mixture"):
         assert f"{name}, 6 frames tracked: mpjpe_abs " in printed.out
         res = json.loads((tmp_path / f"track_{name}" / "result.json").read_text())

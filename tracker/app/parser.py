@@ -313,10 +313,11 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                    help="seconds to wait for the server (default 30)")
 
     d = sub.add_parser("demo", parents=[plugin_flag], help="render, track and score a shipped walk: a first run that needs no data of your own",
-                       description="Render 1.5 s of the shipped CMU walk 07_02 into 4 cameras, train a CRBM on "
-                                   "the other shipped walk, track with the zero-velocity prior, the CRBM and the "
-                                   "mixture of the two (1000 particles each), print the three errors and write "
-                                   "the error-per-frame plot and an overlay video.")
+                       description="Render 1.5 s of the shipped CMU walk 02_01 (subject 2) into 4 cameras, "
+                                   "train a CRBM on another person's shipped walks (subject 7's 07_01 and 07_02), "
+                                   "track with the zero-velocity prior, the CRBM and the mixture of the two (1000 "
+                                   "particles each), print the three errors and one line saying what they show, "
+                                   "and write the error-per-frame plot and an overlay video.")
     d.add_argument("--out", default="demo_output",
                    help="output folder (default ./demo_output); a second demo replaces the files an earlier one "
                         "wrote there, and a non-empty folder that holds no demo output is refused")
