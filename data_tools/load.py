@@ -1,10 +1,12 @@
 """One entry point for reading any supported mocap file into a :class:`~data_tools.mocap.MocapClip`: the
 built-in readers (ASF/AMC, BVH) registered by suffix (:mod:`data_tools.readers`), the reader of a file found by
-its suffix, and training clips read and retargeted."""
+its suffix, the mocap files that folders and glob patterns name (:func:`expand_mocap`), and training clips read
+and retargeted through the cache of converted clips (:mod:`data_tools.cache`)."""
 from __future__ import annotations
 
+import glob
 from pathlib import Path
-from typing import Mapping
+from typing import Iterable, Mapping
 
 from data_tools.asf_amc import CMU_FPS, asf_amc_clip
 from data_tools.bvh import bvh_clip
@@ -99,6 +101,62 @@ def load_mocap(path: str | Path, skeleton: str | Path | None = None, mm_per_unit
     return reader.read(path, options)
 
 
+#: Characters that make an item a glob pattern.
+GLOB_CHARS = set("*?[")
+
+
+def _readable(path: Path) -> bool:
+    return path.is_file() and path.suffix.lower() in {r.suffix for r in registered_readers()}
+
+
+def _takes() -> str:
+    return ", ".join(r.suffix for r in registered_readers())
+
+
+def _order(path: Path) -> tuple[str, ...]:
+    """The sort key of a folder's or a pattern's files: folder by folder, then the name, characters compared by
+    code point (case counts, on every system)."""
+    return path.parts
+
+
+def is_pattern(item: str | Path) -> bool:
+    """Whether ``item`` is a glob pattern (holds ``*``, ``?`` or ``[``) rather than a path."""
+    return bool(GLOB_CHARS & set(str(item)))
+
+
+def expand_mocap(items: str | Path | Iterable[str | Path], base: Path | None = None) -> list[Path]:
+    """The mocap files that ``items`` name, in order, each once: a file as it is (whatever its suffix: a file the
+    user names is read or refused by name); a folder, every file in it and its subfolders (recursively) that a
+    registered reader takes; a glob pattern (``*``, ``?``, ``[...]``; ``**`` crosses folders), its matches that
+    a registered reader takes (an ``.asf`` is no clip: it is found beside its motion files). A folder's or a
+    pattern's files come in sorted order of their paths (the same on every machine); a file named twice is kept
+    once. Relative items are relative to ``base`` (None: the working folder). A missing file or folder, or a
+    folder or pattern without mocap files, is an :class:`InputError` naming it."""
+    items = [items] if isinstance(items, (str, Path)) else list(items)
+    out: list[Path] = []
+    for item in items:
+        text = str(item)
+        path = Path(text).expanduser()
+        if base is not None and not path.is_absolute():
+            path = base / path
+        if is_pattern(text) and not path.exists():
+            found = sorted((Path(p) for p in glob.glob(str(path), recursive=True)), key=_order)
+            files = [p for p in found if _readable(p)]
+            if not files:
+                raise InputError(f"the pattern matches no mocap file ({_takes()})" if not found else
+                                 f"the pattern matches {len(found)} path(s) but no mocap file ({_takes()})", text)
+        elif path.is_dir():
+            files = sorted((p for p in path.rglob("*") if _readable(p)), key=_order)
+            if not files:
+                raise InputError(f"the folder holds no mocap file ({_takes()}), in it or below", path)
+        elif path.exists():
+            files = [path]
+        else:
+            raise InputError("no such file or folder", path)
+        out.extend(files)
+    return list(dict.fromkeys(out))
+
+
 def per_clip(values, n: int, what: str) -> list:
     """``values`` (None, one for all ``n`` clips, or one per clip) as a list of ``n``; ``"none"`` is None."""
     values = [] if values is None else ([values] if isinstance(values, (str, Path, Mapping)) else list(values))
@@ -108,18 +166,20 @@ def per_clip(values, n: int, what: str) -> list:
     return [None if isinstance(v, str) and v.lower() == "none" else v for v in out]
 
 
-def load_training_clips(files, skeletons=None, fps: float | None = 60.0, joint_maps=None) -> list:
+def load_training_clips(files, skeletons=None, fps: float | None = 60.0, joint_maps=None,
+                        cache: Path | None | bool = True) -> list:
     """Retargeted clips (:class:`~data_tools.retarget.RetargetResult`) of mocap files, each resampled to
     ``fps`` Hz (None: each at its own rate).
 
-    ``skeletons`` is ``None`` (each AMC finds ``<subject>.asf`` beside it), one ASF for every AMC, or one per
-    file (BVH files carry their own and ignore theirs). ``joint_maps`` likewise: None, one for every clip, or
-    one per clip (``"none"`` for a clip whose names are recognised). Clips of different subjects are each
-    retargeted with their own skeleton and keep their own lengths.
+    ``files`` are files, folders and glob patterns (:func:`expand_mocap`: a folder means
+    every file a registered reader takes in it and below, in sorted order). ``skeletons`` is ``None`` (each AMC
+    finds ``<subject>.asf`` beside it), one ASF for every AMC, or one per file (BVH files carry their own and
+    ignore theirs). ``joint_maps`` likewise: None, one for every clip, or one per clip (``"none"`` for a clip
+    whose names are recognised). Clips of different subjects are each retargeted with their own skeleton and
+    keep their own lengths. ``cache``: the folder of converted clips (:mod:`data_tools.cache`; True: the
+    user's cache folder, None or False: convert every file afresh).
     """
-    from data_tools.retarget import retarget
-
-    files = [Path(f) for f in files]
+    files = expand_mocap(files) if files else []
     if not files:
         raise InputError("no training clips given")
     skeletons = list(skeletons or [])
@@ -132,5 +192,28 @@ def load_training_clips(files, skeletons=None, fps: float | None = 60.0, joint_m
         reader = READERS.get(f.suffix.lower())  # (an unknown suffix is refused by load_mocap, after a missing file)
         if skel is not None and reader is not None and reader.skeleton is None:
             skel = None
-        results.append(retarget(load_mocap(f, skel, joint_map=maps[i]), fps=fps))
+        results.append(load_retargeted(f, skel, fps, joint_map=maps[i], cache=cache))
     return results
+
+
+def load_retargeted(path: str | Path, skeleton: str | Path | None = None, fps: float | None = 60.0,
+                    mm_per_unit: float | None = None, joint_map: str | Path | Mapping | None = None,
+                    cache: Path | None | bool = True):
+    """A mocap file read as :func:`load_mocap` reads it and retargeted at ``fps`` Hz (None: its own rate), as a
+    :class:`~data_tools.retarget.RetargetResult`, from the cache of converted clips when it holds it
+    (:mod:`data_tools.cache`; ``cache``: its folder, True: the user's, None or False: none)."""
+    from data_tools.cache import cached_retarget
+    from data_tools.retarget import retarget
+
+    path = Path(path)
+    reader = READERS.get(path.suffix.lower())
+    if reader is None or not path.is_file() or (skeleton and reader.skeleton is None):
+        load_mocap(path, skeleton, mm_per_unit, joint_map=joint_map)  # the one-line refusal
+    found = not skeleton and reader.skeleton is not None
+    if found and reader.read is read_asf_amc:
+        skeleton, found = find_skeleton(path), False
+    return cached_retarget(
+        lambda: retarget(load_mocap(path, skeleton, mm_per_unit, joint_map=joint_map), fps=fps), path,
+        skeleton=skeleton or None, joint_map=joint_map, mm_per_unit=mm_per_unit, fps=fps,
+        reader_module=getattr(reader.read, "__module__", None),
+        folder=None if found else cache)  # (a skeleton a plugin's reader finds itself is not in the key)

@@ -11,6 +11,9 @@ REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("TRACKER_SHARED", REPO.parent / "shared"))
 MOCAP = SHARED / "mocap" / "cmu"
 BODYTRACK = SHARED / "bodytrack" / "sequenceB_1"
+#: Tests convert clips afresh and never write to the user's cache of converted clips (data_tools.cache); the
+#: cache's own tests name their folder.
+os.environ["POSE_TRACKER_CACHE"] = "off"
 
 #: Frame counts of every shared clip (README of ../shared/mocap; BVH headers).
 SHARED_CLIPS = {

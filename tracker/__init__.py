@@ -3,6 +3,7 @@
 The public API (``import tracker``)::
 
     tracker.load_sequence, tracker.load_clip, tracker.synthesize    data
+    tracker.load_clips("walks/*.bvh")                               a corpus: files, folders, patterns
     tracker.sample_walks()                                          the shipped CMU walks (skeleton, clips)
     tracker.build_prior, tracker.build_likelihood, tracker.train    models
     tracker.track -> TrackingResult (.save writes result.json)     tracking
@@ -39,7 +40,8 @@ _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 __version__ = "0.17.0"
 
 _EXPORTS = {
-    "load_sequence": "tracker.app.api", "load_clip": "tracker.app.api", "synthesize": "tracker.app.api",
+    "load_sequence": "tracker.app.api", "load_clip": "tracker.app.api", "load_clips": "tracker.app.api",
+    "synthesize": "tracker.app.api",
     "build_prior": "tracker.app.api", "build_likelihood": "tracker.app.api", "train": "tracker.app.api",
     "track": "tracker.app.api", "available_priors": "tracker.app.api", "available_likelihoods": "tracker.app.api",
     "random_walk_scale": "tracker.app.api", "show": "tracker.app.api",

@@ -240,7 +240,9 @@ def _crbm_option(name: str, **changes) -> Option:
 
 FCRBM_TRAIN_OPTIONS = (
     Option("labels", str, None, "one style label per training clip, in clip order, comma-separated "
-                                "(e.g. walk,walk,run)"),
+                                "(e.g. walk,walk,run); or read from each file: a name pattern or a CSV/TOML/JSON "
+                                "file, and the key, e.g. 'dataset-2_{content}_{style}_{take}#style' (see "
+                                "docs/guide/training.md)"),
     _crbm_option("order", default=FCRBMConfig.order, help="order N"),
     _crbm_option("hidden", default=FCRBMConfig.hidden),
     Option("factors", int, FCRBMConfig.factors, "factors per sub-model", minimum=1,

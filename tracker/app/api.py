@@ -24,7 +24,8 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping, Sequence as 
 
 import numpy as np
 
-from data_tools.load import load_mocap, load_training_clips
+from data_tools.corpus import is_label_source, label_source
+from data_tools.load import load_mocap, load_retargeted, load_training_clips
 from data_tools.retarget import RetargetResult, retarget
 from data_tools.samples import sample_walks
 from data_tools.sequence import Sequence, read_sequence
@@ -76,11 +77,26 @@ def load_clip(mocap: str | Path, skeleton: str | Path | None = None, fps: float 
     """A mocap file (AMC with its ASF, or BVH) retargeted to the 15-cone body model at ``fps`` Hz (None: the
     file's own rate; other rates are interpolated). ``joint_map`` (a JSON or TOML file, or a mapping of body
     points to the file's joint names) is for skeletons whose names are not recognised
-    (docs/guide/motion_capture.md)."""
+    (docs/guide/motion_capture.md). Converted clips are cached (:func:`load_clips`)."""
     from tracker.app.plugins import load_plugins
 
     load_plugins()  # the mocap readers of installed plugins (entry points) register on import
-    return retarget(load_mocap(mocap, skeleton, length_unit, joint_map=joint_map), fps=fps)
+    return load_retargeted(mocap, skeleton, fps, length_unit, joint_map)
+
+
+def load_clips(mocap: str | Path | Iterable[str | Path], skeletons: Iterable[str | Path] | None = None,
+               fps: float | None = 60.0, joint_maps: Iterable[str | Path | Mapping | None] | str | Path | None = None,
+               cache: str | Path | bool | None = True) -> list[RetargetResult]:
+    """The mocap files that ``mocap`` names (a file, folder or glob pattern, or a list of them: a folder means
+    every file a registered reader takes in it and below, in sorted order; docs/guide/training.md) retargeted
+    at ``fps`` Hz, as :func:`load_clip` does each. ``skeletons`` and ``joint_maps``: one for all files or one
+    per file (as :func:`train` takes them). ``cache``: the folder of converted clips, so that each file is
+    retargeted once (True: the user's cache folder, ``$POSE_TRACKER_CACHE``; None or False: none)."""
+    from tracker.app.plugins import load_plugins
+
+    load_plugins()
+    return load_training_clips(mocap, skeletons, fps, joint_maps, cache=Path(cache) if isinstance(cache, (str, Path))
+                               else cache)
 
 
 def synthesize(mocap: str | Path | RetargetResult, out: str | Path, *, skeleton: str | Path | None = None,
@@ -251,28 +267,35 @@ def build_likelihood(name: str, sequence: Sequence, views: Iterable[int] | None 
 
 # -- training -------------------------------------------------------------------------------------------------
 
-def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
+def train(prior: str, mocap: str | Path | Iterable[str | Path] | Iterable[RetargetResult], *,
           skeletons: Iterable[str | Path] | None = None, fps: float = 60.0, seed: SeedLike = 0,
           progress: Callable[[int, int, dict], None] | None = None, checkpoint: str | Path | None = None,
           resume: bool = False, joint_maps: Iterable[str | Path | Mapping | None] | str | Path | None = None,
           **options) -> Any:
     """Train the learned prior ``prior`` on mocap files (or retargeted clips) of any subjects and lengths.
 
-    Each AMC pairs with its own skeleton (``skeletons``: one for all or one per file; default
-    ``<subject>.asf`` beside it); ``joint_maps`` likewise (one for all, one per file, None or ``"none"`` for
-    a file whose joint names are recognised). Every clip is resampled to ``fps`` Hz. ``options`` are the
-    prior's training options (see
-    ``pose-tracker train --prior NAME --help``). Returns the trained model;
+    ``mocap`` is a file, folder or glob pattern, or a list of them, or of retargeted clips (:func:`load_clips`;
+    converted clips are cached). Each AMC pairs with its own skeleton (``skeletons``: one for all or one per
+    file; default ``<subject>.asf`` beside it); ``joint_maps`` likewise (one for all, one per file, None or
+    ``"none"`` for a file whose joint names are recognised). Every clip is resampled to ``fps`` Hz.
+    ``options`` are the prior's training options (see ``pose-tracker train --prior NAME --help``). Returns the
+    trained model;
     ``model.save(path)`` writes its file (an existing one only with ``overwrite=True``).
     With ``checkpoint`` (a file path) and the prior's ``checkpoint_every`` option, training state is saved as
     it goes; ``resume=True`` continues from it to the model an uninterrupted run gives.
+    A prior's ``labels`` option (the FCRBM's) takes, besides one label per clip in clip order, a pattern over
+    file names or a sidecar file with ``#KEY`` (``"dataset-2_{content}_{style}_{take}#style"``,
+    :mod:`data_tools.corpus`): each clip's label is read from its file.
     """
     entry = prior_entry(prior)
     if entry.train is None:
         trainable = [n for n in available_priors() if PRIORS.get(n).train is not None]
         raise InputError(f"prior {prior} is not learned; trainable priors: {', '.join(trainable)}")
     resolved = resolve_options(f"training {prior}", entry.train_options, options)
-    items = list(mocap)
+    labelled = label_source(resolved["labels"]) if is_label_source(resolved.get("labels")) else None
+    if labelled is not None:
+        labelled.training_keys()  # a pattern or file without its key is refused before any clip is converted
+    items = [mocap] if isinstance(mocap, (str, Path)) else list(mocap)
     if not items:
         raise InputError("no training clips given")
     in_memory = [isinstance(c, RetargetResult) for c in items]
@@ -285,7 +308,10 @@ def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
                              "Hz); retarget them at one rate")
         clips, sources, fps = items, [c.source for c in items], rates[0]
     else:
-        clips, sources = load_training_clips(items, skeletons, fps, joint_maps), [str(f) for f in items]
+        clips = load_training_clips(items, skeletons, fps, joint_maps)
+        sources = [c.source for c in clips]
+    if labelled is not None:
+        resolved["labels"] = ",".join(labelled.training_labels(sources))
     data = TrainingData(tuple(c.poses for c in clips), fps, clips[0].model, tuple(sources))
     extra = {}
     if resume:

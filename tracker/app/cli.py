@@ -70,6 +70,49 @@ def cmd_convert(args: argparse.Namespace) -> int:
     return 0
 
 
+def _shown(path: str) -> str:
+    """``path`` relative to the working folder where it lies below it, else as it is."""
+    try:
+        return str(Path(path).resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return path
+
+
+def cmd_corpus(args: argparse.Namespace) -> int:
+    from data_tools.corpus import survey
+    from tracker.app.plugins import load_plugins
+
+    load_plugins()  # the readers of installed plugins
+    entries = survey(args.paths, args.labels)
+    clips = [e for e in entries if e.refused is None]
+    refused = [e for e in entries if e.refused is not None]
+    frames = sum(e.frames for e in clips)
+    seconds = sum(e.seconds for e in clips)
+    rates: dict[float, int] = {}
+    for e in clips:
+        rates[e.fps] = rates.get(e.fps, 0) + 1
+    by_rate = ", ".join(f"{n} at {r:g} Hz" for r, n in sorted(rates.items()))
+    if args.json:
+        print(json.dumps({"clips": [{**e.as_dict(), "file": _shown(e.path)} for e in clips],
+                          "refused": [{"file": _shown(e.path), "reason": e.refused} for e in refused],
+                          "total": {"clips": len(clips), "frames": frames, "seconds": round(seconds, 3),
+                                    "rates": {f"{r:g}": n for r, n in sorted(rates.items())},
+                                    "refused": len(refused)}}, indent=1))
+    else:
+        rows = [(_shown(e.path), str(e.frames), f"{e.fps:g}", f"{e.seconds:.1f}", e.naming, e.unit, e.up,
+                 " ".join(f"{k}={v}" for k, v in e.labels.items())) for e in clips]
+        head = ("file", "frames", "Hz", "seconds", "naming", "length unit", "up", "labels")
+        widths = [max(len(r[i]) for r in [head, *rows]) for i in range(len(head))]
+        for row in [head, *rows]:
+            print("  ".join(c.rjust(w) if i in (1, 2, 3) else c.ljust(w)
+                            for i, (c, w) in enumerate(zip(row, widths))).rstrip())
+        for e in refused:
+            print(f"refused {_shown(e.path)}: {e.refused}")
+        print(f"total: {len(clips)} clip(s), {frames} frames, {seconds / 60:.1f} min ({by_rate or 'none'}); "
+              f"{len(refused)} refused")
+    return 2 if refused else 0
+
+
 def cmd_synth(args: argparse.Namespace) -> int:
     from data_tools.load import load_mocap
     from data_tools.retarget import retarget
@@ -205,9 +248,12 @@ def track(*args, **kwargs):
 def cmd_train(args: argparse.Namespace) -> int:
     out = check_output_file(args.out, "the model file", new=not args.overwrite)
     check_not_inside(out, {f"training file {i + 1}": f for i, f in enumerate([*args.mocap, *(args.skeleton or [])])})
+    from data_tools.corpus import is_label_source, label_source
     from data_tools.load import load_training_clips
 
     options = given_options(args, prior_entry(args.prior).train_options)
+    if is_label_source(options.get("labels")):  # a labels pattern or file is checked before any clip is read
+        label_source(options["labels"]).training_keys()
     clips = load_training_clips(args.mocap, args.skeleton, args.fps, args.joint_map)  # every file read, checked first
     checkpoint = out.with_name(out.name + ".checkpoint")
     resume = args.resume and (checkpoint.exists() or not prior_entry(args.prior).resumable)  # the latter refused
@@ -402,7 +448,7 @@ def cmd_track(args: argparse.Namespace) -> int:
 
 
 COMMANDS = {"convert": cmd_convert, "synth": cmd_synth, "show": cmd_show, "train": cmd_train, "track": cmd_track,
-            "compare": cmd_compare, "demo": cmd_demo, "fetch": cmd_fetch}
+            "compare": cmd_compare, "demo": cmd_demo, "fetch": cmd_fetch, "corpus": cmd_corpus}
 
 
 def _plugins_from_argv(argv: list[str]) -> list[str]:

@@ -44,7 +44,7 @@ File layout (every key is checked, unknown ones refused)::
     label = "CRBM-3 (grown from 1)"
     name = "crbm"
     models = ["crbm3.pt"]                    # model files, or models the runner trains (and caches):
-    train = [{ mocap = ["a.amc", "b.amc"], options = { order = 1 } },
+    train = [{ mocap = ["a.amc", "b.amc"], options = { order = 1 } },   # files, folders, "walks/*.bvh"
              { mocap = ["a.amc", { path = "c.amc", start = 0, frames = 600 }], options = { order = 3 } }]
                                              # (a clip's table may also give joint_map = "map.toml")
     [[prior]]
@@ -257,17 +257,33 @@ class _Where:
         return value
 
 
-def _clip(w: "_Where", value: Any, entry: str) -> ClipSpec:
-    """A training clip entry: a path, or ``{ path = "...", start = 0, frames = 600, joint_map = "map.toml" }``."""
+def _clips(w: "_Where", value: Any, entry: str) -> list[ClipSpec]:
+    """The training clips of one entry: a path, folder or glob pattern (:func:`~data_tools.load.expand_mocap`:
+    every mocap file a folder holds, recursively, or the pattern matches, in sorted order), or
+    ``{ path = "...", start = 0, frames = 600, joint_map = "map.toml" }`` (its settings apply to every file)."""
+    from data_tools.load import expand_mocap, is_pattern
     from data_tools.skeleton_points import read_joint_map
 
+    settings: dict = {}
     if isinstance(value, dict):
         w.keys(value, {"path", "start", "frames", "joint_map"}, entry)
         frames = value.get("frames")
-        joint_map = None if "joint_map" not in value else read_joint_map(w.file(value["joint_map"], entry))
-        return ClipSpec(w.file(value.get("path"), entry), w.int_(value.get("start", 0), entry + " start", 0),
-                        None if frames is None else w.int_(frames, entry + " frames", 3), joint_map)
-    return ClipSpec(w.file(value, entry))
+        settings = {"start": w.int_(value.get("start", 0), entry + " start", 0),
+                    "frames": None if frames is None else w.int_(frames, entry + " frames", 3),
+                    "joint_map": None if "joint_map" not in value else read_joint_map(w.file(value["joint_map"],
+                                                                                             entry))}
+        value = value.get("path")
+    if not isinstance(value, str) or not value:
+        raise w.error(entry, f"expected a path, got {value!r}")
+    base = w.data_root if w.data_root is not None else w.path.parent
+    path = Path(value).expanduser()
+    if not is_pattern(value) and not (path if path.is_absolute() else base / path).exists():
+        w.file(value, entry)  # the refusal of a missing file, with what fetches it
+    try:
+        files = expand_mocap(value, base)
+    except InputError as exc:
+        raise w.error(entry, f"{exc.reason}: {exc.path or value}") from None
+    return [ClipSpec(f.resolve(), **settings) for f in files]
 
 
 def _replicates(w: "_Where", spec: PriorSpec, entry_doc: dict, entry: str) -> list[PriorSpec]:
@@ -309,12 +325,29 @@ def _trainings(w: "_Where", prior: str, value: Any, entry: str) -> list[TrainSpe
             resolve_options(f"training {prior}", spec.train_options, t.get("options", {}))
         except InputError as exc:
             raise w.error(te, exc.reason) from None
-        mocap = tuple(_clip(w, m, te) for m in _as_list(t.get("mocap", [])))
+        mocap = tuple(c for m in _as_list(t.get("mocap", [])) for c in _clips(w, m, te))
         if not mocap:
             raise w.error(te, "needs mocap = [training clips]")
         skels = tuple(w.file(m, te) for m in _as_list(t["skeletons"])) if "skeletons" in t else None
-        out.append(TrainSpec(mocap, skels, dict(t.get("options", {})), w.int_(t.get("seed", 0), te, 0), prior))
+        options = _read_labels(w, dict(t.get("options", {})), mocap, te)
+        out.append(TrainSpec(mocap, skels, options, w.int_(t.get("seed", 0), te, 0), prior))
     return out
+
+
+def _read_labels(w: "_Where", options: dict, mocap: tuple[ClipSpec, ...], entry: str) -> dict:
+    """``options`` with a ``labels`` pattern or sidecar file (:mod:`data_tools.corpus`; a sidecar is a data path)
+    read into one label per clip, in clip order: the labels themselves then identify the trained model, so that
+    an edited sidecar trains anew, and a clip without its label is refused as the file is read."""
+    from data_tools.corpus import is_label_source, label_source
+
+    if not is_label_source(options.get("labels")):
+        return options
+    base = w.data_root if w.data_root is not None else w.path.parent
+    try:
+        labels = label_source(options["labels"], base).training_labels([m.path for m in mocap])
+    except InputError as exc:
+        raise w.error(entry, str(exc)) from None
+    return {**options, "labels": ",".join(labels)}
 
 
 def _components(w: "_Where", doc: dict, options: dict, entry: str) -> tuple[dict, tuple[Path | TrainSpec, ...]]:
@@ -539,7 +572,8 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
             raise w.error(entry, f"prior {p['name']} needs models = [...] or train = [...]")
         if spec.model_files == "one" and len(models) + len(trains) != 1:
             raise w.error(entry, f"prior {p['name']} takes exactly one model")
-        train_mocap = tuple(_clip(w, m, entry) for m in _as_list(p["train_mocap"])) if "train_mocap" in p else None
+        train_mocap = (tuple(c for m in _as_list(p["train_mocap"]) for c in _clips(w, m, entry))
+                       if "train_mocap" in p else None)
         prior = PriorSpec(label, p["name"], options, models, tuple(trains), train_mocap, sources=sources)
         priors += _replicates(w, prior, p, entry) if "train_seeds" in p else [prior]
     if not priors:

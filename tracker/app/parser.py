@@ -124,6 +124,20 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     c.add_argument("--out", required=True, help="output .npz")
     c.add_argument("--overwrite", action="store_true", help="replace an existing output file")
 
+    k = sub.add_parser("corpus", parents=[plugin_flag], help="list what a mocap corpus holds: clips, frames, rates, "
+                                                             "labels, conventions, refused files",
+                       description="Read every mocap file that the paths name (files; folders, searched "
+                                   "recursively; glob patterns such as 'bandai2/*walk*.bvh') as train reads it, and "
+                                   "list each clip's frames, rate, duration, skeleton naming convention, length "
+                                   "unit, up axis and labels, then every refused file with its reason (all of "
+                                   "them, not the first only) and a total line. Exit status 2 when a file is "
+                                   "refused.")
+    k.add_argument("paths", nargs="+", metavar="PATH_OR_GLOB", help="mocap files, folders or glob patterns")
+    k.add_argument("--labels", metavar="PATTERN|FILE",
+                   help="labels per clip: a pattern over file names such as 'dataset-2_{content}_{style}_{take}' "
+                        "({key} matches a label, {} anything), or a CSV, TOML or JSON file mapping files to labels")
+    k.add_argument("--json", action="store_true", help="print one JSON document (clips, refused, total) instead")
+
     s = sub.add_parser("synth", parents=[plugin_flag], help="render a mocap clip into a synthetic multi-view sequence",
                        description="Retarget a mocap clip, render it into a calibrated rig over a cluttered room "
                                    "and write the sequence folder (cameras.json, images/, background/, "
@@ -183,12 +197,15 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                                    "it was trained with.")
     trainable = [n for n in available_priors() if prior_entry(n).train is not None]
     r.formatter_class = argparse.RawDescriptionHelpFormatter
-    r.usage = "%(prog)s --prior NAME --mocap FILE [FILE ...] --out MODEL [options]"
+    r.usage = "%(prog)s --prior NAME --mocap PATH [PATH ...] --out MODEL [options]"
     r.description = _wrapped(r.description)
     if _chosen(argv, "--prior") not in trainable:
         r.description += "\n\n" + _catalogue("learned priors", trainable, "train")
     r.add_argument("--prior", required=True, choices=trainable, metavar="NAME", help="which prior to train")
-    r.add_argument("--mocap", required=True, nargs="+", metavar="FILE", help="training clips (.amc or .bvh)")
+    r.add_argument("--mocap", required=True, nargs="+", metavar="PATH",
+                   help="training clips: mocap files (.amc or .bvh), folders (every mocap file in them, "
+                        "recursively) or glob patterns ('bandai2/*walk*.bvh'), in sorted order; converted clips "
+                        "are cached ($POSE_TRACKER_CACHE)")
     r.add_argument("--skeleton", nargs="+", metavar="ASF",
                    help="ASF skeleton(s): one for all .amc clips or one per clip (default: <subject>.asf beside each)")
     r.add_argument("--fps", type=_fps, default=60.0,
