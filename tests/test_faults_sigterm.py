@@ -136,6 +136,20 @@ def test_a_run_killed_before_its_first_checkpoint_continues_from_frame_0(seq, tm
     assert not (again / cli.TRACK_ARGS).exists()
 
 
+@pytest.mark.parametrize("command, says", [("track", "a run stopped before its first checkpoint starts from its "
+                                                       "first frame"),
+                                           ("train", "a training stopped before its first checkpoint starts from "
+                                                     "the beginning")])
+def test_the_help_of_resume_says_what_a_run_without_a_checkpoint_does(command, says):
+    """``--resume`` of a run stopped before its first checkpoint starts it again rather than refusing: the help
+    says so."""
+    from tracker.app.parser import build_parser
+
+    sub = next(a for a in build_parser()._actions if a.choices and command in a.choices).choices[command]
+    resume = next(a for a in sub._actions if "--resume" in a.option_strings)
+    assert says in " ".join(resume.help.split()), resume.help
+
+
 def test_another_command_into_an_unfinished_run_is_refused_in_one_line(seq, tmp_path, capsys, monkeypatch):
     out = tmp_path / "cut"
     monkeypatch.setattr(cli, "track", lambda *a, **k: (_ for _ in ()).throw(SystemExit(137)))
