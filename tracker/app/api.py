@@ -59,8 +59,8 @@ def make_rng(seed: SeedLike) -> np.random.Generator:
     """A numpy Generator from an int, a SeedSequence or a Generator (returned as it is)."""
     if isinstance(seed, np.random.Generator):
         return seed
-    if isinstance(seed, (int, np.integer)) and not 0 <= int(seed) < 2 ** 63:
-        raise InputError(f"seed must lie in 0..2^63-1, got {seed}")  # the schema's bounds of a seed
+    if isinstance(seed, (int, np.integer)):
+        seed = schema.setting("seed").parse(int(seed), "the run")  # the schema's bounds of a seed
     return np.random.default_rng(seed)
 
 
