@@ -264,8 +264,9 @@ def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
     prior's training options (see
     ``pose-tracker train --prior NAME --help``). Returns the trained model;
     ``model.save(path)`` writes its file (an existing one only with ``overwrite=True``).
-    With ``checkpoint`` (a file path) and the prior's ``checkpoint_every`` option, training state is saved as
-    it goes; ``resume=True`` continues from it to the model an uninterrupted run gives.
+    With ``checkpoint`` (a file path), a resumable prior's training state is saved there every
+    ``checkpoint_every`` epochs (its option) and when the training is interrupted (``KeyboardInterrupt``);
+    ``resume=True`` continues from it to the model an uninterrupted run gives.
     """
     entry = prior_entry(prior)
     if entry.train is None:
@@ -297,7 +298,7 @@ def train(prior: str, mocap: Iterable[str | Path] | Iterable[RetargetResult], *,
     import torch  # noqa: F401  (every learned prior trains with torch: imported here, given the run's threads)
 
     sync_torch_threads()
-    with training_checkpoint(checkpoint, sources, skeletons, resume, bool(resolved.get("checkpoint_every"))):
+    with training_checkpoint(checkpoint, sources, skeletons, resume, entry.resumable):  # saved when interrupted
         return entry.train(data, resolved, make_rng(seed), progress,
                            None if checkpoint is None else Path(checkpoint), **extra)
 
