@@ -80,6 +80,20 @@ def test_every_learned_prior_is_checked_with_every_part_it_takes_switched_on(bui
         assert sorted(expected) in found, f"no configuration of {name} uses all of {expected}: {found}"
 
 
+def test_every_learned_prior_names_its_parts_in_use_by_kind(built):
+    """Each learned prior answers ``ground``, ``pace``, ``height`` and ``posture`` alike: the part in use of that
+    kind, or None."""
+    from priors.learned import LearnedPrior
+    from priors.parts import GroundDiffusion, HeightOffset, PaceInput, PostureOffset
+
+    kinds = {"ground": GroundDiffusion, "pace": PaceInput, "height": HeightOffset, "posture": PostureOffset}
+    learned = [built(k) for k in range(len(CONFIGURATIONS)) if isinstance(built(k), LearnedPrior)]
+    assert {p.name for p in learned} >= set(LEARNED_PARTS)
+    for prior in learned:
+        for name, kind in kinds.items():
+            assert getattr(prior, name) is prior.part(kind), f"{prior.name}.{name}"
+
+
 def test_every_registered_prior_of_the_package_has_a_contract_configuration():
     from tracker.app.api import available_priors, prior_entry
 
