@@ -55,22 +55,6 @@ class ConditionalPrior(LearnedPrior):
         self.device = torch.device(device)
         self.order = models.order
 
-    @property
-    def ground(self) -> GroundDiffusion | None:
-        return self.part(GroundDiffusion)
-
-    @property
-    def pace(self) -> PaceInput | None:
-        return self.part(PaceInput)
-
-    @property
-    def height(self) -> HeightOffset | None:
-        return self.part(HeightOffset)
-
-    @property
-    def posture(self) -> PostureOffset | None:
-        return self.part(PostureOffset)
-
     @abstractmethod
     def draw(self, model: Any, conditioning: torch.Tensor, generator: torch.Generator,
                       state: PriorState) -> torch.Tensor:

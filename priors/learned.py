@@ -17,7 +17,7 @@ from typing import Any, Sequence, TypeVar
 
 import numpy as np
 
-from priors.parts import Part, Step
+from priors.parts import GroundDiffusion, HeightOffset, PaceInput, Part, PostureOffset, Step
 from tracker.core.representation import STEP_FEATURES, next_poses
 from tracker.engine.prior import MotionPrior, PriorState
 
@@ -57,6 +57,26 @@ class LearnedPrior(MotionPrior):
     def part(self, kind: type[P]) -> P | None:
         """The part in use of type ``kind`` (None if there is none)."""
         return next((p for p in self.parts if isinstance(p, kind)), None)
+
+    @property
+    def ground(self) -> GroundDiffusion | None:
+        """The ground diffusion in use (None: none)."""
+        return self.part(GroundDiffusion)
+
+    @property
+    def pace(self) -> PaceInput | None:
+        """The pace input in use (None: none; a model trained without one takes none)."""
+        return self.part(PaceInput)
+
+    @property
+    def height(self) -> HeightOffset | None:
+        """The root-height offset in use (None: none)."""
+        return self.part(HeightOffset)
+
+    @property
+    def posture(self) -> PostureOffset | None:
+        """The posture offset in use (None: none)."""
+        return self.part(PostureOffset)
 
     # -- what a family of learned priors implements --------------------------------------------------------------
 

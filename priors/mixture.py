@@ -41,14 +41,21 @@ from tracker.engine.registry import PRIORS, Option, PriorContext, register_prior
 SWITCH = 0.05
 #: The likelihood is raised to ``1 / TEMPERATURE`` when the components are weighed (as the FCRBM's styles are).
 TEMPERATURE = 10.0
+#: The switching probability and the evidence temperature, declared once: the command line, experiment files and
+#: :class:`MixturePrior` all check them through these.
+SWITCH_OPTION = Option("switch", float, SWITCH, "probability per frame that a particle's component changes (the "
+                       "transition of the IMM mixing step)", minimum=0.0, maximum=0.5)
+TEMPERATURE_OPTION = Option("evidence_temperature", float, TEMPERATURE, "the likelihood is raised to 1/T when the "
+                            "components are weighed against each other", minimum=1.0, maximum=1000.0)
 
 
 class MixturePrior(Composite):
     """Motion models each drawing a fixed share of the particles, weighed by their evidence (module docstring).
 
     ``components``: the priors; ``labels``: their names in the summary (default: their names, numbered where
-    one repeats); ``switch`` in [0, 1): the probability per frame that a particle's component changes (the IMM
-    transition); ``temperature`` >= 1: the evidence's temperature. The filter keeps the components apart
+    one repeats); ``switch``: the probability per frame that a particle's component changes (the IMM
+    transition); ``temperature``: the evidence's temperature; both within their options' bounds
+    (:data:`SWITCH_OPTION`, :data:`TEMPERATURE_OPTION`). The filter keeps the components apart
     (:class:`~tracker.engine.mixture.ComponentPrior`).
     """
 
@@ -59,12 +66,9 @@ class MixturePrior(Composite):
         components = list(components)
         if len(components) < 2:
             raise InputError(f"a mixture needs at least two motion models, got {len(components)}")
-        if not 0.0 <= switch < 1.0:
-            raise InputError(f"the mixture's switching probability must lie in [0, 1), got {switch}")
-        if not temperature >= 1.0:
-            raise InputError(f"the mixture's evidence temperature must be at least 1, got {temperature}")
+        switch, temperature = SWITCH_OPTION.parse(switch, "mixture"), TEMPERATURE_OPTION.parse(temperature, "mixture")
         super().__init__(components)
-        self.switch, self.temperature = float(switch), float(temperature)
+        self.switch, self.temperature = switch, temperature
         self.labels = tuple(labels) if labels is not None else numbered([c.name for c in components])
         if len(self.labels) != len(components) or len(set(self.labels)) != len(components):
             raise InputError(f"a mixture needs one distinct label per component, got {list(self.labels)}")
@@ -224,10 +228,8 @@ MIXTURE_OPTIONS = (
            "component that names none takes the next one, in order), any other key is the component's own "
            "option (crbm:model=crbm1.pt:gibbs_steps=10,zero-velocity); unset options take their defaults",
            check=check_components),
-    Option("switch", float, SWITCH, "probability per frame that a particle's component changes (the transition of "
-           "the IMM mixing step)", minimum=0.0, maximum=0.5),
-    Option("evidence_temperature", float, TEMPERATURE, "the likelihood is raised to 1/T when the components are "
-           "weighed against each other", minimum=1.0, maximum=1000.0),
+    SWITCH_OPTION,
+    TEMPERATURE_OPTION,
 )
 
 

@@ -70,10 +70,8 @@ class CRBMConfig(ContrastiveConfig):
 
     def check(self) -> "CRBMConfig":
         super().check()
-        if self.sparsity_target is not None and not 0 < self.sparsity_target < 1:
-            raise InputError(f"sparsity target must lie in (0, 1), got {self.sparsity_target}")
-        if not 0 <= self.validation <= 0.5:
-            raise InputError(f"validation fraction must lie in [0, 0.5], got {self.validation}")
+        for name, value in (("sparsity", self.sparsity_target), ("validation", self.validation)):
+            crbm_train_option(name).parse(value, self.KIND)  # the bounds the options declare
         if int(self.validation_every) < 1:
             raise InputError(f"validation_every must be at least 1, got {self.validation_every}")
         return self
@@ -188,7 +186,8 @@ CRBM_TRAIN_OPTIONS = (
     Option("history_noise", str, "auto",
            "std of the noise added to the history in training (normalised units), or 'auto': per feature, the 99th "
            "percentile of its frame-to-frame change"),
-    Option("sparsity", float, None, "target mean activation of the hidden units", default_note="none: no sparsity term"),
+    Option("sparsity", float, None, "target mean activation of the hidden units", minimum=0.0, strict=True,
+           maximum=1.0, strict_max=True, default_note="none: no sparsity term"),
     Option("checkpoint_every", int, None, "also save the training state every this many epochs, for train --resume",
            minimum=1, default_note="never"),
     Option("grow_from", str, "1", "lower orders trained alongside and saved in the same file, which grow the "
@@ -202,3 +201,8 @@ CRBM_TRAIN_OPTIONS = (
            "least held-out one-step error, checked every 10 epochs, are kept",
            minimum=0.0, maximum=0.5, default_note="0: the last epoch's"),
 )
+
+
+def crbm_train_option(name: str) -> Option:
+    """The CRBM training option ``name`` of :data:`CRBM_TRAIN_OPTIONS`."""
+    return next(o for o in CRBM_TRAIN_OPTIONS if o.name == name)

@@ -92,3 +92,15 @@ def walk_32_frames(walk_07_11, tmp_path_factory):
 
     out = synthesize(walk_07_11, tmp_path_factory.mktemp("seq32") / "walk", SynthConfig(frames=32))
     return read_sequence(out.root)
+
+
+@pytest.fixture(scope="session")
+def small_walk(tmp_path_factory) -> Path:
+    """Five frames of the shipped walk 07_02 in two small cameras (no ../shared needed): a sequence folder."""
+    import tracker
+
+    sample = REPO / "data_tools" / "samples" / "cmu07"
+    out = tmp_path_factory.mktemp("small_walk") / "walk"
+    tracker.synthesize(sample / "07_02.amc", out, skeleton=sample / "07.asf", cameras=2, frames=5, width=160,
+                       height=120)
+    return out

@@ -146,8 +146,9 @@ def test_seed_sequences_and_generators_are_accepted(walk_32_frames):
     b = tracker.track(walk_32_frames, "zero-velocity", particles=50, frames=4,
                       seed=np.random.default_rng(np.random.SeedSequence(5).spawn(2)[1]))
     assert np.array_equal(a.poses, b.poses) and a.settings["seed"]["spawn_key"] == [1]
-    with pytest.raises(tracker.InputError, match="seed must lie"):
-        tracker.track(walk_32_frames, "zero-velocity", frames=4, seed=-1)
+    for seed in (-1, 2 ** 63):  # the bounds the schema declares, the same as on the command line
+        with pytest.raises(tracker.InputError, match=f"seed must be at least 0 and at most {2 ** 63 - 1}, got"):
+            tracker.track(walk_32_frames, "zero-velocity", frames=4, seed=seed)
 
 
 def test_new_observations_are_never_scored_against_old_cost_maps(walk_32_frames):

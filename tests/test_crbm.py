@@ -341,3 +341,20 @@ def test_the_posture_offset_integrates_the_images_mean_correction(crbm3, walks):
     assert "posture_offset" not in CRBMPrior([crbm3]).start(known, 4, rng)
     with pytest.raises(InputError, match="posture gain"):
         CRBMPrior([crbm3], posture=PostureOffset(1.5))
+
+
+@pytest.mark.parametrize("setting, value, rule", [
+    ("sparsity_target", 1.0, "CRBM: sparsity must be greater than 0 and less than 1"),
+    ("sparsity_target", 0.0, "CRBM: sparsity must be greater than 0 and less than 1"),
+    ("validation", 0.6, "CRBM: validation must be at least 0 and at most 0.5"),
+])
+def test_a_training_config_is_checked_by_the_options_bounds(setting, value, rule):
+    """The config refuses what the command line's option refuses, in the option's words: one declaration."""
+    from priors.crbm.model import CRBMConfig
+    from priors.settings import crbm_train_option
+
+    with pytest.raises(InputError, match=rule):
+        CRBMConfig(**{setting: value}).check()
+    name = "sparsity" if setting == "sparsity_target" else setting
+    with pytest.raises(InputError, match=rule.replace("CRBM", "train")):
+        crbm_train_option(name).parse(value, "train")

@@ -109,7 +109,7 @@ def test_a_refused_track_into_an_existing_empty_folder_leaves_it_empty(seq, tmp_
 def test_a_refused_train_leaves_nothing(tmp_path, capsys):
     out = tmp_path / "models" / "m.pt"
     refused(*run_cli(["train", "--prior", "crbm", "--mocap", str(WALKS[0]), "--order", "1", "--epochs", "2",
-                      "--hidden", "4", "--checkpoint-every", "1", "--sparsity", "7", "--out", str(out)], capsys))
+                      "--hidden", "4", "--checkpoint-every", "1", "--history-noise", "-1", "--out", str(out)], capsys))
     assert not (tmp_path / "models").exists()
 
 

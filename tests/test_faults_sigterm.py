@@ -136,6 +136,20 @@ def test_a_run_killed_before_its_first_checkpoint_continues_from_frame_0(seq, tm
     assert not (again / cli.TRACK_ARGS).exists()
 
 
+@pytest.mark.parametrize("command, says", [("track", "a run stopped before its first checkpoint starts from its "
+                                                       "first frame"),
+                                           ("train", "a training stopped before its first checkpoint starts from "
+                                                     "the beginning")])
+def test_the_help_of_resume_says_what_a_run_without_a_checkpoint_does(command, says):
+    """``--resume`` of a run stopped before its first checkpoint starts it again rather than refusing: the help
+    says so."""
+    from tracker.app.parser import build_parser
+
+    sub = next(a for a in build_parser()._actions if a.choices and command in a.choices).choices[command]
+    resume = next(a for a in sub._actions if "--resume" in a.option_strings)
+    assert says in " ".join(resume.help.split()), resume.help
+
+
 def test_another_command_into_an_unfinished_run_is_refused_in_one_line(seq, tmp_path, capsys, monkeypatch):
     out = tmp_path / "cut"
     monkeypatch.setattr(cli, "track", lambda *a, **k: (_ for _ in ()).throw(SystemExit(137)))
@@ -174,29 +188,66 @@ def test_a_real_sigterm_to_track_keeps_a_checkpoint_and_exits_143(seq, tmp_path)
 
 # -- train ------------------------------------------------------------------------------------------------------
 
-def crbm_parameters(path: Path) -> dict[str, torch.Tensor]:
-    from priors.crbm.file import load_crbm
+def model_tensors(path: Path) -> dict[str, torch.Tensor]:
+    """Every tensor of a model file (weights, latent points, scales, ...), by its place in the file."""
+    out = {}
 
-    return load_crbm(path).crbm.state_dict()
+    def walk(value, where: str) -> None:
+        if isinstance(value, torch.Tensor):
+            out[where] = value
+        elif isinstance(value, dict):
+            for key, item in value.items():
+                walk(item, f"{where}/{key}")
+        elif isinstance(value, (list, tuple)):
+            for k, item in enumerate(value):
+                walk(item, f"{where}/{k}")
+    walk(torch.load(path, weights_only=True), "")
+    assert out, f"no tensors in {path}"
+    return out
 
 
-TRAIN = ["train", "--prior", "crbm", "--mocap", str(WALKS[0]), "--order", "1", "--epochs", "6", "--hidden", "8",
-         "--checkpoint-every", "3"]
+#: Small trainings of the resumable priors, each with the field of its checkpoint's training state that counts
+#: what was done (epochs, iterations).
+TRAINING = {
+    "crbm": (["train", "--prior", "crbm", "--mocap", str(WALKS[0]), "--order", "1", "--epochs", "6", "--hidden", "8"],
+             "epoch"),
+    "gpdm": (["train", "--prior", "gpdm", "--mocap", str(WALKS[0]), "--iterations", "40", "--latent-dim", "2"],
+             "done"),
+}
 
 
 @pytest.fixture(scope="module")
-def whole_model(tmp_path_factory):
-    path = tmp_path_factory.mktemp("whole") / "whole.pt"
-    assert cli.main(["-q", *TRAIN, "--out", str(path)]) == 0
-    return crbm_parameters(path)
+def whole_models(tmp_path_factory):
+    """The model file's tensors of each uninterrupted training of :data:`TRAINING`, trained on first use."""
+    cache = {}
+
+    def get(prior: str) -> dict[str, torch.Tensor]:
+        if prior not in cache:
+            path = tmp_path_factory.mktemp("whole") / f"{prior}.pt"
+            assert cli.main(["-q", *TRAINING[prior][0], "--out", str(path)]) == 0
+            cache[prior] = model_tensors(path)
+        return cache[prior]
+    return get
 
 
-@pytest.mark.parametrize("moment", ["before the first epoch", "before the first checkpoint", "in the middle"])
-def test_train_stopped_by_sigterm_resumes_to_the_uninterrupted_model(moment, whole_model, tmp_path, capsys,
-                                                                      monkeypatch):
-    base = TRAIN
-    argv = [*base, "--out", str(tmp_path / "cut.pt")]
-    at = {"before the first epoch": 0, "before the first checkpoint": 2, "in the middle": 4}[moment]
+@pytest.mark.parametrize("prior, every, at, kept", [
+    ("crbm", "3", 0, None),  # before the first epoch: nothing to keep
+    ("crbm", "3", 2, 1),     # before the first periodic checkpoint: the state after epoch 1
+    ("crbm", "3", 5, 4),     # in the middle, after a periodic checkpoint: the state at the stop, not the periodic one
+    ("crbm", None, 4, 3),    # without periodic checkpoints
+    ("gpdm", None, 0, None),
+    ("gpdm", "20", 10, 10),  # the progress of a chunk is reported once its state is kept
+    ("gpdm", "20", 30, 30),
+], ids=lambda v: str(v))
+def test_train_stopped_by_sigterm_resumes_to_the_uninterrupted_model(prior, every, at, kept, whole_models, tmp_path,
+                                                                      capsys, monkeypatch):
+    """Stopped at ``at`` epochs (iterations) done, ``train`` keeps the training state after the last finished one
+    (``kept``), with or without ``--checkpoint-every``, and ``--resume`` continues from there to the model file of
+    an uninterrupted training, bit for bit."""
+    from priors.common import read_model_file
+
+    base, counter = TRAINING[prior]
+    argv = [*base, *(["--checkpoint-every", every] if every else []), "--out", str(tmp_path / "cut.pt")]
     real = cli.train
 
     def train(*args, progress=None, **kwargs):
@@ -214,18 +265,19 @@ def test_train_stopped_by_sigterm_resumes_to_the_uninterrupted_model(moment, who
     monkeypatch.undo()
     assert code == 143 and not (tmp_path / "cut.pt").exists()
     checkpoint = tmp_path / "cut.pt.checkpoint"
-    if at == 4:
+    if kept is not None:
         one_warning(err, f"continue with: pose-tracker {' '.join(argv)} --resume")
-        assert checkpoint.exists()
+        doc = read_model_file(checkpoint, torch.load(checkpoint, weights_only=True)["format"], "checkpoint")
+        assert doc["training_state"][counter] == kept
     else:
         one_warning(err)
         assert "nothing" in err and not checkpoint.exists()
         assert not Path(f"{checkpoint}.inputs.json").exists()  # nothing stays behind
     code, err = run_cli([*argv, "--resume"], capsys)
     assert code == 0, err
-    assert (at == 4) != ("training from the start" in err), err
-    whole, cut = whole_model, crbm_parameters(tmp_path / "cut.pt")
-    assert all(torch.equal(whole[k], cut[k]) for k in whole)
+    assert (kept is None) == ("training from the start" in err), err
+    whole, cut = whole_models(prior), model_tensors(tmp_path / "cut.pt")
+    assert sorted(whole) == sorted(cut) and all(torch.equal(whole[k], cut[k]) for k in whole)
     assert not checkpoint.exists()
 
 

@@ -18,14 +18,6 @@ SAMPLE = REPO / "data_tools" / "samples" / "cmu07"
 
 
 @pytest.fixture(scope="module")
-def small_walk(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("components") / "walk"
-    tracker.synthesize(SAMPLE / "07_02.amc", out, skeleton=SAMPLE / "07.asf", cameras=2, frames=5, width=160,
-                       height=120)
-    return out
-
-
-@pytest.fixture(scope="module")
 def crbm_file(tmp_path_factory) -> Path:
     model = tracker.train("crbm", [SAMPLE / "07_01.amc"], skeletons=[SAMPLE / "07.asf"], order=1, hidden=8,
                           epochs=1, seed=0, pace_input=False)

@@ -99,10 +99,12 @@ def test_without_switching_a_component_that_lost_its_weight_stays_lost():
 def test_mixture_settings_are_checked_and_reported():
     with pytest.raises(InputError, match="at least two"):
         MixturePrior([Drift(0.0)])
-    with pytest.raises(InputError, match="switching probability"):
-        MixturePrior([Drift(0.0), Drift(1.0)], switch=1.0)
-    with pytest.raises(InputError, match="temperature"):
+    for switch in (1.0, 0.7, -0.1):  # the bounds the option declares, the same as on the command line
+        with pytest.raises(InputError, match="mixture: switch must be at least 0 and at most 0.5"):
+            MixturePrior([Drift(0.0), Drift(1.0)], switch=switch)
+    with pytest.raises(InputError, match="mixture: evidence_temperature must be at least 1"):
         MixturePrior([Drift(0.0), Drift(1.0)], temperature=0.5)
+    assert MixturePrior([Drift(0.0), Drift(1.0)], switch=0.5).switch == 0.5
     with pytest.raises(InputError, match="needs at least 2 particles"):
         MixturePrior([Drift(0.0), Drift(1.0)]).start(np.zeros((1, D)), 1, np.random.default_rng(0))
     prior = MixturePrior([Drift(0.0), Drift(1.0)])

@@ -46,12 +46,14 @@ BUILT = {
     "zero-velocity": [("zero-velocity", [], {})],
     "constant-velocity": [("constant-velocity", [], {})],
     "crbm": [("crbm", ["crbm"], {}), ("crbm", ["crbm-paced"], {}), ("crbm", ["crbm", "crbm"], {}),
-             ("crbm", ["crbm"], {"height_spread": 30.0, "height_drift": 1.0, "posture_gain": 0.2})],
+             ("crbm", ["crbm"], {"height_spread": 30.0, "height_drift": 1.0, "posture_gain": 0.2}),
+             ("crbm", ["crbm-paced"], {"height_spread": 30.0, "height_drift": 1.0, "posture_gain": 0.2})],
     "gpdm": [("gpdm", ["gpdm"], {}), ("gpdm", ["gpdm"], {"height_drift": 2.0}),
-             ("gpdm", ["gpdm"], {"posture_gain": 0.2})],
+             ("gpdm", ["gpdm"], {"posture_gain": 0.2}), ("gpdm", ["gpdm"], {"height_drift": 2.0, "posture_gain": 0.2})],
     "fcrbm": [("fcrbm", ["fcrbm"], {}), ("fcrbm", ["fcrbm"], {"style": "b"}),
               ("fcrbm", ["fcrbm"], {"height_spread": 20.0, "height_drift": 1.0, "posture_gain": 0.2})],
-    "deep-crbm": [("deep-crbm", ["deep-crbm"], {"height_spread": 20.0})],
+    "deep-crbm": [("deep-crbm", ["deep-crbm"], {"height_spread": 20.0}),
+                  ("deep-crbm", ["deep-crbm"], {"height_spread": 20.0, "height_drift": 1.0, "posture_gain": 0.2})],
     "mixture": [("mixture", ["crbm-paced"], {}), ("mixture", ["crbm", "gpdm"], {"components": "crbm,gpdm"}),
                 ("mixture", ["fcrbm", "deep-crbm"], {"components": "fcrbm,deep-crbm"}),
                 ("mixture", [], {"components": "zero-velocity,constant-velocity", "switch": 0.2})],
@@ -60,6 +62,36 @@ CONFIGURATIONS = [c for configurations in BUILT.values() for c in configurations
 LABELS = [f"{name}-{'+'.join(files) or 'none'}-{k}" for k, (name, files, _) in enumerate(CONFIGURATIONS)]
 #: Priors without lower orders to grow their history through.
 RANDOM_WALKS = ("zero-velocity", "constant-velocity")
+
+
+#: The parts each learned prior of the package takes (every one that applies to its model's features).
+LEARNED_PARTS = {"crbm": ("GroundDiffusion", "PaceInput", "HeightOffset", "PostureOffset"),
+                 "fcrbm": ("GroundDiffusion", "HeightOffset", "PostureOffset"),
+                 "deep-crbm": ("GroundDiffusion", "HeightOffset", "PostureOffset"),
+                 "gpdm": ("GroundDiffusion", "HeightOffset", "PostureOffset")}
+
+
+def test_every_learned_prior_is_checked_with_every_part_it_takes_switched_on(built):
+    """The contract checks each part through the part protocol (:meth:`TestRegisteredPriors.parts`): some
+    configuration of each learned prior has all its parts in use."""
+    for name, expected in LEARNED_PARTS.items():
+        found = [sorted(type(p).__name__ for p in getattr(built(k), "parts", ()))
+                 for k, (prior, _, _) in enumerate(CONFIGURATIONS) if prior == name]
+        assert sorted(expected) in found, f"no configuration of {name} uses all of {expected}: {found}"
+
+
+def test_every_learned_prior_names_its_parts_in_use_by_kind(built):
+    """Each learned prior answers ``ground``, ``pace``, ``height`` and ``posture`` alike: the part in use of that
+    kind, or None."""
+    from priors.learned import LearnedPrior
+    from priors.parts import GroundDiffusion, HeightOffset, PaceInput, PostureOffset
+
+    kinds = {"ground": GroundDiffusion, "pace": PaceInput, "height": HeightOffset, "posture": PostureOffset}
+    learned = [built(k) for k in range(len(CONFIGURATIONS)) if isinstance(built(k), LearnedPrior)]
+    assert {p.name for p in learned} >= set(LEARNED_PARTS)
+    for prior in learned:
+        for name, kind in kinds.items():
+            assert getattr(prior, name) is prior.part(kind), f"{prior.name}.{name}"
 
 
 def test_every_registered_prior_of_the_package_has_a_contract_configuration():
@@ -128,7 +160,11 @@ class TestRegisteredPriors(PriorContract):
         return prior.order >= 2 and not all(m.name in RANDOM_WALKS for m in members(prior))
 
     def parts(self, prior):
-        return list(getattr(prior, "parts", ()))
+        """A learned prior's parts in use (:class:`priors.learned.LearnedPrior`), each checked through the part
+        protocol; none for the others (a mixture's components are checked as priors of their own)."""
+        from priors.learned import LearnedPrior
+
+        return list(prior.parts) if isinstance(prior, LearnedPrior) else []
 
 
 def test_model_files_of_0_13_sample_as_they_did(walk_07_01):

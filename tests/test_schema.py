@@ -23,15 +23,6 @@ SAMPLE = REPO / "data_tools" / "samples" / "cmu07"
 NOT_IN_EXPERIMENTS = {"seed", "device", "checkpoint_every"}
 
 
-@pytest.fixture(scope="module")
-def small_walk(tmp_path_factory) -> Path:
-    """Five frames of the shipped walk 07_02 in two small cameras (no ../shared needed)."""
-    out = tmp_path_factory.mktemp("schema") / "walk"
-    tracker.synthesize(SAMPLE / "07_02.amc", out, skeleton=SAMPLE / "07.asf", cameras=2, frames=5, width=160,
-                       height=120)
-    return out
-
-
 def track_parser() -> argparse.ArgumentParser:
     parser = build_parser(["track"])
     action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))

@@ -76,8 +76,10 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
     """Train a CRBM on pose clips (each ``T x D`` at ``fps``) with CD-k; every random draw comes from ``rng``.
 
     ``progress(epoch, reconstruction_error)`` is called after every epoch; ``checkpoint = (save, every)``
-    calls ``save(model, training_state)`` every ``every`` epochs, and ``resume`` (such a ``training_state``,
-    with the model's weights in it) continues from there to the model an uninterrupted run gives.
+    calls ``save(model, training_state)`` every ``every`` epochs (0: never), and, when the training is interrupted
+    (``KeyboardInterrupt``: Ctrl-C, or SIGTERM as the command line answers it), with the state after the last
+    finished epoch before the interrupt goes on; ``resume`` (such a ``training_state``, with the model's weights
+    in it) continues from there to the model an uninterrupted run gives.
     """
     cfg = config.check()
     t0 = time.perf_counter()
@@ -134,51 +136,68 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
             best = {"error": float(resume["best"]["error"]), "params": resume["best"]["params"]}
             model.validation_errors = [list(map(float, x)) for x in resume["best"]["errors"]]
             model.best_epoch = int(resume["best"]["epoch"])
-    for epoch in range(first_epoch, cfg.epochs):
-        err_sum, count = 0.0, 0
-        for batch in minibatches(starts, cfg.batch_size, g):
-            v0, hist = windows(batch)
-            if cfg.history_noise:
-                hist = hist + torch.randn(hist.shape, generator=g, device=device) * noise
-            a_hat, b_hat = crbm.biases(hist)
-            p0 = crbm.hidden_probabilities(v0, b_hat)
-            h0 = bernoulli(p0, g)
-            h = h0
-            for _ in range(cfg.cd_k):
-                vk = a_hat + h @ crbm.W.T
-                pk = crbm.hidden_probabilities(vk, b_hat)
-                h = bernoulli(pk, g)
-            n = len(v0)
-            dv, dh = v0 - vk, h0 - pk
-            grads = {"W": (v0.T @ h0 - vk.T @ pk) / n, "A": hist.T @ dv / n, "B": hist.T @ dh / n,
-                     "a": dv.mean(0), "b": dh.mean(0)}
-            if cfg.sparsity_target is not None:
-                activity = 0.9 * activity + 0.1 * p0.mean(0)
-                push = cfg.sparsity_cost * (cfg.sparsity_target - activity)
-                grads["b"] = grads["b"] + push
-                grads["W"] = grads["W"] + v0.mean(0)[:, None] * push[None, :]
-                grads["B"] = grads["B"] + hist.mean(0)[:, None] * push[None, :]
-            params = crbm.params()
-            momentum_step(params, velocity, grads, rates, cfg.momentum, cfg.weight_decay, CRBM.DECAYED)
-            crbm.set_params(params)
-            err_sum += float(((v0 - vk) ** 2).sum())
-            count += n * K
-        finish_epoch(model.reconstruction_errors, err_sum, count, epoch, "CRBM", progress)
-        if len(held_out) and ((epoch + 1) % cfg.validation_every == 0 or epoch + 1 == cfg.epochs):
-            error = held_out_error()
-            model.validation_errors.append([epoch + 1, error])
-            if error < best["error"]:
-                best = {"error": error, "params": crbm.state_dict()}
-                model.best_epoch = epoch + 1
-        if checkpoint is not None and (epoch + 1) % checkpoint[1] == 0 and epoch + 1 < cfg.epochs:
-            model.training_seconds = seconds_before + time.perf_counter() - t0
-            checkpoint[0](model, {"params": crbm.state_dict(), "epoch": epoch + 1,
-                                  "velocity": {k: v.detach().cpu().clone() for k, v in velocity.items()},
-                                  "activity": activity.detach().cpu().clone(), "generator": g.get_state(),
-                                  "reconstruction_errors": list(model.reconstruction_errors),
-                                  "seconds": model.training_seconds,
-                                  **({"best": {**best, "errors": list(model.validation_errors),
-                                               "epoch": model.best_epoch}} if len(held_out) else {})})
+
+    def training_state(epochs_done: int) -> dict:
+        """Everything a resumed training needs after ``epochs_done`` epochs, copied (later epochs leave it as
+        it was)."""
+        model.training_seconds = seconds_before + time.perf_counter() - t0
+        return {"params": crbm.state_dict(), "epoch": epochs_done,
+                "velocity": {k: v.detach().cpu().clone() for k, v in velocity.items()},
+                "activity": activity.detach().cpu().clone(), "generator": g.get_state(),
+                "reconstruction_errors": list(model.reconstruction_errors), "seconds": model.training_seconds,
+                **({"best": {**best, "errors": list(model.validation_errors), "epoch": model.best_epoch}}
+                   if len(held_out) else {})}
+
+    last = None if checkpoint is None else training_state(first_epoch)
+    try:
+        for epoch in range(first_epoch, cfg.epochs):
+            err_sum, count = 0.0, 0
+            for batch in minibatches(starts, cfg.batch_size, g):
+                v0, hist = windows(batch)
+                if cfg.history_noise:
+                    hist = hist + torch.randn(hist.shape, generator=g, device=device) * noise
+                a_hat, b_hat = crbm.biases(hist)
+                p0 = crbm.hidden_probabilities(v0, b_hat)
+                h0 = bernoulli(p0, g)
+                h = h0
+                for _ in range(cfg.cd_k):
+                    vk = a_hat + h @ crbm.W.T
+                    pk = crbm.hidden_probabilities(vk, b_hat)
+                    h = bernoulli(pk, g)
+                n = len(v0)
+                dv, dh = v0 - vk, h0 - pk
+                grads = {"W": (v0.T @ h0 - vk.T @ pk) / n, "A": hist.T @ dv / n, "B": hist.T @ dh / n,
+                         "a": dv.mean(0), "b": dh.mean(0)}
+                if cfg.sparsity_target is not None:
+                    activity = 0.9 * activity + 0.1 * p0.mean(0)
+                    push = cfg.sparsity_cost * (cfg.sparsity_target - activity)
+                    grads["b"] = grads["b"] + push
+                    grads["W"] = grads["W"] + v0.mean(0)[:, None] * push[None, :]
+                    grads["B"] = grads["B"] + hist.mean(0)[:, None] * push[None, :]
+                params = crbm.params()
+                momentum_step(params, velocity, grads, rates, cfg.momentum, cfg.weight_decay, CRBM.DECAYED)
+                crbm.set_params(params)
+                err_sum += float(((v0 - vk) ** 2).sum())
+                count += n * K
+            finish_epoch(model.reconstruction_errors, err_sum, count, epoch, "CRBM", progress)
+            if len(held_out) and ((epoch + 1) % cfg.validation_every == 0 or epoch + 1 == cfg.epochs):
+                error = held_out_error()
+                model.validation_errors.append([epoch + 1, error])
+                if error < best["error"]:
+                    best = {"error": error, "params": crbm.state_dict()}
+                    model.best_epoch = epoch + 1
+            if checkpoint is not None:
+                last = training_state(epoch + 1)
+                if checkpoint[1] and (epoch + 1) % checkpoint[1] == 0 and epoch + 1 < cfg.epochs:
+                    checkpoint[0](model, last)
+    except KeyboardInterrupt:  # the state after the last finished epoch, for a resume to continue from
+        if last is not None:
+            crbm.load_state_dict(last["params"])
+            model.reconstruction_errors = list(last["reconstruction_errors"])
+            model.validation_errors = list(last.get("best", {}).get("errors", model.validation_errors))
+            model.training_seconds = last["seconds"]
+            checkpoint[0](model, last)
+        raise
     if best["params"] is not None:  # the weights of the best held-out check
         crbm.load_state_dict(best["params"])
     model.training_seconds = seconds_before + time.perf_counter() - t0
@@ -240,7 +259,9 @@ def parse_history_noise(value: str | float) -> str | float:
 def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator,
                      progress: Callable[[int, int, dict], None] | None = None,
                      checkpoint: Path | None = None, resume: bool = False) -> CRBMModel:
-    """``train --prior crbm``: a CRBM of ``options['order']`` on the clips of ``data``."""
+    """``train --prior crbm``: a CRBM of ``options['order']`` on the clips of ``data``. With ``checkpoint`` (a file)
+    the training state is saved there every ``checkpoint_every`` epochs and when the training is interrupted;
+    ``resume`` continues from it to the model an uninterrupted run gives."""
     noise = parse_history_noise(options["history_noise"])
     pace_input = options["pace_input"]
     if pace_input is None:  # auto: only clips of several paces can teach the model what a pace means
@@ -283,7 +304,7 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
             lambda epoch, err, before=i * config.epochs: progress(before + epoch, total, {"reconstruction": err}))
         model = train_crbm(list(data.clips), replace(config, order=orders[i]), data.fps,
                            data.body_model.dof_names, data.body_model.name, list(data.sources), report,
-                           (save, every) if checkpoint is not None and every else None, rng=rng,
+                           None if checkpoint is None else (save, every), rng=rng,
                            resume=state if i == len(done) else None)
         if i < len(grow):
             done.append(model)

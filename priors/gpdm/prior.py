@@ -66,18 +66,6 @@ class GPDMPrior(LearnedPrior):
         self.latent_order = model.gpdm.config.order
         self.noise_scale = float(noise_scale)
 
-    @property
-    def ground(self) -> GroundDiffusion | None:
-        return self.part(GroundDiffusion)
-
-    @property
-    def height(self) -> HeightOffset | None:
-        return self.part(HeightOffset)
-
-    @property
-    def posture(self) -> PostureOffset | None:
-        return self.part(PostureOffset)
-
     def settings(self) -> dict:
         return {"latent_noise": self.noise_scale, **super().settings()}
 

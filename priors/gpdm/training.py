@@ -2,6 +2,7 @@
 training checkpoints to resume from."""
 from __future__ import annotations
 
+import copy
 import math
 import time
 from dataclasses import asdict, dataclass
@@ -41,10 +42,12 @@ def train_gpdm(Y: np.ndarray, lengths: Sequence[int], config: GPDMConfig,
     Training runs in chunks of ``config.w_update_every`` L-BFGS iterations, with the closed-form ``W`` update
     between chunks; one optimiser runs through all chunks, so its curvature history carries over.
     ``checkpoint = (save, every)`` calls ``save(model, training_state)`` at the end of the first chunk at or
-    after every ``every`` iterations (not after the last); the state holds the optimiser's ``state_dict`` (its
-    history of steps and gradient changes, last direction and step length, iteration counts), so ``resume``
-    (such a checkpoint) restores the parameters, ``W`` and the optimiser exactly and continues to the model an
-    uninterrupted run gives, bit for bit.
+    after every ``every`` iterations (not after the last; 0: never), and, when the training is interrupted
+    (``KeyboardInterrupt``: Ctrl-C, or SIGTERM as the command line answers it) after its first chunk, with the
+    model and state at the end of the last finished chunk before the interrupt goes on; the state holds the
+    optimiser's ``state_dict`` (its history of steps and gradient changes, last direction and step length,
+    iteration counts), so ``resume`` (such a checkpoint) restores the parameters, ``W`` and the optimiser
+    exactly and continues to the model an uninterrupted run gives, bit for bit.
     """
     t0 = time.perf_counter()
     model = GPDM(Y, lengths, config)  # PCA initialisation and L-BFGS: nothing random
@@ -61,22 +64,43 @@ def train_gpdm(Y: np.ndarray, lengths: Sequence[int], config: GPDMConfig,
         value.backward()
         return value
 
-    while done < config.iterations:
-        opt.step(closure)
-        model.update_W()
-        done += config.w_update_every
+    def training_state() -> dict:
+        """The model's parameters, ``W``, objective history and the optimiser's state after ``done`` iterations,
+        copied (later chunks leave it as it was)."""
+        return {"parameters": [p.detach().clone() for p in model.parameters()], "W": model.W.clone(),
+                "objective_history": list(model.objective_history), "optimizer": copy.deepcopy(opt.state_dict()),
+                "done": done, "seconds": seconds_before + time.perf_counter() - t0}
+
+    def save(state: dict) -> None:
+        """``state`` (:func:`training_state`) through ``checkpoint``: the model set to it first."""
         with torch.no_grad():
-            value = float(model.objective())
-        if not math.isfinite(value):
-            raise InputError("GPDM training diverged (the objective is not finite)")
-        model.objective_history.append(value)
-        if progress is not None:
-            progress(min(done, config.iterations), value)
-        if checkpoint is not None and done < config.iterations \
-                and done // checkpoint[1] > (done - config.w_update_every) // checkpoint[1]:
-            model.training_seconds = seconds_before + time.perf_counter() - t0
-            checkpoint[0](model, {"optimizer": opt.state_dict(), "done": done,
-                                  "seconds": model.training_seconds})
+            for mine, saved in zip(model.parameters(), state["parameters"]):
+                mine.copy_(saved)
+        model.W, model.objective_history = state["W"], list(state["objective_history"])
+        model.training_seconds = state["seconds"]
+        checkpoint[0](model, {k: state[k] for k in ("optimizer", "done", "seconds")})
+
+    last = None
+    try:
+        while done < config.iterations:
+            opt.step(closure)
+            model.update_W()
+            done += config.w_update_every
+            with torch.no_grad():
+                value = float(model.objective())
+            if not math.isfinite(value):
+                raise InputError("GPDM training diverged (the objective is not finite)")
+            model.objective_history.append(value)
+            if checkpoint is not None and done < config.iterations:
+                last = training_state()
+                if checkpoint[1] and done // checkpoint[1] > (done - config.w_update_every) // checkpoint[1]:
+                    save(last)
+            if progress is not None:
+                progress(min(done, config.iterations), value)
+    except KeyboardInterrupt:  # the state after the last finished chunk, for a resume to continue from
+        if last is not None:
+            save(last)
+        raise
     model.training_seconds = seconds_before + time.perf_counter() - t0
     return model
 
@@ -124,9 +148,9 @@ def train_gpdm_from_data(data: TrainingData, options: dict, rng: np.random.Gener
                          checkpoint: Path | None = None, resume: bool = False) -> GPDMPriorModel:
     """``train --prior gpdm``: a GPDM on the clips of ``data`` (deterministic: ``rng`` is not drawn from).
 
-    With ``checkpoint`` (a file) and the ``checkpoint_every`` option the training state is saved there in the
-    checkpoint format (never taken for a model file), atomically; ``resume`` continues from it to the model an
-    uninterrupted run gives. The checkpoint is removed when training finishes."""
+    With ``checkpoint`` (a file) the training state is saved there every ``checkpoint_every`` iterations and when
+    the training is interrupted, in the checkpoint format (never taken for a model file), atomically; ``resume``
+    continues from it to the model an uninterrupted run gives. The checkpoint is removed when training finishes."""
     config = GPDMConfig(latent_dim=options["latent_dim"], dynamics=options["dynamics"], order=options["order"],
                         balance=options["balance"], iterations=options["iterations"],
                         inducing=options.get("inducing")).check()
@@ -140,8 +164,7 @@ def train_gpdm_from_data(data: TrainingData, options: dict, rng: np.random.Gener
                           checkpoint)
 
     model = train_gpdm_prior(list(data.clips), config, data.fps, data.body_model.dof_names, data.body_model.name,
-                             list(data.sources), report, (save, every) if checkpoint is not None and every else None,
-                             saved)
+                             list(data.sources), report, None if checkpoint is None else (save, every), saved)
     if checkpoint is not None:
         checkpoint.unlink(missing_ok=True)
     return model

@@ -60,8 +60,8 @@ def make_rng(seed: SeedLike) -> np.random.Generator:
     """A numpy Generator from an int, a SeedSequence or a Generator (returned as it is)."""
     if isinstance(seed, np.random.Generator):
         return seed
-    if isinstance(seed, (int, np.integer)) and not 0 <= int(seed) < 2 ** 63:
-        raise InputError(f"seed must lie in 0..2^63-1, got {seed}")  # the schema's bounds of a seed
+    if isinstance(seed, (int, np.integer)):
+        seed = schema.setting("seed").parse(int(seed), "the run")  # the schema's bounds of a seed
     return np.random.default_rng(seed)
 
 
@@ -281,8 +281,9 @@ def train(prior: str, mocap: str | Path | Iterable[str | Path] | Iterable[Retarg
     ``options`` are the prior's training options (see ``pose-tracker train --prior NAME --help``). Returns the
     trained model;
     ``model.save(path)`` writes its file (an existing one only with ``overwrite=True``).
-    With ``checkpoint`` (a file path) and the prior's ``checkpoint_every`` option, training state is saved as
-    it goes; ``resume=True`` continues from it to the model an uninterrupted run gives.
+    With ``checkpoint`` (a file path), a resumable prior's training state is saved there every
+    ``checkpoint_every`` epochs (its option) and when the training is interrupted (``KeyboardInterrupt``);
+    ``resume=True`` continues from it to the model an uninterrupted run gives.
     A prior's ``labels`` option (the FCRBM's) takes, besides one label per clip in clip order, a pattern over
     file names or a sidecar file with ``#KEY`` (``"dataset-2_{content}_{style}_{take}#style"``,
     :mod:`data_tools.corpus`): each clip's label is read from its file.
@@ -323,7 +324,7 @@ def train(prior: str, mocap: str | Path | Iterable[str | Path] | Iterable[Retarg
     import torch  # noqa: F401  (every learned prior trains with torch: imported here, given the run's threads)
 
     sync_torch_threads()
-    with training_checkpoint(checkpoint, sources, skeletons, resume, bool(resolved.get("checkpoint_every"))):
+    with training_checkpoint(checkpoint, sources, skeletons, resume, entry.resumable):  # saved when interrupted
         return entry.train(data, resolved, make_rng(seed), progress,
                            None if checkpoint is None else Path(checkpoint), **extra)
 

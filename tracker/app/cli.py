@@ -271,15 +271,13 @@ def cmd_train(args: argparse.Namespace) -> int:
         try:
             model = train(args.prior, clips, skeletons=args.skeleton, fps=clips[0].fps, seed=args.seed,
                           progress=progress, checkpoint=checkpoint, resume=resume, **options)
-        except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the last checkpoint (if any) stays for --resume
+        except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the training state at the stop (if any) stays for --resume
             progress.close()
             work["started"] = True  # the model file is written only at the end: nothing else to undo
             command = shlex.join([*invoked_as().split(), *args.argv])
-            if not checkpoint.exists():
+            if not checkpoint.exists():  # stopped before the training kept any state, or a prior that cannot resume
                 side.unlink(missing_ok=True)
-                saves = ("" if not prior_entry(args.prior).resumable
-                         else " (--checkpoint-every E saves the training state as it goes)")
-                again = f"nothing saved{saves}; start again with: {command}"
+                again = f"nothing saved; start again with: {command}"
             else:
                 again = f"continue with: {command}{'' if args.resume else ' --resume'}"
             log.warning(f"interrupted: {again}")

@@ -215,7 +215,8 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                         "recognised (see convert --help)")
     r.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
     r.add_argument("--resume", action="store_true",
-                   help="continue an interrupted training from OUT.checkpoint (same arguments as before)")
+                   help="continue an interrupted training from OUT.checkpoint (same arguments as before); "
+                        "a training stopped before its first checkpoint starts from the beginning")
     r.add_argument("--out", required=True, help="output model file (.pt)")
     r.add_argument("--overwrite", action="store_true", help="replace an existing model file")
     _check_clashes(r, {f"prior {n}": prior_entry(n).train_options for n in trainable})
@@ -249,7 +250,8 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     add_flags(t, ("checkpoint_every",))
     t.add_argument("--resume", metavar="OUTDIR",
                    help="continue an interrupted run from OUTDIR/checkpoint.npz with its original settings "
-                        "(give no other arguments)")
+                        "(give no other arguments); a run stopped before its first checkpoint starts from its "
+                        "first frame")
     priors = {f"prior {n}": prior_entry(n).options for n in available_priors()}
     likelihoods = {f"likelihood {n}": likelihood_entry(n).options for n in available_likelihoods()}
     shared = {o.name for opts in priors.values() for o in opts} & {o.name for opts in likelihoods.values() for o in opts}

@@ -95,6 +95,10 @@ class Mixture:
     temperature: float = 1.0
 
     def check(self, n_particles: int) -> "Mixture":
+        """The mixture itself, checked as any component prior gives it: one component per particle, each with a
+        particle, a transition whose rows are probabilities, a temperature of at least 1. These are checks of
+        the matrix a prior built, not bounds on a user's setting: a prior checks its settings through its
+        declared options (e.g. the mixture of priors' switching probability) before building it."""
         c, T = np.asarray(self.component), np.asarray(self.transition, float)
         C = T.shape[0] if T.ndim == 2 else 0
         if c.shape != (n_particles,) or C == 0 or T.shape != (C, C) or c.min() < 0 or c.max() >= C:

@@ -15,7 +15,8 @@ it), fills the factory methods, and pytest runs every ``test_*`` method of the c
 - :class:`PriorContract`: a :class:`~tracker.engine.prior.MotionPrior` samples a batch as it samples each
   particle alone, draws the same poses from the same seed, keeps state and histories together when the filter
   reindexes them, continues to the same poses from a checkpoint, starts with one state row per particle and
-  grows its history from one known frame;
+  grows its history from one known frame; each of its parts (:class:`priors.parts.Part`) is checked through the
+  part protocol (its declared state, reindexed and checkpointed by rows, its summary, settings and noise);
 - :class:`LikelihoodContract`: a :class:`~tracker.engine.likelihood.Likelihood` scores a batch as it scores each
   pose alone, gives one finite or ``-inf`` number per pose, refuses poses and frames of the wrong shape, and
   (where it has two paths, e.g. a compiled CPU loop and an array path for GPUs) gives the same numbers on both;

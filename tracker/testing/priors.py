@@ -12,7 +12,12 @@ method then checks the prior through its public interface only:
 - it continues to the same poses after its state went through a checkpoint file;
 - from one known frame, it draws finite poses while its history grows (through lower orders, where it has
   them: Taylor 2009, Sec. 6.4);
-- each of its parts (:meth:`PriorContract.parts`) states its settings among the prior's.
+- each of its parts (:meth:`PriorContract.parts`, :class:`priors.parts.Part`) is checked through the part
+  protocol: it starts the state entries it declares (:attr:`~priors.parts.Part.KEYS`) with one row per particle
+  from the known frames, and the prior's state carries them; reindexing after resampling picks their rows; they
+  come back from a checkpoint file as they were; its summary is a finite number the prior reports under the
+  part's name; its settings are its options' values under the options' names, among the prior's; and it draws
+  its random numbers from the generator passed in only, one row per particle.
 
 Shapes: known poses ``T x D``; histories ``P x N x D`` (oldest first); poses ``P x D``; mm and radians.
 """
@@ -23,6 +28,7 @@ from typing import Any, Iterator, Sequence
 
 import numpy as np
 
+from priors.parts import Part
 from tracker.engine.mixture import mixing_of
 from tracker.engine.prior import MotionPrior, PriorState, label_for, reindex_state
 
@@ -40,6 +46,39 @@ def rollout(prior: MotionPrior, poses: np.ndarray, n_particles: int, seed: int,
         new, state = prior.sample(history, available, state, rng)
         history = np.concatenate([history[:, 1:], new[:, None]], axis=1)
     return history, available, state
+
+
+def checkpointed(prior: MotionPrior, history: np.ndarray, available: int, state: PriorState,
+                 rng: np.random.Generator, folder) -> tuple[Any, np.random.Generator]:
+    """``state`` (with ``history`` ``P x N x D`` and ``available``) and ``rng`` written to a filter checkpoint in
+    ``folder`` and read back: the restored filter state (:class:`~tracker.engine.filter.FilterState`) and a
+    generator in the saved state."""
+    from tracker.app.checkpoint import load_checkpoint, save_checkpoint
+    from tracker.engine.filter import FilterState
+    from tracker.engine.recording import Recording
+    from tracker.engine.weights import LogWeights
+
+    P = len(history)
+    path = folder / "checkpoint.npz"
+    fingerprint = {"prior": prior.name}
+    save_checkpoint(path, FilterState(history, state, LogWeights(np.zeros(P)), history[0], available, 2),
+                    Recording(()), rng.bit_generator.state, fingerprint)
+    resumed_rng = np.random.default_rng(0)
+    restored, _ = load_checkpoint(path, fingerprint, Recording(()), resumed_rng)
+    return restored, resumed_rng
+
+
+def part_entries(state: PriorState, part: Part, n_particles: int) -> dict[str, np.ndarray]:
+    """The entries ``part`` declares (:attr:`~priors.parts.Part.KEYS`) in a prior's ``state``, each checked to
+    have one row per particle."""
+    name = type(part).__name__
+    assert isinstance(state, dict), f"a prior with the part {name} keeps no state dict"
+    missing = [k for k in part.KEYS if k not in state]
+    assert not missing, f"the prior's state lacks {name}'s entries {missing}"
+    entries = {k: np.asarray(state[k]) for k in part.KEYS}
+    for key, array in entries.items():
+        assert array.shape[:1] == (n_particles,), f"{name}'s {key} has shape {array.shape} for {n_particles} particles"
+    return entries
 
 
 def state_arrays(state: PriorState) -> Iterator[np.ndarray]:
@@ -97,9 +136,9 @@ class PriorContract:
         random walk samples from whatever history it has (False, the default)."""
         return False
 
-    def parts(self, prior: MotionPrior) -> Sequence[Any]:
-        """The per-particle parts of the prior to check one by one (ground diffusion, pace, root height,
-        posture, ...): each has ``settings() -> dict``. None by default."""
+    def parts(self, prior: MotionPrior) -> Sequence[Part]:
+        """The per-particle parts of the prior (:class:`priors.parts.Part`: ground diffusion, pace, root height,
+        posture, ...) to check one by one through the part protocol, each in use by the prior. None by default."""
         return ()
 
     # --- the contract ---------------------------------------------------------------------------------
@@ -173,22 +212,12 @@ class PriorContract:
                                        err_msg=f"particle {i} drew another pose after reindexing")
 
     def test_a_checkpointed_state_continues_to_the_same_poses(self, tmp_path):
-        from tracker.app.checkpoint import load_checkpoint, save_checkpoint
-        from tracker.engine.filter import FilterState
-        from tracker.engine.recording import Recording
-        from tracker.engine.weights import LogWeights
-
         prior, poses = self._prior_and_poses()
         P = self.particles
         history, available, state = rollout(prior, poses, P, 7, 2)
         rng = np.random.default_rng(13)
-        path = tmp_path / "checkpoint.npz"
-        fingerprint = {"prior": prior.name}
-        save_checkpoint(path, FilterState(history, state, LogWeights(np.zeros(P)), history[0], available, 2),
-                        Recording(()), rng.bit_generator.state, fingerprint)
+        restored, resumed_rng = checkpointed(prior, history, available, state, rng, tmp_path)
         direct = prior.sample(history, available, state, rng)[0]
-        resumed_rng = np.random.default_rng(0)
-        restored, _ = load_checkpoint(path, fingerprint, Recording(()), resumed_rng)
         resumed = prior.sample(restored.history, restored.available, restored.prior_state, resumed_rng)[0]
         assert np.array_equal(direct, resumed), "the restored state drew other poses"
 
@@ -213,11 +242,105 @@ class PriorContract:
         if self.grows_history(prior):
             assert labels[0] != labels[-1], f"the same model ({labels[0]}) drew with 1 and {prior.order} frames"
 
-    def test_each_part_states_its_settings_among_the_priors(self):
+    # --- each part, through the part protocol -----------------------------------------------------------
+
+    def _parts(self, prior: MotionPrior) -> Sequence[Part]:
+        parts = list(self.parts(prior))
+        if not parts:
+            import pytest
+
+            pytest.skip(f"{prior.name}: no parts to check")
+        for part in parts:
+            assert isinstance(part, Part), f"{type(part).__name__} does not implement the part protocol (Part)"
+        return parts
+
+    def test_each_part_states_its_settings_under_its_options_names_among_the_priors(self):
         prior, _ = self._prior_and_poses()
         settings = prior.settings()
-        for part in self.parts(prior):
-            own = part.settings()
+        for part in self._parts(prior):
+            name, own = type(part).__name__, part.settings()
             json.dumps(own)
-            for key, value in own.items():
-                assert settings.get(key) == value, f"the prior's settings lack {type(part).__name__}'s {key}"
+            assert list(own) == [o.name for o in part.OPTIONS], f"{name}'s settings are not its options: {list(own)}"
+            for option in part.OPTIONS:
+                assert option.parse(own[option.name], name) == own[option.name], \
+                    f"{name}'s {option.name} is not a value its option takes"
+                assert settings.get(option.name) == own[option.name], \
+                    f"the prior's settings lack {name}'s {option.name}"
+
+    def test_each_part_starts_its_declared_state_with_one_row_per_particle(self):
+        prior, poses = self._prior_and_poses()
+        P, known = self.particles, poses[:prior.order]
+        started = prior.start(known, P, np.random.default_rng(21))
+        for part in self._parts(prior):
+            own = part.start(known, P, np.random.default_rng(21))
+            assert sorted(own) == sorted(part.KEYS), \
+                f"{type(part).__name__} started {sorted(own)}, declares {sorted(part.KEYS)}"
+            part_entries(own, part, P)
+            part_entries(started, part, P)
+
+    def test_each_parts_state_is_reindexed_and_checkpointed_row_by_row(self, tmp_path):
+        """After steps (the entries each part moves), resampling picks the rows of every entry a part declares,
+        and a checkpoint file gives them back unchanged."""
+        prior, poses = self._prior_and_poses()
+        P = self.particles
+        history, available, state = rollout(prior, poses, P, 22, 2)
+        idx = np.random.default_rng(23).integers(0, P, P)
+        picked = prior.reindex(state, idx)
+        restored = checkpointed(prior, history, available, state, np.random.default_rng(24), tmp_path)[0].prior_state
+        for part in self._parts(prior):
+            entries = part_entries(state, part, P)
+            for key, array in part_entries(picked, part, P).items():
+                assert np.array_equal(array, entries[key][idx], equal_nan=True), \
+                    f"{type(part).__name__}'s {key} after reindexing is not the picked rows"
+            for key, array in part_entries(restored, part, P).items():
+                assert np.array_equal(array, entries[key], equal_nan=True), \
+                    f"{type(part).__name__}'s {key} came back from the checkpoint changed"
+
+    def test_each_parts_summary_is_a_finite_number_the_prior_reports(self):
+        """A part's summary is a finite number; a prior whose summary is its parts' quantities (``summary_kind``
+        ``"quantity"``) reports it under the part's name (one that reports a posterior over its components or
+        labels reports that instead)."""
+        prior, poses = self._prior_and_poses()
+        P = self.particles
+        state = rollout(prior, poses, P, 25, 2)[2]
+        weights = np.random.default_rng(26).dirichlet(np.ones(P))
+        names = tuple(getattr(prior, "summary_names", ()) or ())
+        for part in self._parts(prior):
+            if not part.SUMMARY:
+                continue
+            value = part.summarize(state, weights)
+            assert isinstance(value, float) and np.isfinite(value), f"{type(part).__name__}'s summary is {value!r}"
+            if getattr(prior, "summary_kind", None) == "quantity":
+                assert part.SUMMARY in names, f"the prior's summary lacks {type(part).__name__}'s {part.SUMMARY!r}"
+
+    def test_each_part_draws_its_noise_from_the_generator_only(self):
+        """The same seed gives the same numbers whatever numpy's global generator holds (which stays as it was),
+        one row per particle; a part with nothing to draw leaves the generator where it was."""
+        prior, poses = self._prior_and_poses()
+        P, known = self.particles, poses[:prior.order]
+        for part in self._parts(prior):
+            name = type(part).__name__
+            drawn = []
+            for global_seed in (1, 2):
+                np.random.seed(global_seed)
+                before = np.random.get_state()[1].copy()
+                rng = np.random.default_rng(27)
+                start = part.start(known, P, rng)
+                noise = part.noise(P, rng)
+                after = rng.bit_generator.state
+                assert np.array_equal(np.random.get_state()[1], before), f"{name} drew from numpy's global generator"
+                drawn.append((start, noise, after))
+            (start_a, a, after_a), (start_b, b, after_b) = drawn
+            assert after_a == after_b, f"{name} drew other amounts of numbers from the same seed"
+            for key in part.KEYS:
+                assert np.array_equal(start_a[key], start_b[key], equal_nan=True), f"{name} started {key} otherwise"
+            if a is None:
+                assert b is None
+                untouched = np.random.default_rng(27)
+                part.start(known, P, untouched)
+                state = untouched.bit_generator.state
+                assert part.noise(P, untouched) is None and untouched.bit_generator.state == state, \
+                    f"{name} drew numbers it does not use"
+            else:
+                assert np.array_equal(a, b), f"{name} drew other numbers from the same seed"
+                assert np.shape(a)[:1] == (P,), f"{name}'s noise has shape {np.shape(a)} for {P} particles"
