@@ -4,7 +4,7 @@ Everything the command line does goes through these functions, so a notebook
 and the shell produce the same numbers and the same files::
 
     import tracker
-    seq = tracker.synthesize("07_02.amc", "walk", frames=60)
+    seq = tracker.synthesize("07_02.amc", out="walk_seq", frames=60)
     model = tracker.train("crbm", ["07_01.amc"], order=1, epochs=300, seed=0)
     model.save("crbm1.pt")
     for prior, models in [("zero-velocity", []), ("crbm", ["crbm1.pt"])]:
@@ -224,17 +224,23 @@ def show(sequence: Sequence | str | Path, *, frame: int = 0, poses: str | Path |
 
 # -- building -------------------------------------------------------------------------------------------------
 
-def build_prior(name: str, sequence: Sequence, models: Seq[str | Path | Any] = (), *,
+def build_prior(name: str, sequence: Sequence | str | Path | None = None, models: Seq[str | Path | Any] = (), *,
                 train_mocap: Iterable[str | Path] | None = None, step_std: np.ndarray | None = None,
                 device: str = "cpu", **options) -> MotionPrior:
-    """The registered prior ``name`` for ``sequence``, from its models (learned priors: model files, or the
-    models :func:`train` returns) and options.
+    """The registered prior ``name`` for ``sequence`` (a loaded sequence or its folder: the prior takes its body
+    model and frame rate), from its models (learned priors: model files, or the models :func:`train` returns)
+    and options: ``build_prior("mixture", seq, models=[model])``.
 
     Random-walk priors take their scale from ``step_std`` ``(D,)`` if given, else from ``train_mocap``
     clips (default: the shipped walks) or the bodytrack folder (:func:`random_walk_scale`). Learned priors
     with a torch path sample on ``device`` (``"cpu"``, ``"cuda"``, ``"cuda:N"``).
     """
     entry = prior_entry(name)
+    if sequence is None:
+        raise InputError(f"build_prior needs the sequence the prior will track (its body model and frame rate): "
+                         f"tracker.build_prior({name!r}, sequence, models=[...])")
+    if not isinstance(sequence, Sequence):
+        sequence = load_sequence(sequence)
     models = [Path(m) if isinstance(m, (str, os.PathLike)) else m for m in models]
     if entry.model_files == "none" and models:
         raise InputError(f"prior {name} takes no model files")

@@ -8,6 +8,7 @@ the one named is refused in one line (:func:`parse_arguments`).
 from __future__ import annotations
 
 import argparse
+import difflib
 import logging
 import textwrap
 from typing import Sequence
@@ -429,4 +430,29 @@ def parse_arguments(argv: Sequence[str]) -> argparse.Namespace:
     command = next((i for i, a in enumerate(argv) if a in ("train", "track")), None)
     if command is not None:
         _refuse_foreign_flags(argv[command:])
-    return build_parser(argv).parse_args(argv)
+    parser = build_parser(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # what argparse would refuse, with the nearest flag of the command named (a typo, say)
+        command_parser = _command_parser(parser, getattr(args, "command", None))
+        command_parser.error(f"unrecognized arguments: {' '.join(extra)}{_suggestion(extra, command_parser)}")
+    return args
+
+
+def _command_parser(parser: argparse.ArgumentParser, command: str | None) -> argparse.ArgumentParser:
+    """The parser of ``command`` (the top-level one when there is none)."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction) and command in action.choices:
+            return action.choices[command]
+    return parser
+
+
+def _suggestion(extra: Sequence[str], parser: argparse.ArgumentParser) -> str:
+    """`` (did you mean --particles?)`` for the first unrecognised flag that is close to one ``parser`` takes,
+    else nothing."""
+    flags = [f for f in parser._option_string_actions if f.startswith("--")]
+    for token in extra:
+        if token.startswith("--"):
+            close = difflib.get_close_matches(token.split("=", 1)[0], flags, n=1, cutoff=0.75)
+            if close:
+                return f" (did you mean {close[0]}?)"
+    return ""
