@@ -165,11 +165,75 @@ def test_offline_is_one_line_naming_the_url_with_status_2(tmp_path):
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
     assert lines[0].startswith(f"pose-tracker: error: {url}/07/07.asf: cannot reach the server")
-    assert not list((tmp_path / "data").rglob("*.*"))
+    assert not (tmp_path / "data").exists()  # nor the folders made for the files
+
+
+def test_a_failed_file_leaves_no_folder_made_for_it(server, tmp_path):
+    url, _ = server
+    root = tmp_path / "data"
+    fetch_cmu(["07_01"], root, mirror=url)
+    with pytest.raises(InputError, match="not subject 16's skeleton"):
+        fetch_cmu(["16_15"], root, mirror=url)
+    assert sorted(p.name for p in (root / "mocap" / "cmu").iterdir()) == ["07"]
+    with pytest.raises(InputError, match="HTTP 404"):
+        fetch_cmu(["07_12"], root, mirror=url)  # the folder holds the skeleton and 07_01: it stays
+    assert sorted(p.name for p in (root / "mocap" / "cmu" / "07").iterdir()) == ["07.asf", "07_01.amc"]
+    existing = tmp_path / "existing"
+    existing.mkdir()
+    with pytest.raises(InputError, match="not subject 16's skeleton"):
+        fetch_cmu(["16_15"], existing, mirror=url)
+    assert existing.is_dir() and not list(existing.iterdir())  # the root was there before: it stays, empty
+
+
+def test_a_data_root_under_a_file_is_one_line_naming_the_file(server, tmp_path):
+    url, _ = server
+    afile = tmp_path / "afile"
+    afile.write_text("not a folder")
+    done = cli("fetch", "cmu", "07_01", "--data-root", str(afile / "sub"), "--mirror", url)
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
+    assert done.stderr.strip().splitlines() == [
+        f"pose-tracker: error: {afile}: not a folder, so {afile / 'sub' / 'mocap' / 'cmu' / '07'} cannot be created"]
+    assert afile.read_text() == "not a folder"
+
+
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs /proc, where no folder can be made")
+def test_a_data_root_that_cannot_be_made_is_one_line_naming_it(server, tmp_path):
+    url, _ = server
+    done = cli("fetch", "cmu", "07_01", "--data-root", "/proc/no_such_root", "--mirror", url)
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("pose-tracker: error: /proc/no_such_root: cannot create the "
+                                                   "folder ("), done.stderr
+
+
+@pytest.mark.parametrize("in_the_way, problem", [
+    ("07.asf.part", "cannot write the download"),  # the download's temporary file cannot be written
+    ("07.asf", "cannot put the download in place"),  # the checked download cannot be renamed
+])
+def test_a_file_that_cannot_be_written_is_one_line_naming_it(server, tmp_path, in_the_way, problem):
+    url, _ = server
+    folder = tmp_path / "data" / "mocap" / "cmu" / "07"
+    (folder / in_the_way).mkdir(parents=True)  # a folder where the file goes
+    done = cli("fetch", "cmu", "07_01", "--data-root", str(tmp_path / "data"), "--mirror", url)
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"pose-tracker: error: {folder / in_the_way}: {problem} ("), \
+        done.stderr
+    assert sorted(p.name for p in folder.iterdir()) == [in_the_way]  # nothing else left
+
+
+def test_the_database_may_be_left_out(server, tmp_path):
+    url, _ = server
+    done = cli("fetch", "07_01", "7_2", "--data-root", str(tmp_path / "data"), "--mirror", url)
+    assert done.returncode == 0, done.stderr
+    folder = tmp_path / "data" / "mocap" / "cmu" / "07"
+    assert sorted(p.name for p in folder.iterdir()) == ["07.asf", "07_01.amc", "07_02.amc"]
 
 
 @pytest.mark.parametrize("args, problem", [
     (["cmu", "7-1", "--data-root", "d"], "'7-1' is not a CMU trial"),
+    (["7-1", "--data-root", "d"], "'7-1' is not a CMU trial"),
+    (["mocap", "07_01", "--data-root", "d"], "'mocap' is not a CMU trial"),
     (["cmu", "91_straight_walk", "--data-root", "d"], "91_straight_walk is not one of the CMU database's trial names"),
     (["cmu", "07_01"], "say where the data goes"),
     (["--data-root", "d"], "nothing to fetch"),
