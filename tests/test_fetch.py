@@ -7,6 +7,7 @@ from __future__ import annotations
 import functools
 import http.server
 import os
+import re
 import shlex
 import shutil
 import socket
@@ -306,6 +307,33 @@ def test_without_its_data_compare_names_the_command_that_fetches_it(tmp_path):
     lines = done.stderr.strip().splitlines()
     assert done.returncode == 2 and len(lines) == 1 and "16_15.amc" in lines[0], done.stderr
     assert f"`pose-tracker fetch --for {exp}`" in lines[0]
+
+
+def named_fetch(stderr: str) -> list[str]:
+    """The words of the `pose-tracker fetch ...` command a one-line refusal names."""
+    (command,) = re.findall(r"`(pose-tracker fetch [^`]*)`", stderr)
+    return shlex.split(command)
+
+
+@pytest.mark.parametrize("how", ["--data-root", DATA_ROOT_ENV])
+def test_the_command_compare_names_fetches_where_compare_looks(tmp_path, monkeypatch, how):
+    """With the data root given (``--data-root``, or the environment variable), the named command puts the files
+    there, also run in a shell without the variable: the root missing, or there without the files."""
+    from tracker.app.parser import build_parser
+
+    exp = REPO / "benchmarks" / "experiments" / "walk_unseen_subject.toml"
+    for root in (tmp_path / "missing", tmp_path / "empty"):
+        if root.name == "empty":
+            root.mkdir()
+        given = (["--data-root", str(root)], {}) if how == "--data-root" else ([], {DATA_ROOT_ENV: str(root)})
+        done = cli("compare", str(exp), "--out", str(tmp_path / "out"), *given[0], env_extra=given[1])
+        lines = done.stderr.strip().splitlines()
+        assert done.returncode == 2 and len(lines) == 1, done.stderr
+        assert ("data root not found" if root.name == "missing" else "16_15.amc") in lines[0]
+        words = named_fetch(lines[0])
+        args = build_parser(words[1:]).parse_args(words[1:])
+        monkeypatch.delenv(DATA_ROOT_ENV, raising=False)
+        assert experiment_needs(args.experiment, args.data_root)[0] == root, lines[0]
 
 
 #: What the end-to-end test shrinks in its copy of the README's experiment: each must appear in the file.
