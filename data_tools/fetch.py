@@ -9,15 +9,16 @@ Each file is written under a temporary name (``07_01.amc.part``), parsed (the sk
 recorded subject, its bone lengths; the motion: against its skeleton, and, for a recorded trial, its number of
 frames, :mod:`data_tools.cmu_trials`) and only then renamed; a file already in place that passes the same check
 is not downloaded again, so a second run after an interrupted one fetches only what is missing. Every failure
-(the site unreachable, a file missing there, a file that does not pass its check) is one :class:`InputError`
-naming the URL.
+is one :class:`InputError`: naming the URL when the site is unreachable, a file is missing there or does not
+pass its check, naming the path when a folder or file cannot be written (a file in a folder's place, no
+permission, a full disk). A failed file leaves nothing behind, not even the folders made for it.
 """
 from __future__ import annotations
 
+import http.client
 import logging
 import os
 import re
-import shutil
 import socket
 import urllib.error
 import urllib.request
@@ -107,22 +108,47 @@ def check_motion(path: Path, skeleton: Path, name: str, source: str) -> int:
 
 
 def _download(url: str, part: Path, timeout: float) -> None:
-    """The body of ``url`` into ``part``; the site unreachable or the file not there is one line naming the URL."""
+    """The body of ``url`` (a file of a few MB) into ``part``; the site unreachable or the file not there is one line
+    naming the URL, a file that cannot be written (no permission, a full disk) one line naming ``part``."""
     try:
-        with urllib.request.urlopen(url, timeout=timeout) as response, open(part, "wb") as out:
-            shutil.copyfileobj(response, out, 1 << 16)
+        with urllib.request.urlopen(url, timeout=timeout) as response:
+            body = bytearray()
+            while chunk := response.read(1 << 16):  # a body cut short is refused by its check
+                body += chunk
     except urllib.error.HTTPError as exc:
         raise InputError(f"the server answered HTTP {exc.code} ({exc.reason})", url) from None
     except urllib.error.URLError as exc:
         raise InputError(f"cannot reach the server ({exc.reason}); offline? --mirror URL names another copy",
                          url) from None
-    except (socket.timeout, TimeoutError, ConnectionError) as exc:
+    except (socket.timeout, TimeoutError, ConnectionError, http.client.HTTPException) as exc:
         raise InputError(f"the download failed ({exc or type(exc).__name__}); rerun to continue", url) from None
+    try:
+        part.write_bytes(body)
+    except OSError as exc:
+        raise InputError(f"cannot write the download ({exc.strerror or exc})", part) from None
+
+
+def _make_folder(folder: Path) -> list[Path]:
+    """Create ``folder`` and its missing parents; returns the folders created, deepest first. A folder that cannot
+    be created (a file in its place or above it, no permission) is one :class:`InputError` naming it."""
+    created = []
+    missing = folder
+    while not missing.exists() and missing != missing.parent:
+        created.append(missing)
+        missing = missing.parent
+    if not missing.is_dir():
+        raise InputError(f"not a folder, so {folder} cannot be created", missing)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create the folder ({exc.strerror or exc})", exc.filename or folder) from None
+    return created
 
 
 def _fetch_file(url: str, dest: Path, check, timeout: float) -> bool:
     """``dest`` from ``url`` unless a copy that passes ``check(path, source)`` is there; True when downloaded.
-    The download goes to ``dest.part`` and is renamed only once checked (a refused one is removed)."""
+    The download goes to ``dest.part`` and is renamed only once checked; a refused one is removed, with the
+    folders made for it."""
     if dest.is_file():
         try:
             check(dest, str(dest))
@@ -130,15 +156,26 @@ def _fetch_file(url: str, dest: Path, check, timeout: float) -> bool:
             return False
         except InputError as exc:
             log.warning(f"{exc}; downloading it again")
-    dest.parent.mkdir(parents=True, exist_ok=True)
+    created = _make_folder(dest.parent)
     part = dest.with_name(dest.name + ".part")
     try:
         _download(url, part, timeout)
         check(part, url)
+        try:
+            os.replace(part, dest)
+        except OSError as exc:
+            raise InputError(f"cannot put the download in place ({exc.strerror or exc})", dest) from None
     except BaseException:
-        part.unlink(missing_ok=True)
+        try:
+            part.unlink(missing_ok=True)
+        except OSError:
+            pass  # nothing was written there (a folder in its place)
+        for folder in created:  # deepest first; one that holds something stays
+            try:
+                folder.rmdir()
+            except OSError:
+                break
         raise
-    os.replace(part, dest)
     log.info(f"{url} -> {dest}")
     return True
 
@@ -150,7 +187,7 @@ def fetch_cmu(trials: Iterable[str | CmuTrial], data_root: str | Path, mirror: s
     database's ``subjects`` folder) or the CMU site; returns every file's path, fetched or already there.
 
     Files already in place that pass their check are kept; see the module docstring. Every failure is one
-    :class:`InputError` naming the URL or the trial; what was fetched before it stays."""
+    :class:`InputError` naming the URL, the trial or the path; what was fetched before it stays."""
     if not isinstance(timeout, (int, float)) or not timeout > 0:
         raise InputError(f"timeout: expected a positive number of seconds, got {timeout!r}")
     parsed = [t if isinstance(t, CmuTrial) else parse_trial(str(t)) for t in trials]

@@ -7,6 +7,7 @@ from __future__ import annotations
 import functools
 import http.server
 import os
+import re
 import shlex
 import shutil
 import socket
@@ -165,11 +166,75 @@ def test_offline_is_one_line_naming_the_url_with_status_2(tmp_path):
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
     assert lines[0].startswith(f"pose-tracker: error: {url}/07/07.asf: cannot reach the server")
-    assert not list((tmp_path / "data").rglob("*.*"))
+    assert not (tmp_path / "data").exists()  # nor the folders made for the files
+
+
+def test_a_failed_file_leaves_no_folder_made_for_it(server, tmp_path):
+    url, _ = server
+    root = tmp_path / "data"
+    fetch_cmu(["07_01"], root, mirror=url)
+    with pytest.raises(InputError, match="not subject 16's skeleton"):
+        fetch_cmu(["16_15"], root, mirror=url)
+    assert sorted(p.name for p in (root / "mocap" / "cmu").iterdir()) == ["07"]
+    with pytest.raises(InputError, match="HTTP 404"):
+        fetch_cmu(["07_12"], root, mirror=url)  # the folder holds the skeleton and 07_01: it stays
+    assert sorted(p.name for p in (root / "mocap" / "cmu" / "07").iterdir()) == ["07.asf", "07_01.amc"]
+    existing = tmp_path / "existing"
+    existing.mkdir()
+    with pytest.raises(InputError, match="not subject 16's skeleton"):
+        fetch_cmu(["16_15"], existing, mirror=url)
+    assert existing.is_dir() and not list(existing.iterdir())  # the root was there before: it stays, empty
+
+
+def test_a_data_root_under_a_file_is_one_line_naming_the_file(server, tmp_path):
+    url, _ = server
+    afile = tmp_path / "afile"
+    afile.write_text("not a folder")
+    done = cli("fetch", "cmu", "07_01", "--data-root", str(afile / "sub"), "--mirror", url)
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
+    assert done.stderr.strip().splitlines() == [
+        f"pose-tracker: error: {afile}: not a folder, so {afile / 'sub' / 'mocap' / 'cmu' / '07'} cannot be created"]
+    assert afile.read_text() == "not a folder"
+
+
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs /proc, where no folder can be made")
+def test_a_data_root_that_cannot_be_made_is_one_line_naming_it(server, tmp_path):
+    url, _ = server
+    done = cli("fetch", "cmu", "07_01", "--data-root", "/proc/no_such_root", "--mirror", url)
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("pose-tracker: error: /proc/no_such_root: cannot create the "
+                                                   "folder ("), done.stderr
+
+
+@pytest.mark.parametrize("in_the_way, problem", [
+    ("07.asf.part", "cannot write the download"),  # the download's temporary file cannot be written
+    ("07.asf", "cannot put the download in place"),  # the checked download cannot be renamed
+])
+def test_a_file_that_cannot_be_written_is_one_line_naming_it(server, tmp_path, in_the_way, problem):
+    url, _ = server
+    folder = tmp_path / "data" / "mocap" / "cmu" / "07"
+    (folder / in_the_way).mkdir(parents=True)  # a folder where the file goes
+    done = cli("fetch", "cmu", "07_01", "--data-root", str(tmp_path / "data"), "--mirror", url)
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"pose-tracker: error: {folder / in_the_way}: {problem} ("), \
+        done.stderr
+    assert sorted(p.name for p in folder.iterdir()) == [in_the_way]  # nothing else left
+
+
+def test_the_database_may_be_left_out(server, tmp_path):
+    url, _ = server
+    done = cli("fetch", "07_01", "7_2", "--data-root", str(tmp_path / "data"), "--mirror", url)
+    assert done.returncode == 0, done.stderr
+    folder = tmp_path / "data" / "mocap" / "cmu" / "07"
+    assert sorted(p.name for p in folder.iterdir()) == ["07.asf", "07_01.amc", "07_02.amc"]
 
 
 @pytest.mark.parametrize("args, problem", [
     (["cmu", "7-1", "--data-root", "d"], "'7-1' is not a CMU trial"),
+    (["7-1", "--data-root", "d"], "'7-1' is not a CMU trial"),
+    (["mocap", "07_01", "--data-root", "d"], "'mocap' is not a CMU trial"),
     (["cmu", "91_straight_walk", "--data-root", "d"], "91_straight_walk is not one of the CMU database's trial names"),
     (["cmu", "07_01"], "say where the data goes"),
     (["--data-root", "d"], "nothing to fetch"),
@@ -242,6 +307,33 @@ def test_without_its_data_compare_names_the_command_that_fetches_it(tmp_path):
     lines = done.stderr.strip().splitlines()
     assert done.returncode == 2 and len(lines) == 1 and "16_15.amc" in lines[0], done.stderr
     assert f"`pose-tracker fetch --for {exp}`" in lines[0]
+
+
+def named_fetch(stderr: str) -> list[str]:
+    """The words of the `pose-tracker fetch ...` command a one-line refusal names."""
+    (command,) = re.findall(r"`(pose-tracker fetch [^`]*)`", stderr)
+    return shlex.split(command)
+
+
+@pytest.mark.parametrize("how", ["--data-root", DATA_ROOT_ENV])
+def test_the_command_compare_names_fetches_where_compare_looks(tmp_path, monkeypatch, how):
+    """With the data root given (``--data-root``, or the environment variable), the named command puts the files
+    there, also run in a shell without the variable: the root missing, or there without the files."""
+    from tracker.app.parser import build_parser
+
+    exp = REPO / "benchmarks" / "experiments" / "walk_unseen_subject.toml"
+    for root in (tmp_path / "missing", tmp_path / "empty"):
+        if root.name == "empty":
+            root.mkdir()
+        given = (["--data-root", str(root)], {}) if how == "--data-root" else ([], {DATA_ROOT_ENV: str(root)})
+        done = cli("compare", str(exp), "--out", str(tmp_path / "out"), *given[0], env_extra=given[1])
+        lines = done.stderr.strip().splitlines()
+        assert done.returncode == 2 and len(lines) == 1, done.stderr
+        assert ("data root not found" if root.name == "missing" else "16_15.amc") in lines[0]
+        words = named_fetch(lines[0])
+        args = build_parser(words[1:]).parse_args(words[1:])
+        monkeypatch.delenv(DATA_ROOT_ENV, raising=False)
+        assert experiment_needs(args.experiment, args.data_root)[0] == root, lines[0]
 
 
 #: What the end-to-end test shrinks in its copy of the README's experiment: each must appear in the file.

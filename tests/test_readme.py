@@ -12,6 +12,10 @@ from pathlib import Path
 
 import torch
 
+from data_tools.fetch import CMU_FOLDER, parse_trial
+from tracker.app.experiment import DATA_ROOT_ENV
+from tracker.app.fetching import experiment_needs
+
 REPO = Path(__file__).resolve().parents[1]
 README = REPO / "README.md"
 #: What the test shrinks, and to what: each must appear in its block, so the README cannot drift from the test.
@@ -19,12 +23,24 @@ TINY_PYTHON = {"frames=60": "frames=6", "epochs=100": "epochs=2", "particles=500
 TINY_SHELL = {"pose-tracker demo": "pose-tracker demo --frames 6", "--frame 40": "--frame 4",
               "--particles 2000": "--particles 200", "--frames 150": "--frames 6",
               "--out crbm.pt": "--order 1 --epochs 2 --out crbm.pt"}
-#: The shared clips the README's own-mocap block names, linked into the folder it runs in.
-CLIPS = ("16/16_15.amc", "16/16.asf", "02/02_01.amc", "02/02.asf", "07/07_01.amc", "07/07_02.amc", "07/07.asf")
 
 
 def blocks(language: str) -> list[str]:
     return re.findall(rf"```{language}\n(.*?)```", README.read_text(), flags=re.S)
+
+
+def readme_fetch() -> tuple[Path, list[str]]:
+    """The data root and the trials of the one ``pose-tracker fetch cmu ...`` command the README's text names."""
+    (command,) = re.findall(r"`(pose-tracker fetch cmu [^`]*)`", README.read_text())
+    words = shlex.split(command)
+    at = words.index("--data-root")
+    return Path(words[at + 1]), words[3:at]
+
+
+def fetched_files() -> list[Path]:
+    """Where the README's fetch puts its files (skeletons and motions), relative to the folder it runs in."""
+    root, trials = readme_fetch()
+    return list(dict.fromkeys(root / CMU_FOLDER / f for t in trials for f in parse_trial(t).files()))
 
 
 def commands(block: str) -> list[str]:
@@ -63,10 +79,30 @@ def test_the_experiment_commands_name_files_that_exist():
         assert (REPO / path).is_file(), path
 
 
+def test_the_own_mocap_block_names_the_files_where_the_fetch_before_it_puts_them():
+    (block,) = [b for b in blocks("") if "--mocap" in b]
+    named = [Path(word) for line in commands(block) for word in shlex.split(line) if word.endswith(".amc")]
+    placed = fetched_files()
+    assert named and set(named) <= set(placed), set(named) - set(placed)
+
+
+def test_the_fetch_for_line_says_where_the_files_go(monkeypatch):
+    """The shipped experiment's data root is outside the checkout: the line says so, naming it."""
+    monkeypatch.delenv(DATA_ROOT_ENV, raising=False)
+    (line,) = [line for block in blocks("") for line in block.splitlines() if line.startswith("pose-tracker fetch")]
+    command, comment = line.split("  #")
+    root, _, _ = experiment_needs(REPO / shlex.split(command)[3])
+    where = os.path.relpath(root, REPO)
+    assert where.startswith("..") and f"into {where}, outside the checkout" in comment, (where, comment)
+
+
 def test_the_readme_shell_blocks_run(tmp_path, mocap_dir):
-    """The demo, then the first tracking runs on what it left, then the own-mocap block on shared clips."""
-    for clip in CLIPS:
-        (tmp_path / Path(clip).name).symlink_to(mocap_dir / clip)
+    """The demo, then the first tracking runs on what it left, then the own-mocap block on shared clips placed
+    where the README's fetch puts them."""
+    root, _ = readme_fetch()
+    for file in fetched_files():
+        (tmp_path / file).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / file).symlink_to(mocap_dir / file.relative_to(root / CMU_FOLDER))
     runnable = [b for b in blocks("") if "pose-tracker" in b and "compare" not in b and "bash " not in b]
     used = set()
     script = []

@@ -200,8 +200,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
 def cmd_fetch(args: argparse.Namespace) -> int:
     from tracker.app.fetching import fetch
 
-    fetch(args.trials, experiment=args.experiment, data_root=args.data_root, mirror=args.mirror,
-          timeout=args.timeout)
+    trials = args.trials if args.dataset in (None, "cmu") else [args.dataset, *args.trials]  # `fetch 07_01`
+    fetch(trials, experiment=args.experiment, data_root=args.data_root, mirror=args.mirror, timeout=args.timeout)
     return 0
 
 

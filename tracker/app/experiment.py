@@ -86,6 +86,7 @@ from __future__ import annotations
 import itertools
 import logging
 import os
+import shlex
 import sys
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -224,6 +225,8 @@ class _Where:
     def __init__(self, path: Path, data_root: Path | None = None):
         self.path = path
         self.data_root = data_root
+        #: The command that downloads the CMU trials the file names to where its data paths are looked for.
+        self.fetch_command = fetch_command(path)
 
     def error(self, entry: str, message: str) -> InputError:
         return InputError(f"{entry}: {message}" if entry else message, self.path)
@@ -247,7 +250,7 @@ class _Where:
         p = p if p.is_absolute() else (base / p)
         if not (p.is_dir() if folder else p.is_file()):
             cmu = data and self.data_root is not None and "mocap/cmu/" in value.replace("\\", "/")
-            hint = f"; `pose-tracker fetch --for {self.path}` downloads the CMU trials it names" if cmu else ""
+            hint = f"; `{self.fetch_command}` downloads the CMU trials it names" if cmu else ""
             raise self.error(entry, f"{'folder' if folder else 'file'} not found: {p}{hint}")
         return p.resolve()
 
@@ -429,9 +432,19 @@ def resolve_data_root(path: Path, declared: Any, given: str | Path | None = None
         root, source = Path(declared).expanduser(), "data_root"
         root = root if root.is_absolute() else path.parent / root
     if not root.is_dir():
-        raise InputError(f"data root not found: {root} ({source}); `pose-tracker fetch --for {path}` downloads the "
+        raise InputError(f"data root not found: {root} ({source}); `{fetch_command(path, given)}` downloads the "
                          f"CMU trials the file names into it", path)
     return root.resolve()
+
+
+def fetch_command(path: Path, given: str | Path | None = None) -> str:
+    """The ``pose-tracker fetch`` command that puts the CMU trials the experiment file ``path`` names where its
+    data paths are looked for: with ``--data-root`` when the data root is ``given`` or comes from the environment
+    variable :data:`DATA_ROOT_ENV` (the same command in another shell, or a file with another data_root, would
+    place them elsewhere)."""
+    root = given if given is not None else (os.environ.get(DATA_ROOT_ENV) or None)
+    where = f" --data-root {shlex.quote(str(Path(root).expanduser()))}" if root is not None else ""
+    return f"pose-tracker fetch --for {shlex.quote(str(path))}{where}"
 
 
 def _tracking(w: "_Where", table: Any) -> dict[str, Any]:
@@ -495,6 +508,7 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
         raise InputError(f"not valid TOML ({exc})", path) from None
     w.keys(doc, TOP_KEYS, "")
     w.data_root = resolve_data_root(path, doc.get("data_root"), data_root)
+    w.fetch_command = fetch_command(path, data_root)
     top = {o.name: o.default if doc.get(o.name) is None else _checked(w, o, doc[o.name]) for o in EXPERIMENT_OPTIONS}
     seed, seeds, fps = top["seed"], top["seeds"], top["fps"]
     grid = _tracking(w, doc.get("tracking", {}))

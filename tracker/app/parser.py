@@ -303,7 +303,8 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                                    "parsing it (skeleton bones and lengths, the trial's frame count) before it is "
                                    "put in place; files already there that pass the check are not downloaded "
                                    "again.")
-    f.add_argument("dataset", nargs="?", choices=["cmu"], metavar="cmu", help="the database (cmu)")
+    f.add_argument("dataset", nargs="?", metavar="cmu",
+                   help="the database, the only one, which may be left out: 'fetch 07_01' is 'fetch cmu 07_01'")
     f.add_argument("trials", nargs="*", metavar="TRIAL", help="CMU trials as SUBJECT_TRIAL, e.g. 07_01 16_15")
     f.add_argument("--for", dest="experiment", default=None, metavar="EXPERIMENT",
                    help="also every CMU trial this experiment file (.toml) names, into its data root")
