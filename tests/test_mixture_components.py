@@ -189,3 +189,17 @@ def test_the_shipped_example_of_a_mixture_trained_inline_is_valid():
     mixture = next(p for p in exp.priors if p.name == "mixture")
     assert mixture.options["components"] == "crbm:gibbs_steps=10,zero-velocity"
     assert [t.prior for t in mixture.train] == ["crbm"]
+
+
+def test_a_model_file_in_the_components_text_of_an_experiment_is_relative_to_the_file(tmp_path, crbm_file,
+                                                                                      monkeypatch):
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "c.pt").write_bytes(crbm_file.read_bytes())
+    monkeypatch.chdir(crbm_file.parent)  # a crbm1.pt here, and no sub/
+    text = '\n[[prior]]\nname = "mixture"\noptions = { components = "crbm:model=sub/c.pt,zero-velocity" }\n'
+    prior = load_experiment(write_experiment(tmp_path, text)).priors[1]
+    assert prior.options["components"] == f'crbm:model={tmp_path / "sub" / "c.pt"},zero-velocity'
+    missing = write_experiment(tmp_path, text.replace("sub/c.pt", "crbm1.pt"))
+    with pytest.raises(InputError) as err:  # checked as the file is read, relative to it
+        load_experiment(missing)
+    assert str(err.value).startswith(str(missing)) and "crbm1.pt" in str(err.value), err.value

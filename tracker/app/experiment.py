@@ -405,6 +405,15 @@ def _components(w: "_Where", doc: dict, options: dict, entry: str) -> tuple[dict
     return options, tuple(sources)
 
 
+def _component_files(w: "_Where", components: str, entry: str) -> str:
+    """``options.components`` written as text with each ``model=FILE`` made absolute: relative to the experiment
+    file, as its ``models`` are, and checked as the file is read."""
+    from tracker.engine.components import with_model_paths
+
+    return with_model_paths(components, f"prior {entry}",
+                            lambda m: str(w.file(m, f"{entry} components", data=False).resolve()))
+
+
 def _as_list(value: Any) -> list:
     return list(value) if isinstance(value, list) else [value]
 
@@ -566,6 +575,8 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
             options, sources = _components(w, p, options, entry)
             models = tuple(s for s in sources if isinstance(s, Path))
             trains = [s for s in sources if isinstance(s, TrainSpec)]
+        elif isinstance(options.get("components"), str):
+            options["components"] = _component_files(w, options["components"], entry)
         if spec.model_files == "none" and (models or trains):
             raise w.error(entry, f"prior {p['name']} takes no model files")
         if spec.model_files in ("one", "several") and not (models or trains):
