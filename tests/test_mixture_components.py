@@ -203,3 +203,15 @@ def test_a_model_file_in_the_components_text_of_an_experiment_is_relative_to_the
     with pytest.raises(InputError) as err:  # checked as the file is read, relative to it
         load_experiment(missing)
     assert str(err.value).startswith(str(missing)) and "crbm1.pt" in str(err.value), err.value
+
+
+def test_each_component_records_its_options_under_their_names(small_walk):
+    from tracker.app.plugins import prior_entry
+
+    run = tracker.track(small_walk, "mixture", particles=20, annealing_layers=1,
+                        components="zero-velocity:prior_scale=2,constant-velocity:isotropic_ground=true")
+    settings = run.settings["prior_settings"]["component_settings"]
+    for name in ("zero-velocity", "constant-velocity"):
+        assert set(settings[name]) == {o.name for o in prior_entry(name).options}, settings
+    assert settings["zero-velocity"] == {"prior_scale": 2.0, "isotropic_ground": False}
+    assert settings["constant-velocity"] == {"prior_scale": 1.0, "isotropic_ground": True}
