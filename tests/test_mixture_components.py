@@ -48,6 +48,8 @@ def test_the_compact_form_is_read_and_written_back():
     ("zero-velocity", "components must name two or more priors"),
     ("crbm:gibbs_steps,zero-velocity", "give each setting of a component as key=value"),
     ("crbm:models=x,zero-velocity", "models=N, a number of the mixture's model files"),
+    ("crbm:model=,zero-velocity", "components name a file in model=FILE (component 1)"),
+    ('crbm:model="",zero-velocity', "components name a file in model=FILE (component 1)"),
     ('crbm:mode="a,zero-velocity', "a double quote is not closed"),
     ("crbm:nonsense=3,zero-velocity", "component 1 (crbm) takes no option 'nonsense'"),
     ("crbm:gibbs_steps=0,zero-velocity", "component 1 (crbm): gibbs_steps must be at least 1"),

@@ -94,6 +94,8 @@ def parse_components(value: str, owner: str) -> list[Component]:
                 raise refuse(f"give each setting of a component as key=value (component {k + 1}: {pair!r})")
             v = v[1:-1] if len(v) >= 2 and v[0] == v[-1] == '"' else v
             if key == "model":
+                if not v:
+                    raise refuse(f"name a file in model=FILE (component {k + 1})")
                 models.append(v)
             elif key == "models":
                 if not v.isdigit():
