@@ -178,6 +178,11 @@ models = ["{crbm_file}"]
      "either as options.components or as [[prior.components]] tables"),
     ('\n[[prior]]\nname = "mixture"\n[[prior.components]]\nprior = "zero-velocity"\nmodel = "x.pt"\n'
      '[[prior.components]]\nprior = "constant-velocity"\n', "unknown key(s) 'model'"),
+    ('\n[[prior]]\nname = "mixture"\ncomponents = 5\n', "components are given as [[prior.components]] tables "
+     "(each with prior = NAME) or as text, options = { components = \"crbm,zero-velocity\" }; got 5"),
+    ('\n[[prior]]\nname = "mixture"\ncomponents = [1, 2]\n', "as [[prior.components]] tables (each with prior = "
+     "NAME) or as text, options = { components = \"crbm,zero-velocity\" }; got [1, 2]"),
+    ('\n[[prior]]\nname = "mixture"\ncomponents = "crbm,zero-velocity"\n', "or as text, options = { components"),
 ])
 def test_a_bad_component_table_is_refused_in_one_line_naming_the_file(tmp_path, tables, message):
     path = write_experiment(tmp_path, tables)

@@ -367,7 +367,10 @@ def _components(w: "_Where", doc: dict, options: dict, entry: str) -> tuple[dict
         if key in doc:
             raise w.error(entry, f"with [[prior.components]] each component gives its own {key}, not the prior")
     tables = doc["components"]
-    if not isinstance(tables, list) or len(tables) < 2:
+    if not isinstance(tables, list) or not all(isinstance(c, dict) for c in tables):
+        raise w.error(entry, f"components are given as [[prior.components]] tables (each with prior = NAME) or as "
+                             f"text, options = {{ components = \"crbm,zero-velocity\" }}; got {tables!r}")
+    if len(tables) < 2:
         raise w.error(entry, "[[prior.components]] must give two or more components")
     written, sources = [], []
     for k, c in enumerate(tables):
