@@ -159,6 +159,9 @@ models = ["{crbm_file}"]
 '''
     prior = load_experiment(write_experiment(tmp_path, tables)).priors[1]
     assert prior.options["components"] == "zero-velocity,crbm" and prior.model_sources() == (crbm_file,)
+    one = load_experiment(write_experiment(tmp_path, tables.replace(f'models = ["{crbm_file}"]',
+                                                                    f'model = "{crbm_file}"'))).priors[1]
+    assert one.options["components"] == "zero-velocity,crbm" and one.model_sources() == (crbm_file,)
 
 
 @pytest.mark.parametrize("tables, message", [
@@ -177,7 +180,10 @@ models = ["{crbm_file}"]
      'prior = "zero-velocity"\n[[prior.components]]\nprior = "constant-velocity"\n',
      "either as options.components or as [[prior.components]] tables"),
     ('\n[[prior]]\nname = "mixture"\n[[prior.components]]\nprior = "zero-velocity"\nmodel = "x.pt"\n'
-     '[[prior.components]]\nprior = "constant-velocity"\n', "unknown key(s) 'model'"),
+     'models = ["x.pt"]\n[[prior.components]]\nprior = "constant-velocity"\n', "give model = FILE or models = "
+     "[FILE, ...], not both"),
+    ('\n[[prior]]\nname = "mixture"\n[[prior.components]]\nprior = "zero-velocity"\nmodel = ["x.pt"]\n'
+     '[[prior.components]]\nprior = "constant-velocity"\n', "expected a path, got ['x.pt']"),
     ('\n[[prior]]\nname = "mixture"\ncomponents = 5\n', "components are given as [[prior.components]] tables "
      "(each with prior = NAME) or as text, options = { components = \"crbm,zero-velocity\" }; got 5"),
     ('\n[[prior]]\nname = "mixture"\ncomponents = [1, 2]\n', "as [[prior.components]] tables (each with prior = "

@@ -128,7 +128,7 @@ TRANSITION_KEYS = {"then", "then_skeleton", "switch_at", "fade", "joint_map", "t
 PRIOR_KEYS = {"label", "name", "options", "models", "train", "train_mocap", "train_seeds", "components"}
 TRAIN_KEYS = {"mocap", "skeletons", "options", "seed"}
 #: The keys of a ``[[prior.components]]`` table: one motion model of a prior with components (a mixture).
-COMPONENT_KEYS = {"prior", "options", "models", "train"}
+COMPONENT_KEYS = {"prior", "options", "model", "models", "train"}
 LIKELIHOOD_KEYS = {"label", "name", "options"}
 
 
@@ -351,9 +351,9 @@ def _read_labels(w: "_Where", options: dict, mocap: tuple[ClipSpec, ...], entry:
 
 
 def _components(w: "_Where", doc: dict, options: dict, entry: str) -> tuple[dict, tuple[Path | TrainSpec, ...]]:
-    """A prior's ``[[prior.components]]`` tables (``prior``, ``options``, ``models`` or ``train``): the prior's
-    options with ``components`` written from them (without paths: a component's model files are the prior's, in
-    order, so that no path enters a run's hash), and the model files and trainings in that order."""
+    """A prior's ``[[prior.components]]`` tables (``prior``, ``options``, ``model`` or ``models`` or ``train``):
+    the prior's options with ``components`` written from them (without paths: a component's model files are the
+    prior's, in order, so that no path enters a run's hash), and the model files and trainings in that order."""
     from tracker.engine.components import Component, written_value
     from tracker.app.plugins import prior_entry
     from tracker.engine.registry import resolve_options
@@ -388,7 +388,10 @@ def _components(w: "_Where", doc: dict, options: dict, entry: str) -> tuple[dict
         except InputError as exc:
             raise w.error(ce, exc.reason) from None
         ce = f"{entry} component {k + 1} ({c['prior']})"
-        files = [w.file(m, ce, data=False) for m in _as_list(c.get("models", []))]
+        if "model" in c and "models" in c:
+            raise w.error(ce, "give model = FILE or models = [FILE, ...], not both")
+        named = [c["model"]] if "model" in c else _as_list(c.get("models", []))
+        files = [w.file(m, ce, data=False) for m in named]
         trains = _trainings(w, c["prior"], c.get("train", []), ce)
         n = len(files) + len(trains)
         if spec.model_files == "none" and n:
