@@ -202,6 +202,16 @@ def component_options(component: Component, index: int, owner: str) -> dict:
     return resolve_options(f"{owner}: component {index + 1} ({component.prior})", entry.options, written)
 
 
+def model_files_taken(components: Sequence[Component], takes: Sequence[int]) -> str:
+    """How many of a mixture's model files its components take, and which (``takes 2 model files (crbm: 2)``;
+    ``takes no model files``): ``takes[k]`` is component ``k``'s count."""
+    total = sum(takes)
+    if not total:
+        return "takes no model files"
+    each = ", ".join(f"{c.prior}: {n}" for c, n in zip(components, takes) if n)
+    return f"takes {total} model file{'s' if total != 1 else ''} ({each})"
+
+
 def check_components(value: str, owner: str) -> None:
     """The ``components`` option: its form, registered priors (no mixture), each component's options, and model
     files only for learned priors."""
@@ -246,10 +256,8 @@ def build_mixture(context: PriorContext, model_files: Sequence[Path], options: d
     takes = [0 if c.models else (c.takes if c.takes is not None else int(e.model_files != "none"))
              for c, e in zip(components, entries)]
     if sum(takes) != len(model_files):
-        learned = [c.prior for c, n in zip(components, takes) if n]
-        raise InputError(f"the mixture of {', '.join(c.prior for c in components)} takes one model file for each "
-                         f"learned component that names none ({', '.join(learned) or 'none'}): {sum(takes)}, got "
-                         f"{len(model_files)}")
+        names = ", ".join(c.prior for c in components)
+        raise InputError(f"the mixture of {names} {model_files_taken(components, takes)}, got {len(model_files)}")
     files = iter(model_files)
     built, given_files = [], []
     for k, (c, e, n) in enumerate(zip(components, entries, takes)):

@@ -38,13 +38,16 @@ def _check_std(std: np.ndarray, what: str) -> np.ndarray:
 
 
 class ZeroVelocityPrior(MotionPrior):
-    """First-order Gaussian random walk around each particle's last pose."""
+    """First-order Gaussian random walk around each particle's last pose, with noise ``std`` ``(D,)`` (mm or
+    radians per frame). ``prior_scale`` and ``isotropic_ground`` are the options ``std`` was made with
+    (:func:`random_walk_std`), recorded in :meth:`settings`."""
 
     order = 1
     name = "zero-velocity"
 
-    def __init__(self, std: np.ndarray):
+    def __init__(self, std: np.ndarray, *, prior_scale: float = 1.0, isotropic_ground: bool = False):
         self.std = _check_std(std, "zero-velocity noise")
+        self.prior_scale, self.isotropic_ground = prior_scale, isotropic_ground
 
     def sample(self, history: np.ndarray, available: int, state: PriorState,
                rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
@@ -54,9 +57,13 @@ class ZeroVelocityPrior(MotionPrior):
     def diffusion_std(self) -> np.ndarray:
         return self.std
 
+    def settings(self) -> dict:
+        return random_walk_settings(self)
+
 
 class ConstantVelocityPrior(MotionPrior):
-    """Second-order random walk: each particle keeps ``damping`` times its own last velocity, plus noise.
+    """Second-order random walk: each particle keeps ``damping`` times its own last velocity, plus noise ``std``
+    ``(D,)`` (mm or radians per frame; ``prior_scale`` and ``isotropic_ground`` as for :class:`ZeroVelocityPrior`).
 
     With only one known pose the velocity term is zero (the zero-velocity step).
     """
@@ -64,11 +71,13 @@ class ConstantVelocityPrior(MotionPrior):
     order = 2
     name = "constant-velocity"
 
-    def __init__(self, std: np.ndarray, damping: float = 0.5):
+    def __init__(self, std: np.ndarray, damping: float = 0.5, *, prior_scale: float = 1.0,
+                 isotropic_ground: bool = False):
         self.std = _check_std(std, "constant-velocity noise")
         if not 0.0 <= damping <= 1.0:
             raise InputError(f"damping must lie in [0, 1], got {damping}")
         self.damping = damping
+        self.prior_scale, self.isotropic_ground = prior_scale, isotropic_ground
 
     def sample(self, history: np.ndarray, available: int, state: PriorState,
                rng: np.random.Generator) -> tuple[np.ndarray, PriorState]:
@@ -82,7 +91,12 @@ class ConstantVelocityPrior(MotionPrior):
         return self.std
 
     def settings(self) -> dict:
-        return {"damping": self.damping}
+        return random_walk_settings(self)
+
+
+def random_walk_settings(prior: ZeroVelocityPrior | ConstantVelocityPrior) -> dict:
+    """A random-walk prior's options, under their names (its damping is a constant of the prior, not one)."""
+    return {"prior_scale": prior.prior_scale, "isotropic_ground": prior.isotropic_ground}
 
 
 SCALE_OPTION = Option("prior_scale", float, 1.0, "multiply the random-walk noise", minimum=0.0,
@@ -123,11 +137,13 @@ def random_walk_std(context: PriorContext, options: dict) -> np.ndarray:
 @register_prior("zero-velocity", summary="first-order Gaussian random walk (the baseline)",
                 options=(SCALE_OPTION, ISOTROPIC_OPTION))
 def build_zero_velocity(context: PriorContext, model_files: Sequence[Path], options: dict) -> ZeroVelocityPrior:
-    return ZeroVelocityPrior(random_walk_std(context, options))
+    return ZeroVelocityPrior(random_walk_std(context, options), prior_scale=options["prior_scale"],
+                             isotropic_ground=options["isotropic_ground"])
 
 
 @register_prior("constant-velocity", summary="second-order random walk keeping half of each particle's velocity",
                 options=(SCALE_OPTION, ISOTROPIC_OPTION))
 def build_constant_velocity(context: PriorContext, model_files: Sequence[Path], options: dict
                             ) -> ConstantVelocityPrior:
-    return ConstantVelocityPrior(random_walk_std(context, options))
+    return ConstantVelocityPrior(random_walk_std(context, options), prior_scale=options["prior_scale"],
+                                 isotropic_ground=options["isotropic_ground"])

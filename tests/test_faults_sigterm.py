@@ -346,3 +346,24 @@ def test_compare_stopped_by_sigterm_continues_to_the_uninterrupted_tables(moment
     assert code == 0 and f"{finished} finished before (skipped)" in err, err
     assert table_numbers(out) == experiment[1]
     assert json.loads((out / "experiment.json").read_text())["complete"] is True
+
+
+def test_a_run_whose_mixture_component_names_its_model_resumes_from_another_folder(seq, tmp_path, capsys,
+                                                                                   monkeypatch):
+    """``--components crbm:model=FILE``: the file is saved as an absolute path, as ``--model`` is, so that
+    ``--resume`` finds it from any folder."""
+    (tmp_path / "models").mkdir()
+    (tmp_path / "models" / "c.pt").write_bytes((REPO / "tests" / "data" / "crbm3_paced_v0.13.pt").read_bytes())
+    monkeypatch.chdir(tmp_path / "models")
+    out = tmp_path / "cut"
+    argv = ["track", str(seq), "--prior", "mixture", "--components", "crbm:model=c.pt,zero-velocity",
+            "--particles", "20", "--annealing-layers", "1", "--checkpoint-every", "0", "--out", str(out)]
+    monkeypatch.setattr(cli, "track", lambda *a, **k: (_ for _ in ()).throw(SystemExit(137)))
+    with pytest.raises(SystemExit):
+        cli.main(argv)
+    monkeypatch.undo()
+    monkeypatch.chdir(tmp_path / "seq")
+    code, err = run_cli(["track", "--resume", str(out)], capsys)
+    assert code == 0, err
+    model = str(tmp_path / "models" / "c.pt")
+    assert json.loads((out / "result.json").read_text())["prior_models"] == [model]

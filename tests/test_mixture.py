@@ -194,6 +194,32 @@ def test_an_annealed_frame_that_only_a_lost_component_explains_is_a_recovery():
     assert step.recovered and np.all(np.isfinite(step.mean))
 
 
+def test_an_annealed_frame_whose_weighted_particles_have_no_evidence_is_a_recovery():
+    """The annealing layers find the frame (from particles that carry no weight) while no particle that carries
+    weight had any evidence before them: no component has a weight, and the filter recovers at once rather than
+    carrying no weight into the next frame."""
+    from dataclasses import replace
+
+    class Split(ExactModePrior):  # mode 0: particles 0, 4, 8, ... step to 1.5, particles 2, 6, ... to 0.5
+        def sample(self, history, available, state, rng):
+            x, state = super().sample(history, available, state, rng)
+            return x + np.where(np.arange(len(x)) % 4 == 0, 0.5, -0.5)[:, None], state
+
+    class Beyond(Around):  # only poses beyond 1 explain the frame
+        def prepare(self, frame):
+            class Score(FrameLikelihood):
+                def __call__(self, poses):
+                    return np.where(poses[:, 0] > 1, -0.5 * ((poses[:, 0] - 1.5) / 0.5) ** 2, -np.inf)
+            return Score()
+
+    pf = ParticleFilter(Split(switch=0.0), Beyond([0.0]), FilterConfig(n_particles=20, annealing_layers=3),
+                        np.random.default_rng(0))
+    state = pf.start(np.zeros((1, 1)))
+    carried = LogWeights(np.where(np.arange(20) % 4 == 2, np.log(0.2), -np.inf))  # only the steps to 0.5
+    new, step = pf.step(replace(state, weights=carried), Frame(0, ()))
+    assert step.recovered and np.isfinite(step.ess) and new.weights.any_finite
+
+
 def test_the_components_are_weighed_on_the_evidence_and_particles_within_on_the_likelihood():
     mix = Mixture(np.array([0, 0, 1, 1]), switching(2, 0.0))
     carried = LogWeights(np.log(np.full(4, 0.25)))

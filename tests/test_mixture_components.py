@@ -40,6 +40,8 @@ def test_the_compact_form_is_read_and_written_back():
     ("zero-velocity", "components must name two or more priors"),
     ("crbm:gibbs_steps,zero-velocity", "give each setting of a component as key=value"),
     ("crbm:models=x,zero-velocity", "models=N, a number of the mixture's model files"),
+    ("crbm:model=,zero-velocity", "components name a file in model=FILE (component 1)"),
+    ('crbm:model="",zero-velocity', "components name a file in model=FILE (component 1)"),
     ('crbm:mode="a,zero-velocity', "a double quote is not closed"),
     ("crbm:nonsense=3,zero-velocity", "component 1 (crbm) takes no option 'nonsense'"),
     ("crbm:gibbs_steps=0,zero-velocity", "component 1 (crbm): gibbs_steps must be at least 1"),
@@ -149,6 +151,9 @@ models = ["{crbm_file}"]
 '''
     prior = load_experiment(write_experiment(tmp_path, tables)).priors[1]
     assert prior.options["components"] == "zero-velocity,crbm" and prior.model_sources() == (crbm_file,)
+    one = load_experiment(write_experiment(tmp_path, tables.replace(f'models = ["{crbm_file}"]',
+                                                                    f'model = "{crbm_file}"'))).priors[1]
+    assert one.options["components"] == "zero-velocity,crbm" and one.model_sources() == (crbm_file,)
 
 
 @pytest.mark.parametrize("tables, message", [
@@ -167,7 +172,15 @@ models = ["{crbm_file}"]
      'prior = "zero-velocity"\n[[prior.components]]\nprior = "constant-velocity"\n',
      "either as options.components or as [[prior.components]] tables"),
     ('\n[[prior]]\nname = "mixture"\n[[prior.components]]\nprior = "zero-velocity"\nmodel = "x.pt"\n'
-     '[[prior.components]]\nprior = "constant-velocity"\n', "unknown key(s) 'model'"),
+     'models = ["x.pt"]\n[[prior.components]]\nprior = "constant-velocity"\n', "give model = FILE or models = "
+     "[FILE, ...], not both"),
+    ('\n[[prior]]\nname = "mixture"\n[[prior.components]]\nprior = "zero-velocity"\nmodel = ["x.pt"]\n'
+     '[[prior.components]]\nprior = "constant-velocity"\n', "expected a path, got ['x.pt']"),
+    ('\n[[prior]]\nname = "mixture"\ncomponents = 5\n', "components are given as [[prior.components]] tables "
+     "(each with prior = NAME) or as text, options = { components = \"crbm,zero-velocity\" }; got 5"),
+    ('\n[[prior]]\nname = "mixture"\ncomponents = [1, 2]\n', "as [[prior.components]] tables (each with prior = "
+     "NAME) or as text, options = { components = \"crbm,zero-velocity\" }; got [1, 2]"),
+    ('\n[[prior]]\nname = "mixture"\ncomponents = "crbm,zero-velocity"\n', "or as text, options = { components"),
 ])
 def test_a_bad_component_table_is_refused_in_one_line_naming_the_file(tmp_path, tables, message):
     path = write_experiment(tmp_path, tables)
@@ -181,3 +194,29 @@ def test_the_shipped_example_of_a_mixture_trained_inline_is_valid():
     mixture = next(p for p in exp.priors if p.name == "mixture")
     assert mixture.options["components"] == "crbm:gibbs_steps=10,zero-velocity"
     assert [t.prior for t in mixture.train] == ["crbm"]
+
+
+def test_a_model_file_in_the_components_text_of_an_experiment_is_relative_to_the_file(tmp_path, crbm_file,
+                                                                                      monkeypatch):
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "c.pt").write_bytes(crbm_file.read_bytes())
+    monkeypatch.chdir(crbm_file.parent)  # a crbm1.pt here, and no sub/
+    text = '\n[[prior]]\nname = "mixture"\noptions = { components = "crbm:model=sub/c.pt,zero-velocity" }\n'
+    prior = load_experiment(write_experiment(tmp_path, text)).priors[1]
+    assert prior.options["components"] == f'crbm:model={tmp_path / "sub" / "c.pt"},zero-velocity'
+    missing = write_experiment(tmp_path, text.replace("sub/c.pt", "crbm1.pt"))
+    with pytest.raises(InputError) as err:  # checked as the file is read, relative to it
+        load_experiment(missing)
+    assert str(err.value).startswith(str(missing)) and "crbm1.pt" in str(err.value), err.value
+
+
+def test_each_component_records_its_options_under_their_names(small_walk):
+    from tracker.app.plugins import prior_entry
+
+    run = tracker.track(small_walk, "mixture", particles=20, annealing_layers=1,
+                        components="zero-velocity:prior_scale=2,constant-velocity:isotropic_ground=true")
+    settings = run.settings["prior_settings"]["component_settings"]
+    for name in ("zero-velocity", "constant-velocity"):
+        assert set(settings[name]) == {o.name for o in prior_entry(name).options}, settings
+    assert settings["zero-velocity"] == {"prior_scale": 2.0, "isotropic_ground": False}
+    assert settings["constant-velocity"] == {"prior_scale": 1.0, "isotropic_ground": True}

@@ -155,10 +155,14 @@ def test_the_mixture_is_built_from_the_registry_in_one_line(mocap_dir, walk_07_0
                         switch=0.1)
     assert prior.summary_names == ("zero-velocity", "constant-velocity") and prior.order == 2
     assert prior.settings()["switch"] == 0.1
-    with pytest.raises(InputError, match="takes one model file for each learned component"):
+    with pytest.raises(InputError, match=r"takes 1 model file \(crbm: 1\), got 0$"):
         build_prior("mixture", _Seq(), [], step_std=std)
     with pytest.raises(InputError, match="components must name two or more"):
         build_prior("mixture", _Seq(), [], step_std=std, components="zero-velocity")
+    with pytest.raises(InputError, match=r"crbm, zero-velocity takes 2 model files \(crbm: 2\), got 1$"):
+        build_prior("mixture", _Seq(), [Path("a.pt")], step_std=std, components="crbm:models=2,zero-velocity")
+    with pytest.raises(InputError, match=r"takes no model files, got 1$"):
+        build_prior("mixture", _Seq(), [Path("a.pt")], step_std=std, components="zero-velocity,constant-velocity")
     with pytest.raises(InputError, match="unknown prior 'nonsense'"):
         build_prior("mixture", _Seq(), [], step_std=std, components="zero-velocity,nonsense")
 

@@ -133,6 +133,16 @@ def test_a_bad_setting_on_the_command_line_is_one_line_with_the_rule(tmp_path):
                                                       "be greater than 0 and less than 1, got 1.0")
 
 
+@pytest.mark.parametrize("prior, flag, value, rule", [
+    ("mixture", "--switch", "0.9", "must be at least 0 and at most 0.5, got '0.9'"),
+    ("mixture", "--switch", "x", "must be a number, got 'x'"),
+    ("crbm", "--gibbs-steps", "0", "must be at least 1 and at most 10000, got '0'"),
+])
+def test_a_bad_plugin_option_on_the_command_line_names_its_flag_once(tmp_path, prior, flag, value, rule):
+    r = subprocess.run([sys.executable, "-m", "tracker", "track", str(tmp_path), "--prior", prior, flag, value,
+                        "--out", str(tmp_path / "o")], capture_output=True, text=True)
+    assert r.returncode == 2 and r.stderr.strip() == f"pose-tracker: error: track: argument {flag}: {rule}"
+
 @pytest.mark.parametrize("line, message", [
     ("seeds = 0", "seeds must be at least 1, got 0"),
     ("seed = -2", "seed must be at least 0, got -2"),

@@ -186,23 +186,24 @@ def test_a_checkpoint_written_before_frames_recorded_their_wall_time_resumes(tmp
 
 
 def test_a_nested_prior_state_survives_a_checkpoint(tmp_path):
-    """An ensemble's state holds each member's state as a dict (with None for a member without one); a
+    """An ensemble's state holds each model's state as a dict (with None for a model without one); a
     checkpoint gives it back as it was (it was refused as 'not an intact .npz file' before)."""
     from tracker.app.checkpoint import load_checkpoint, save_checkpoint
     from tracker.engine.filter import FilterState
     from tracker.engine.recording import DEFAULT_RECORD, Recording
     from tracker.engine.weights import LogWeights
 
-    prior_state = {"member": np.array([0, 1, 0, 1]), "member_0": {"step": np.ones((4, 3)), "pace": np.zeros(4)},
-                   "member_1": {"step": np.full((4, 3), 2.0), "height_offset": np.arange(4.0)}, "member_2": None}
+    prior_state = {"component": np.array([0, 1, 0, 1]), "arrived": np.ones(4, bool),
+                   "model_0": {"step": np.ones((4, 3)), "pace": np.zeros(4)},
+                   "model_1": {"step": np.full((4, 3), 2.0), "height_offset": np.arange(4.0)}, "model_2": None}
     state = FilterState(np.zeros((4, 1, 3)), prior_state, LogWeights.uniform(4), np.zeros((1, 3)), 1, 0)
     rng = np.random.default_rng(0)
     save_checkpoint(tmp_path / "c.npz", state, Recording(DEFAULT_RECORD), rng.bit_generator.state, {"x": 1})
     restored, _ = load_checkpoint(tmp_path / "c.npz", {"x": 1}, Recording(DEFAULT_RECORD), rng)
     got = restored.prior_state
-    assert set(got) == set(prior_state) and got["member_2"] is None
-    assert np.array_equal(got["member"], prior_state["member"])
-    for k in ("member_0", "member_1"):
+    assert set(got) == set(prior_state) and got["model_2"] is None
+    assert all(np.array_equal(got[k], prior_state[k]) for k in ("component", "arrived"))
+    for k in ("model_0", "model_1"):
         assert set(got[k]) == set(prior_state[k])
         assert all(np.array_equal(got[k][n], prior_state[k][n]) for n in prior_state[k])
 

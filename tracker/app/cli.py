@@ -342,6 +342,11 @@ def _track_arguments(args: argparse.Namespace) -> argparse.Namespace:
     for key in ("model", "train_mocap"):
         if getattr(args, key):
             setattr(args, key, [str(Path(m).resolve()) for m in getattr(args, key)])
+    if isinstance(getattr(args, "components", None), str):  # a mixture's components name their own model files
+        from tracker.engine.components import with_model_paths
+
+        args.components = with_model_paths(args.components, f"prior {args.prior}",
+                                           lambda m: str(Path(m).expanduser().resolve()))
     unfinished = Path(args.out) / TRACK_ARGS
     if unfinished.is_file() and not args.overwrite:
         from data_tools.textfiles import read_json

@@ -129,7 +129,7 @@ TRANSITION_KEYS = {"then", "then_skeleton", "switch_at", "fade", "joint_map", "t
 PRIOR_KEYS = {"label", "name", "options", "models", "train", "train_mocap", "train_seeds", "components"}
 TRAIN_KEYS = {"mocap", "skeletons", "options", "seed"}
 #: The keys of a ``[[prior.components]]`` table: one motion model of a prior with components (a mixture).
-COMPONENT_KEYS = {"prior", "options", "models", "train"}
+COMPONENT_KEYS = {"prior", "options", "model", "models", "train"}
 LIKELIHOOD_KEYS = {"label", "name", "options"}
 
 
@@ -354,9 +354,9 @@ def _read_labels(w: "_Where", options: dict, mocap: tuple[ClipSpec, ...], entry:
 
 
 def _components(w: "_Where", doc: dict, options: dict, entry: str) -> tuple[dict, tuple[Path | TrainSpec, ...]]:
-    """A prior's ``[[prior.components]]`` tables (``prior``, ``options``, ``models`` or ``train``): the prior's
-    options with ``components`` written from them (without paths: a component's model files are the prior's, in
-    order, so that no path enters a run's hash), and the model files and trainings in that order."""
+    """A prior's ``[[prior.components]]`` tables (``prior``, ``options``, ``model`` or ``models`` or ``train``):
+    the prior's options with ``components`` written from them (without paths: a component's model files are the
+    prior's, in order, so that no path enters a run's hash), and the model files and trainings in that order."""
     from tracker.engine.components import Component, written_value
     from tracker.app.plugins import prior_entry
     from tracker.engine.registry import resolve_options
@@ -370,7 +370,10 @@ def _components(w: "_Where", doc: dict, options: dict, entry: str) -> tuple[dict
         if key in doc:
             raise w.error(entry, f"with [[prior.components]] each component gives its own {key}, not the prior")
     tables = doc["components"]
-    if not isinstance(tables, list) or len(tables) < 2:
+    if not isinstance(tables, list) or not all(isinstance(c, dict) for c in tables):
+        raise w.error(entry, f"components are given as [[prior.components]] tables (each with prior = NAME) or as "
+                             f"text, options = {{ components = \"crbm,zero-velocity\" }}; got {tables!r}")
+    if len(tables) < 2:
         raise w.error(entry, "[[prior.components]] must give two or more components")
     written, sources = [], []
     for k, c in enumerate(tables):
@@ -388,7 +391,10 @@ def _components(w: "_Where", doc: dict, options: dict, entry: str) -> tuple[dict
         except InputError as exc:
             raise w.error(ce, exc.reason) from None
         ce = f"{entry} component {k + 1} ({c['prior']})"
-        files = [w.file(m, ce, data=False) for m in _as_list(c.get("models", []))]
+        if "model" in c and "models" in c:
+            raise w.error(ce, "give model = FILE or models = [FILE, ...], not both")
+        named = [c["model"]] if "model" in c else _as_list(c.get("models", []))
+        files = [w.file(m, ce, data=False) for m in named]
         trains = _trainings(w, c["prior"], c.get("train", []), ce)
         n = len(files) + len(trains)
         if spec.model_files == "none" and n:
@@ -406,6 +412,15 @@ def _components(w: "_Where", doc: dict, options: dict, entry: str) -> tuple[dict
     except InputError as exc:
         raise w.error(entry, exc.reason) from None
     return options, tuple(sources)
+
+
+def _component_files(w: "_Where", components: str, entry: str) -> str:
+    """``options.components`` written as text with each ``model=FILE`` made absolute: relative to the experiment
+    file, as its ``models`` are, and checked as the file is read."""
+    from tracker.engine.components import with_model_paths
+
+    return with_model_paths(components, f"prior {entry}",
+                            lambda m: str(w.file(m, f"{entry} components", data=False).resolve()))
 
 
 def _as_list(value: Any) -> list:
@@ -580,6 +595,8 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
             options, sources = _components(w, p, options, entry)
             models = tuple(s for s in sources if isinstance(s, Path))
             trains = [s for s in sources if isinstance(s, TrainSpec)]
+        elif isinstance(options.get("components"), str):
+            options["components"] = _component_files(w, options["components"], entry)
         if spec.model_files == "none" and (models or trains):
             raise w.error(entry, f"prior {p['name']} takes no model files")
         if spec.model_files in ("one", "several") and not (models or trains):

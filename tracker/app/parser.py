@@ -331,12 +331,14 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
 
 
 def _option_type(option: Option):
-    """The argparse type of a plugin option: the conversion only (ranges are checked per plugin)."""
+    """The argparse type of a plugin option: the conversion only (ranges are checked per plugin), its message in
+    argparse's form (``argument --switch: must be at least 0 and at most 0.5, got '0.9'``)."""
     def parse(text: str):
         try:
             return option.parse(text, option.flag)
         except InputError as exc:
-            raise argparse.ArgumentTypeError(exc.reason) from None
+            reason = exc.reason.removeprefix(f"{option.flag}: ").removeprefix(f"{option.name} ")
+            raise argparse.ArgumentTypeError(reason) from None
     return parse if option.type is not str else str
 
 

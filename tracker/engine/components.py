@@ -10,8 +10,8 @@ against the registry (:func:`priors.mixture.check_components`). The command line
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, replace
+from typing import Any, Callable
 
 from tracker.core.errors import InputError
 
@@ -94,6 +94,8 @@ def parse_components(value: str, owner: str) -> list[Component]:
                 raise refuse(f"give each setting of a component as key=value (component {k + 1}: {pair!r})")
             v = v[1:-1] if len(v) >= 2 and v[0] == v[-1] == '"' else v
             if key == "model":
+                if not v:
+                    raise refuse(f"name a file in model=FILE (component {k + 1})")
                 models.append(v)
             elif key == "models":
                 if not v.isdigit():
@@ -107,3 +109,13 @@ def parse_components(value: str, owner: str) -> list[Component]:
     if len(out) < 2:
         raise refuse("must name two or more priors, comma-separated")
     return out
+
+
+def with_model_paths(value: str, owner: str, path: Callable[[str], str]) -> str:
+    """``value`` (the ``components`` option) with each component's ``model=FILE`` replaced by ``path(FILE)``
+    (e.g. made absolute, so that the option means the same files from any folder); ``value`` itself when no
+    component names a model file."""
+    components = parse_components(value, owner)
+    if not any(c.models for c in components):
+        return value
+    return ",".join(replace(c, models=tuple(path(m) for m in c.models)).written() for c in components)

@@ -142,7 +142,7 @@ def mixture_weights(carried: LogWeights, log_likelihood: np.ndarray, mix: Mixtur
     """The overall normalised weights ``(P,)``: within each component the carried weights times the likelihood,
     normalised; times the component's posterior weight (its carried total times its tempered evidence, from
     ``evidence`` ``(P,)`` if given: the log-likelihood of the prior's own samples when annealing layers have
-    moved the particles since). All zero if no particle has a finite weight."""
+    moved the particles since). All zero if no particle has a finite weight, or no component any evidence."""
     log_w = carried.log_w
     ll = LogWeights(log_likelihood).log_w  # a broken (NaN) likelihood value is a particle with no weight
     ev = ll if evidence is None else LogWeights(evidence).log_w
@@ -214,10 +214,12 @@ class MixtureTracking:
               state: PriorState) -> tuple[LogWeights, np.ndarray] | None:
         """The log-weights and normalised weights ``(P,)``: within components the carried weights times the
         likelihood, times the components' weights from their ``evidence`` (:func:`mixture_weights`); None when
-        no particle has any weight (the filter recovers)."""
+        no particle has any weight, or no component's weighted particles any evidence (the filter recovers)."""
         if not carried.add(log_likelihood).any_finite:
             return None
         W = mixture_weights(carried, log_likelihood, self.mixture(state), evidence)
+        if not W.sum() > 0:
+            return None
         return LogWeights(np.log(W, out=np.full(len(W), -np.inf), where=W > 0)), W
 
     def resample(self, weights: LogWeights, normalised: np.ndarray, state: PriorState, due: bool,
