@@ -239,7 +239,7 @@ def build_prior(name: str, sequence: Sequence | str | Path | None = None, models
     if sequence is None:
         raise InputError(f"build_prior needs the sequence the prior will track (its body model and frame rate): "
                          f"tracker.build_prior({name!r}, sequence, models=[...])")
-    if not isinstance(sequence, Sequence):
+    if isinstance(sequence, (str, os.PathLike)):
         sequence = load_sequence(sequence)
     models = [Path(m) if isinstance(m, (str, os.PathLike)) else m for m in models]
     if entry.model_files == "none" and models:
