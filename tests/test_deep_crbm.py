@@ -150,4 +150,4 @@ def test_train_and_track_through_the_api_and_the_cli(walk_32_frames, tmp_path, c
     with pytest.raises(SystemExit) as stop:  # argparse refuses the flag's value
         main(["train", "--prior", "deep-crbm", "--mocap", *map(str, files), "--top-order", "0", "--out",
               str(tmp_path / "e.pt")])
-    assert stop.value.code == 2 and "top_order must be at least 1" in capsys.readouterr().err
+    assert stop.value.code == 2 and "argument --top-order: must be at least 1" in capsys.readouterr().err

@@ -167,7 +167,7 @@ def test_train_and_track_gpdm_cli(mocap_dir, walk_32_frames, tmp_path):
     assert r.returncode == 0 and "gpdm" in r.stdout, r.stderr[-500:]
     r = subprocess.run([sys.executable, "-m", "tracker", "train", "--prior", "gpdm", "--mocap", amc, "--order", "3",
                         "--out", str(model)], capture_output=True, text=True)
-    assert r.returncode == 2 and "order must be one of 1, 2" in r.stderr.strip().splitlines()[-1]
+    assert r.returncode == 2 and "argument --order: must be one of 1, 2" in r.stderr.strip().splitlines()[-1]
 
 
 # --- sparse (inducing-point) GPDM and the batched prior step ---------------------------------------------------
