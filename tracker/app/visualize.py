@@ -7,6 +7,8 @@ coordinates ``(x, y)``.
 """
 from __future__ import annotations
 
+import textwrap
+
 import cv2
 import numpy as np
 
@@ -274,7 +276,7 @@ def error_plot(path, curves: dict[str, tuple[np.ndarray, np.ndarray]], title: st
     ax.set_xlabel("frame")
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_ylabel("marker error (mm)")
-    ax.set_title(title)
+    ax.set_title("\n".join(textwrap.wrap(title, 72)))  # a long title on two lines, not cut at the edges
     ax.set_ylim(bottom=0)
     ax.grid(alpha=0.3)
     ax.legend()
