@@ -10,4 +10,4 @@ share are modules of their own (:mod:`priors.parts`, :mod:`priors.conditional`, 
 #: :func:`tracker.app.plugins.load_plugins` imports these. A prior module imports its model (and torch) only when
 #: its prior is built or trained, so listing the priors and their options is cheap.
 BUILTIN_MODULES = ("priors.crbm.prior", "priors.deep_crbm.prior", "priors.fcrbm.prior", "priors.gpdm.prior",
-                   "priors.mixture", "priors.random_walk")
+                   "priors.neural.prior", "priors.mixture", "priors.random_walk")

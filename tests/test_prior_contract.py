@@ -33,6 +33,8 @@ def models(mocap_dir, tmp_path_factory):
                                epochs=3, seed=3),
         "deep-crbm": tracker.train("deep-crbm", walks[:1], order=2, hidden=20, epochs=3, top_order=1, top_hidden=10,
                                    top_epochs=3, seed=4),
+        "neural": tracker.train("neural", walks[:1], order=3, hidden=16, layers=1, epochs=2, seed=5),
+        "neural-paced": tracker.train("neural", walks, order=2, hidden=16, layers=1, epochs=2, seed=6),
     }
     paths = {}
     for name, model in files.items():
@@ -54,6 +56,8 @@ BUILT = {
               ("fcrbm", ["fcrbm"], {"height_spread": 20.0, "height_drift": 1.0, "posture_gain": 0.2})],
     "deep-crbm": [("deep-crbm", ["deep-crbm"], {"height_spread": 20.0}),
                   ("deep-crbm", ["deep-crbm"], {"height_spread": 20.0, "height_drift": 1.0, "posture_gain": 0.2})],
+    "neural": [("neural", ["neural"], {}),
+               ("neural", ["neural-paced"], {"height_spread": 30.0, "height_drift": 1.0, "posture_gain": 0.2})],
     "mixture": [("mixture", ["crbm-paced"], {}), ("mixture", ["crbm", "gpdm"], {"components": "crbm,gpdm"}),
                 ("mixture", ["fcrbm", "deep-crbm"], {"components": "fcrbm,deep-crbm"}),
                 ("mixture", [], {"components": "zero-velocity,constant-velocity", "switch": 0.2})],
@@ -68,7 +72,8 @@ RANDOM_WALKS = ("zero-velocity", "constant-velocity")
 LEARNED_PARTS = {"crbm": ("GroundDiffusion", "PaceInput", "HeightOffset", "PostureOffset"),
                  "fcrbm": ("GroundDiffusion", "HeightOffset", "PostureOffset"),
                  "deep-crbm": ("GroundDiffusion", "HeightOffset", "PostureOffset"),
-                 "gpdm": ("GroundDiffusion", "HeightOffset", "PostureOffset")}
+                 "gpdm": ("GroundDiffusion", "HeightOffset", "PostureOffset"),
+                 "neural": ("GroundDiffusion", "PaceInput", "HeightOffset", "PostureOffset")}
 
 
 def test_every_learned_prior_is_checked_with_every_part_it_takes_switched_on(built):
