@@ -231,12 +231,18 @@ def component_files(options: dict) -> list[Path]:
     return [Path(m) for c in parse_components(options["components"], "prior mixture") for m in c.models]
 
 
+#: The mixture's components by default; given no model file at all, the mixture is instead the package's
+#: pretrained learned prior and zero-velocity (:mod:`priors.pretrained`).
+DEFAULT_COMPONENTS = "crbm,zero-velocity"
+
 MIXTURE_OPTIONS = (
-    Option("components", str, "crbm,zero-velocity",
+    Option("components", str, DEFAULT_COMPONENTS,
            "the motion models mixed, comma-separated, each PRIOR[:key=value...]: model=FILE (repeatable) names "
            "a learned component's model file, models=N takes the next N of the mixture's model files (a learned "
            "component that names none takes the next one, in order), any other key is the component's own "
-           "option (crbm:model=crbm1.pt:gibbs_steps=10,zero-velocity); unset options take their defaults",
+           "option (crbm:model=crbm1.pt:gibbs_steps=10,zero-velocity); unset options take their defaults. Given "
+           "no model file, the default is the package's pretrained neural prior (trained on CMU motion capture) "
+           "and zero-velocity",
            check=check_components),
     SWITCH_OPTION,
     TEMPERATURE_OPTION,
@@ -252,6 +258,10 @@ def build_mixture(context: PriorContext, model_files: Sequence[Path], options: d
     them; one for a learned component)."""
     owner = "prior mixture"
     components = parse_components(options["components"], owner)
+    if not model_files and not any(c.models for c in components) and options["components"] == DEFAULT_COMPONENTS:
+        from priors.pretrained import MIXTURE_COMPONENTS, mixture_model  # no model given: the shipped one
+
+        components, model_files = parse_components(MIXTURE_COMPONENTS, owner), [mixture_model()]
     entries = [PRIORS.get(c.prior) for c in components]
     takes = [0 if c.models else (c.takes if c.takes is not None else int(e.model_files != "none"))
              for c, e in zip(components, entries)]

@@ -156,7 +156,7 @@ def test_the_mixture_is_built_from_the_registry_in_one_line(mocap_dir, walk_07_0
     assert prior.summary_names == ("zero-velocity", "constant-velocity") and prior.order == 2
     assert prior.settings()["switch"] == 0.1
     with pytest.raises(InputError, match=r"takes 1 model file \(crbm: 1\), got 0$"):
-        build_prior("mixture", _Seq(), [], step_std=std)
+        build_prior("mixture", _Seq(), [], step_std=std, components="crbm:gibbs_steps=3,zero-velocity")
     with pytest.raises(InputError, match="components must name two or more"):
         build_prior("mixture", _Seq(), [], step_std=std, components="zero-velocity")
     with pytest.raises(InputError, match=r"crbm, zero-velocity takes 2 model files \(crbm: 2\), got 1$"):

@@ -167,3 +167,20 @@ def test_the_command_line_tracks_with_a_model_file_and_refuses_a_bad_one_in_one_
                            capture_output=True, text=True)
         last = r.stderr.strip().splitlines()[-1]
         assert r.returncode == 2 and expected in last and "Traceback" not in r.stderr, r.stderr[-300:]
+
+
+def test_the_mixture_without_a_model_file_tracks_with_the_shipped_neural_prior(small_walk, tmp_path):
+    """The package ships a CMU-trained neural prior (package data) that ``--prior mixture`` uses beside
+    zero-velocity when it is given no model file; a model file given still makes the default mixture a CRBM's."""
+    from priors.pretrained import mixture_model
+    from tracker.app.api import build_prior
+
+    shipped = load_neural(mixture_model())
+    assert mixture_model().stat().st_size < 2_000_000 and shipped.order >= 1
+    assert shipped.sources and all(s.startswith("cmu/") for s in shipped.sources)  # CMU trials only
+    prior = build_prior("mixture", small_walk)
+    assert [c.name for c in prior.components] == ["neural", "zero-velocity"]
+    r = subprocess.run([sys.executable, "-m", "tracker", "track", str(small_walk), "--prior", "mixture",
+                        "--particles", "40", "--out", str(tmp_path / "t")], capture_output=True, text=True)
+    assert r.returncode == 0 and "mixture" in r.stdout, r.stderr[-500:]
+    assert '"neural"' in (tmp_path / "t" / "result.json").read_text()

@@ -22,7 +22,7 @@ class NeuralConfig:
     hidden: int = 128
     layers: int = 2
     components: int = 8
-    epochs: int = 40
+    epochs: int = 100
     batch_size: int = 256
     learning_rate: float = 1e-3
     #: Std of the Gaussian noise on the history in training (normalised units), or "auto": per feature a
