@@ -3,7 +3,6 @@ batch, reads any history length as training taught it, and its model files and t
 (the prior contract is run for it in test_prior_contract.py)."""
 from __future__ import annotations
 
-import math
 import subprocess
 import sys
 
@@ -13,8 +12,6 @@ import torch
 
 from priors.neural.file import load_neural
 from priors.neural.model import MDN, NeuralModel
-from priors.neural.settings import NeuralConfig
-from tracker.core.body import DOF_NAMES
 from tracker.core.errors import InputError
 
 

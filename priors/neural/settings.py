@@ -48,7 +48,8 @@ class NeuralConfig:
         if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0 < rate < 1:
             raise InputError(f"{self.KIND} learning_rate must lie in (0, 1), got {rate!r}")
         noise = self.history_noise
-        if noise != "auto" and (isinstance(noise, bool) or not isinstance(noise, (int, float)) or not 0 <= noise <= 100):
+        if noise != "auto" and (isinstance(noise, bool) or not isinstance(noise, (int, float))
+                                or not 0 <= noise <= 100):
             raise InputError(f"history noise must be 'auto' or a number in [0, 100], got {noise!r}")
         if isinstance(self.validation, bool) or not isinstance(self.validation, (int, float)) \
                 or not 0 <= self.validation <= 0.5:

@@ -187,9 +187,9 @@ def train_neural_prior(data: TrainingData, options: dict, rng: np.random.Generat
         torch_save_atomic(doc, checkpoint)  # never half-written: the rename is atomic
 
     report = None if progress is None else (lambda epoch, values: progress(epoch, config.epochs, values))
+    saving = None if checkpoint is None else (save, options["checkpoint_every"] or 0)
     model = train_neural(list(data.clips), config, data.fps, data.body_model.dof_names, data.body_model.name,
-                         list(data.sources), report, None if checkpoint is None else (save, options["checkpoint_every"] or 0),
-                         rng=rng, resume=state)
+                         list(data.sources), report, saving, rng=rng, resume=state)
     if checkpoint is not None:
         checkpoint.unlink(missing_ok=True)
     return model
