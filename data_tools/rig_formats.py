@@ -356,6 +356,15 @@ def read_opencv_rig(paths: str | Path | Sequence[str | Path], sizes: Sizes | Non
     return _rig(cams, first)
 
 
+def camera_names(paths: str | Path | Sequence[str | Path]) -> list[str]:
+    """The camera names of an OpenCV FileStorage calibration (its ``names`` list), read without the cameras."""
+    paths = [Path(paths)] if isinstance(paths, (str, os.PathLike)) else [Path(p) for p in paths]
+    names = _storage_nodes(paths[0]).get("names")
+    if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
+        raise InputError('expected a "names" list of camera names', paths[0])
+    return names
+
+
 def write_opencv_rig(rig: CameraRig, path: str | Path) -> None:
     """Write ``rig`` as one OpenCV FileStorage file (YAML or XML by the name), ``T`` in metres."""
     fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
