@@ -6,6 +6,8 @@ import argparse
 import logging
 from pathlib import Path
 
+from tracker.core.errors import InputError
+
 log = logging.getLogger(__name__)
 
 
@@ -53,6 +55,33 @@ def add_parsers(sub, parents) -> None:
                    help="pair cameras with videos by name (cameras left out are not imported)")
     v.add_argument("--overwrite", action="store_true", help="replace an existing sequence folder at --out")
 
+    x = sub.add_parser("export", parents=parents, help="write a tracked run's poses as BVH and/or TRC",
+                       description="Write the poses of a tracked run (its folder, with result.json and "
+                                   "estimates.npz) as BVH (a skeleton of the body model's links; y up, --unit, "
+                                   "default metres: Blender's importer reads it at life size) and/or TRC (the 15 "
+                                   "markers, y up, metres, OpenSim's and Pose2Sim's axes: TRC X, Y, Z = our y, "
+                                   "z, x).")
+    x.add_argument("run", metavar="RUN", help="a folder written by track (result.json, estimates.npz)")
+    x.add_argument("--bvh", metavar="FILE", help="write the poses as BVH here (.bvh)")
+    x.add_argument("--trc", metavar="FILE", help="write the markers as TRC here (.trc)")
+    x.add_argument("--unit", choices=("m", "cm", "mm"), default="m", help="BVH length unit (default m)")
+    x.add_argument("--sequence", metavar="DIR",
+                   help="the tracked sequence (default: the one result.json names; its body shape is used)")
+
+    r = sub.add_parser("compare-trc", parents=parents,
+                       help="compare a tracked run with a reference reconstruction in a TRC file",
+                       description="Map the reference's keypoints to the body model's markers (Pose2Sim / "
+                                   "OpenPose names: thorax = Neck, head = Head, and the limbs' joints; the pelvis "
+                                   "is left out), align the whole estimate to the reference with one "
+                                   "rigid transform, and print the mean distance per joint and overall (mm). The "
+                                   "reference's keypoints are not the model's markers (a hip keypoint is not "
+                                   "the hip joint centre): the distances include that difference.")
+    r.add_argument("run", metavar="RUN", help="a folder written by track (estimates.npz)")
+    r.add_argument("reference", metavar="TRC", help="reference reconstruction (.trc)")
+    r.add_argument("--offset", type=int, default=None, metavar="N",
+                   help="reference frame of the estimate's first frame (default: the first video frame the "
+                        "sequence was imported from, else 0)")
+
 
 def cmd_import_video(args: argparse.Namespace) -> int:
     from data_tools.files import check_output_folder
@@ -69,5 +98,68 @@ def cmd_import_video(args: argparse.Namespace) -> int:
     return 0
 
 
-COMMANDS = {"import-video": cmd_import_video}
+def _run_files(run: str) -> tuple[Path, dict]:
+    """A track output folder's estimates.npz and its result.json (empty when absent)."""
+    from data_tools.textfiles import read_json
+
+    folder = Path(run)
+    if not (folder / "estimates.npz").is_file():
+        raise InputError("not a tracked run: no estimates.npz", folder)
+    result = read_json(folder / "result.json", "result.json") if (folder / "result.json").is_file() else {}
+    return folder / "estimates.npz", result if isinstance(result, dict) else {}
+
+
+def _run_sequence(result: dict, given: str | None, run: str):
+    from data_tools.sequence import read_sequence
+
+    path = given or result.get("sequence")
+    if not path:
+        raise InputError("result.json names no sequence: give --sequence DIR", run)
+    return read_sequence(path)
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from data_tools.bvh_export import write_bvh
+    from data_tools.estimates import read_poses_file
+    from data_tools.files import check_output_file
+    from data_tools.trc import write_trc
+    from tracker.core.kinematics import markers
+
+    if not args.bvh and not args.trc:
+        raise InputError("nothing to write: give --bvh FILE.bvh and/or --trc FILE.trc")
+    for path, flag, ext in ((args.bvh, "--bvh", ".bvh"), (args.trc, "--trc", ".trc")):
+        if path:
+            check_output_file(path, flag, (ext,))
+    estimates, result = _run_files(args.run)
+    seq = _run_sequence(result, args.sequence, args.run)
+    poses = read_poses_file(estimates, "estimates", seq.model)
+    fps = seq.fps or 60.0
+    if args.bvh:
+        write_bvh(args.bvh, seq.model, poses, fps, unit=args.unit)
+        print(f"{len(poses)} frames at {fps:g} Hz -> {args.bvh} (BVH, y up, {args.unit})")
+    if args.trc:
+        write_trc(args.trc, seq.model.marker_names, markers(seq.model, poses), fps)
+        print(f"{len(poses)} frames at {fps:g} Hz -> {args.trc} (TRC, y up, m)")
+    return 0
+
+
+def cmd_compare_trc(args: argparse.Namespace) -> int:
+    from data_tools.checks import load_npz
+    from data_tools.reference import compare_to_reference
+    from data_tools.trc import read_trc
+
+    estimates, result = _run_files(args.run)
+    markers = load_npz(estimates, "estimates", ("markers",))["markers"]
+    ref = read_trc(args.reference)
+    offset = args.offset
+    if offset is None:
+        offset = 0
+        if result.get("sequence"):
+            meta = _run_sequence(result, None, args.run).meta
+            offset = int(meta.get("first_video_frame", 0))
+    print(compare_to_reference(markers, ref.names, ref.points, offset=offset).table())
+    return 0
+
+
+COMMANDS = {"import-video": cmd_import_video, "export": cmd_export, "compare-trc": cmd_compare_trc}
 
