@@ -55,6 +55,17 @@ def add_parsers(sub, parents) -> None:
                    help="pair cameras with videos by name (cameras left out are not imported)")
     v.add_argument("--overwrite", action="store_true", help="replace an existing sequence folder at --out")
 
+    m = sub.add_parser("silhouettes", parents=parents,
+                       help="write the person's silhouettes of a sequence that has no background plate",
+                       description="Learn each camera's background from the sequence's own frames (the per-pixel "
+                                   "median of up to 25 frames), subtract it from every frame, keep the largest "
+                                   "region and write masks/<camera>/NNNNNN.png, which track then uses. It needs a "
+                                   "person who moves; for one who stands still, put masks of your own in "
+                                   "masks/<camera>/ (non-zero = person, one PNG per frame, named as the images).")
+    m.add_argument("sequence", metavar="DIR", help="sequence folder (e.g. written by import-video)")
+    m.add_argument("--method", choices=("median",), default="median", help="background model (default median)")
+    m.add_argument("--overwrite", action="store_true", help="replace masks/ where the sequence has it")
+
     x = sub.add_parser("export", parents=parents, help="write a tracked run's poses as BVH and/or TRC",
                        description="Write the poses of a tracked run (its folder, with result.json and "
                                    "estimates.npz) as BVH (a skeleton of the body model's links; y up, --unit, "
@@ -95,6 +106,23 @@ def cmd_import_video(args: argparse.Namespace) -> int:
         log.info(note)
     print(f"{len(result.rig)} cameras x {result.n_frames} frames at {result.fps:g} Hz "
           f"(video frames {result.start}:{result.stop}) -> {result.root}")
+    return 0
+
+
+def cmd_silhouettes(args: argparse.Namespace) -> int:
+    from data_tools.sequence import OWN, read_sequence
+    from data_tools.silhouettes import write_sequence_masks
+
+    seq = read_sequence(args.sequence)
+    if seq.layout != OWN:
+        raise InputError("silhouettes are written into sequence folders of this toolkit's layout only",
+                         args.sequence)
+    if seq.mask_paths is not None and not args.overwrite:
+        raise InputError("the sequence already has masks/ (pass --overwrite to replace them)", args.sequence)
+    fractions = write_sequence_masks(seq, args.method)
+    for cam, f in zip(seq.rig.names, fractions):
+        log.info(f"{cam}: the person covers {100 * f:.1f}% of the image on average")
+    print(f"{seq.n_views} cameras x {seq.n_frames} frames of silhouettes ({args.method}) -> {seq.root / 'masks'}")
     return 0
 
 
@@ -161,5 +189,5 @@ def cmd_compare_trc(args: argparse.Namespace) -> int:
     return 0
 
 
-COMMANDS = {"import-video": cmd_import_video, "export": cmd_export, "compare-trc": cmd_compare_trc}
+COMMANDS = {"import-video": cmd_import_video, "silhouettes": cmd_silhouettes, "export": cmd_export, "compare-trc": cmd_compare_trc}
 
