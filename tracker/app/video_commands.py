@@ -66,6 +66,20 @@ def add_parsers(sub, parents) -> None:
     m.add_argument("--method", choices=("median",), default="median", help="background model (default median)")
     m.add_argument("--overwrite", action="store_true", help="replace masks/ where the sequence has it")
 
+    i = sub.add_parser("initialise", parents=parents,
+                       help="fit the body's size and first pose to a sequence's first silhouettes",
+                       description="Search the floor position, heading, body scale and stance (standing, "
+                                   "A-pose, T-pose; or around --near, an approximate pose of your own) that the "
+                                   "tracker's likelihood rates best on the first frame's silhouettes, refine "
+                                   "every pose number, write the fitted body shape into the sequence's "
+                                   "meta.json and the first poses to --out, for track --init.")
+    i.add_argument("sequence", metavar="DIR", help="sequence folder with silhouettes (masks/) or plates")
+    i.add_argument("--out", required=True, metavar="FILE", help="poses file to write (.npz, for track --init)")
+    i.add_argument("--near", metavar="POSES.npz", help="an approximate first pose to search around")
+    i.add_argument("--frames", type=int, default=2, metavar="N",
+                   help="how many first frames the pose is written for (track's --known-frames; default 2)")
+    i.add_argument("--seed", type=int, default=0, help="random seed of the local search (default 0)")
+
     x = sub.add_parser("export", parents=parents, help="write a tracked run's poses as BVH and/or TRC",
                        description="Write the poses of a tracked run (its folder, with result.json and "
                                    "estimates.npz) as BVH (a skeleton of the body model's links; y up, --unit, "
@@ -123,6 +137,33 @@ def cmd_silhouettes(args: argparse.Namespace) -> int:
     for cam, f in zip(seq.rig.names, fractions):
         log.info(f"{cam}: the person covers {100 * f:.1f}% of the image on average")
     print(f"{seq.n_views} cameras x {seq.n_frames} frames of silhouettes ({args.method}) -> {seq.root / 'masks'}")
+    return 0
+
+
+def cmd_initialise(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from data_tools.estimates import read_poses_file
+    from data_tools.files import check_output_file
+    from data_tools.sequence import OWN, read_sequence, write_meta
+    from tracker.app.initialise import initialise, limb_lengths
+
+    check_output_file(args.out, "--out", (".npz",))
+    if args.frames < 1:
+        raise InputError(f"--frames must be at least 1, got {args.frames}")
+    seq = read_sequence(args.sequence)
+    if seq.layout != OWN:
+        raise InputError("initialise writes the fitted shape into meta.json: this toolkit's layout only",
+                         args.sequence)
+    near = None if args.near is None else read_poses_file(args.near, "--near", seq.model)[0]
+    found = initialise(seq, 0, near=near, seed=args.seed)
+    meta = dict(seq.meta)
+    meta["body_shape"] = found.shape.to_dict()
+    write_meta(seq.root, meta)
+    np.savez(args.out, poses=np.tile(found.pose, (args.frames, 1)))
+    lengths = ", ".join(f"{k} {v:.0f}" for k, v in limb_lengths(found.model, found.pose).items())
+    log.info(f"stance {found.stance}, scale {found.scale:g}: standing height {found.height:.0f} mm; {lengths} mm")
+    print(f"first pose (log-likelihood {found.score:.1f}) -> {args.out}; body shape -> {seq.root / 'meta.json'}")
     return 0
 
 
@@ -189,5 +230,6 @@ def cmd_compare_trc(args: argparse.Namespace) -> int:
     return 0
 
 
-COMMANDS = {"import-video": cmd_import_video, "silhouettes": cmd_silhouettes, "export": cmd_export, "compare-trc": cmd_compare_trc}
+COMMANDS = {"import-video": cmd_import_video, "silhouettes": cmd_silhouettes,
+            "initialise": cmd_initialise, "export": cmd_export, "compare-trc": cmd_compare_trc}
 
