@@ -125,7 +125,7 @@ def cmd_import_video(args: argparse.Namespace) -> int:
 
 def cmd_silhouettes(args: argparse.Namespace) -> int:
     from data_tools.sequence import OWN, read_sequence
-    from data_tools.silhouettes import write_sequence_masks
+    from tracker.app.silhouettes import write_sequence_masks
 
     seq = read_sequence(args.sequence)
     if seq.layout != OWN:
