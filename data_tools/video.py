@@ -4,7 +4,9 @@
 agree on frame rate and frame count (one line naming them when they do not, and ``frames`` to choose a common
 range), checks each video's size against its camera's (portrait or landscape alike; a video a few pixels
 narrower or shorter than its calibration, as encoders crop to a multiple of 8 or 16, keeps the intrinsics: its
-pixels are counted from the top-left corner as the calibration's are), optionally shrinks the frames with the
+pixels are counted from the top-left corner as the calibration's are, and its missing right columns and bottom
+rows are filled with its last ones, so that every camera's frames have the calibrated size and a rig of one
+image size stays one), optionally shrinks the frames with the
 intrinsics scaled to match, and writes ``cameras.json``, ``images/<camera>/NNNNNN.png`` and ``meta.json``.
 Frames are decoded one at a time as they are written, never all held in memory. OpenCV's ``VideoCapture``
 decodes (it applies a file's rotation metadata, so phone videos come upright).
@@ -157,6 +159,15 @@ def parse_frame_range(text: str) -> tuple[int, int | None]:
     return int(m.group(1)), int(m.group(2)) if m.group(2) else None
 
 
+def padded(frame: np.ndarray, width: int, height: int) -> np.ndarray:
+    """``frame`` (``h x w x 3``, at most ``width`` x ``height``) grown to ``height x width`` by repeating its last
+    column and row: the calibrated image of a video cropped at its right and bottom edges."""
+    h, w = frame.shape[:2]
+    if (w, h) == (width, height):
+        return frame
+    return cv2.copyMakeBorder(frame, 0, height - h, 0, width - w, cv2.BORDER_REPLICATE)
+
+
 def fitted_camera(cam: Camera, info: VideoInfo, downscale: float = 1.0) -> Camera:
     """``cam`` for the frames of ``info`` shrunk by ``downscale``: sizes checked, intrinsics scaled.
 
@@ -173,6 +184,7 @@ def fitted_camera(cam: Camera, info: VideoInfo, downscale: float = 1.0) -> Camer
                 and cam.height * (1 - SIZE_TOLERANCE) <= H <= cam.height):
             raise InputError(f"the video is {W}x{H} but camera {cam.name!r} is calibrated at {cam.width}x"
                              f"{cam.height}", info.path)
+    W, H = cam.width, cam.height  # a cropped video is padded back to the calibrated size (import_videos)
     w, h = int(round(W / downscale)), int(round(H / downscale))
     sx, sy = w / W, h / H
     return checked_camera(cam.name, w, h, cam.fx * sx, cam.fy * sy, (cam.cx + 0.5) * sx - 0.5,
@@ -225,7 +237,8 @@ def import_videos(calibration: str | Path | Sequence[str | Path], videos: Sequen
     start, stop = common_range(infos, frames)
     fitted = CameraRig([fitted_camera(c, i, downscale) for c, i in zip(cams, infos)])
     notes = [f"{c.name} <- {i.path.name} ({i.width}x{i.height}, {i.frames} frames at {i.fps:g} Hz)"
-             + (f", calibrated at {c.width}x{c.height}: cropped at the right and bottom edges"
+             + (f", calibrated at {c.width}x{c.height}: cropped at the right and bottom edges, padded back with "
+                "its last pixels"
                 if (i.width, i.height) != (c.width, c.height) else "")
              for c, i in zip(cams, infos)]
     out = Path(out)
@@ -242,7 +255,8 @@ def import_videos(calibration: str | Path | Sequence[str | Path], videos: Sequen
             if frame.shape[:2] != (infos[v].height, infos[v].width):
                 raise InputError(f"frame {start + k} is {frame.shape[1]}x{frame.shape[0]}, not the video's "
                                  f"{infos[v].width}x{infos[v].height}", infos[v].path)
-            if (cam.width, cam.height) != (infos[v].width, infos[v].height):
+            frame = padded(frame, cams[v].width, cams[v].height)
+            if (cam.width, cam.height) != (cams[v].width, cams[v].height):
                 frame = cv2.resize(frame, (cam.width, cam.height), interpolation=cv2.INTER_AREA)
             write_image(out / "images" / cam.name / FRAME_NAME.format(k), frame)
     return ImportResult(out, fitted, paired, start, stop, float(infos[0].fps), notes)
