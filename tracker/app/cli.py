@@ -28,6 +28,7 @@ from tracker.app.parser import build_parser, given_options, parse_arguments
 from tracker.app.plugins import import_plugin, likelihood_entry, prior_entry
 from tracker.app.schema import TRACK_SETTINGS
 from tracker.app.threads import set_threads
+from tracker.app.video_commands import COMMANDS as VIDEO_COMMANDS
 from tracker.core.errors import InputError
 
 log = logging.getLogger(__name__)
@@ -452,6 +453,7 @@ def cmd_track(args: argparse.Namespace) -> int:
 
 COMMANDS = {"convert": cmd_convert, "synth": cmd_synth, "show": cmd_show, "train": cmd_train, "track": cmd_track,
             "compare": cmd_compare, "demo": cmd_demo, "fetch": cmd_fetch, "corpus": cmd_corpus}
+COMMANDS.update(VIDEO_COMMANDS)
 
 
 def _plugins_from_argv(argv: list[str]) -> list[str]:

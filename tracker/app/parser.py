@@ -327,6 +327,9 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                         "wrote there, and a non-empty folder that holds no demo output is refused")
     d.add_argument("--frames", type=_number(int, 4, strict=False), default=90,
                    help="frames to render and track (default 90: 1.5 s)")
+    from tracker.app.video_commands import add_parsers as add_video_parsers
+
+    add_video_parsers(sub, [plugin_flag])
     return p
 
 

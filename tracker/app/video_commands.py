@@ -1,0 +1,235 @@
+"""Commands for real video: ``import-video`` (videos and a calibration to a sequence folder) and ``export``
+(tracked poses to BVH or TRC). :func:`add_parsers` adds their parsers, :data:`COMMANDS` maps names to handlers."""
+from __future__ import annotations
+
+import argparse
+import logging
+from pathlib import Path
+
+from tracker.core.errors import InputError
+
+log = logging.getLogger(__name__)
+
+
+def _mapping(text: str) -> dict[str, str]:
+    """``cam_01=left.mp4,cam_02=right.mp4`` -> {camera: video}."""
+    out = {}
+    for item in (t for t in text.split(",") if t.strip()):
+        if "=" not in item:
+            raise argparse.ArgumentTypeError(f"expected CAMERA=VIDEO pairs separated by commas, got {item!r}")
+        cam, video = (s.strip() for s in item.split("=", 1))
+        out[cam] = video
+    if not out:
+        raise argparse.ArgumentTypeError("expected CAMERA=VIDEO pairs separated by commas")
+    return out
+
+
+def _downscale(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not 1.0 <= value <= 64.0:
+        raise argparse.ArgumentTypeError(f"must be between 1 and 64, got {text}")
+    return value
+
+
+def add_parsers(sub, parents) -> None:
+    """The parsers of this module's commands, added to the ``pose-tracker`` subcommands ``sub``."""
+    v = sub.add_parser("import-video", parents=parents,
+                       help="turn one video per calibrated camera into a sequence folder",
+                       description="Decode one video per camera into a sequence folder (cameras.json, images/, "
+                                   "meta.json) that track reads once it has silhouettes. The calibration may be "
+                                   "Pose2Sim/anipose TOML, Qualisys .qca.txt, OpenCV FileStorage .yml/.xml "
+                                   "(two files allowed: --calibration twice) or cameras.json. Videos go to the "
+                                   "cameras in sorted name order unless --map pairs them.")
+    v.add_argument("videos", nargs="+", metavar="VIDEO", help="one video file per camera (anything OpenCV reads)")
+    v.add_argument("--calibration", action="append", required=True, metavar="FILE",
+                   help="calibration file (repeat for OpenCV intrinsics + extrinsics files)")
+    v.add_argument("--out", required=True, help="output sequence folder")
+    v.add_argument("--downscale", type=_downscale, default=1.0, metavar="F",
+                   help="shrink every frame by F (1 to 64, default 1), intrinsics scaled to match")
+    v.add_argument("--frames", metavar="A:B",
+                   help="video frames A to B-1 (required when the videos' frame counts differ)")
+    v.add_argument("--map", type=_mapping, metavar="CAM=VIDEO,...",
+                   help="pair cameras with videos by name (cameras left out are not imported)")
+    v.add_argument("--overwrite", action="store_true", help="replace an existing sequence folder at --out")
+
+    m = sub.add_parser("silhouettes", parents=parents,
+                       help="write the person's silhouettes of a sequence that has no background plate",
+                       description="Learn each camera's background from the sequence's own frames (the per-pixel "
+                                   "median of up to 25 frames), subtract it from every frame, keep the largest "
+                                   "region and write masks/<camera>/NNNNNN.png, which track then uses. It needs a "
+                                   "person who moves; for one who stands still, put masks of your own in "
+                                   "masks/<camera>/ (non-zero = person, one PNG per frame, named as the images).")
+    m.add_argument("sequence", metavar="DIR", help="sequence folder (e.g. written by import-video)")
+    m.add_argument("--method", choices=("median",), default="median", help="background model (default median)")
+    m.add_argument("--overwrite", action="store_true", help="replace masks/ where the sequence has it")
+
+    i = sub.add_parser("initialise", parents=parents,
+                       help="fit the body's size and first pose to a sequence's first silhouettes",
+                       description="Search the floor position, heading, body scale and stance (standing, "
+                                   "A-pose, T-pose; or around --near, an approximate pose of your own) that the "
+                                   "tracker's likelihood rates best on the first frame's silhouettes, refine "
+                                   "every pose number, write the fitted body shape into the sequence's "
+                                   "meta.json and the first poses to --out, for track --init.")
+    i.add_argument("sequence", metavar="DIR", help="sequence folder with silhouettes (masks/) or plates")
+    i.add_argument("--out", required=True, metavar="FILE", help="poses file to write (.npz, for track --init)")
+    i.add_argument("--near", metavar="POSES.npz", help="an approximate first pose to search around")
+    i.add_argument("--frames", type=int, default=2, metavar="N",
+                   help="how many first frames the pose is written for (track's --known-frames; default 2)")
+    i.add_argument("--seed", type=int, default=0, help="random seed of the local search (default 0)")
+
+    x = sub.add_parser("export", parents=parents, help="write a tracked run's poses as BVH and/or TRC",
+                       description="Write the poses of a tracked run (its folder, with result.json and "
+                                   "estimates.npz) as BVH (a skeleton of the body model's links; y up, --unit, "
+                                   "default metres: Blender's importer reads it at life size) and/or TRC (the 15 "
+                                   "markers, y up, metres, OpenSim's and Pose2Sim's axes: TRC X, Y, Z = our y, "
+                                   "z, x).")
+    x.add_argument("run", metavar="RUN", help="a folder written by track (result.json, estimates.npz)")
+    x.add_argument("--bvh", metavar="FILE", help="write the poses as BVH here (.bvh)")
+    x.add_argument("--trc", metavar="FILE", help="write the markers as TRC here (.trc)")
+    x.add_argument("--unit", choices=("m", "cm", "mm"), default="m", help="BVH length unit (default m)")
+    x.add_argument("--sequence", metavar="DIR",
+                   help="the tracked sequence (default: the one result.json names; its body shape is used)")
+
+    r = sub.add_parser("compare-trc", parents=parents,
+                       help="compare a tracked run with a reference reconstruction in a TRC file",
+                       description="Map the reference's keypoints to the body model's markers (Pose2Sim / "
+                                   "OpenPose names: thorax = Neck, head = Head, and the limbs' joints; the pelvis "
+                                   "is left out), align the whole estimate to the reference with one "
+                                   "rigid transform, and print the mean distance per joint and overall (mm). The "
+                                   "reference's keypoints are not the model's markers (a hip keypoint is not "
+                                   "the hip joint centre): the distances include that difference.")
+    r.add_argument("run", metavar="RUN", help="a folder written by track (estimates.npz)")
+    r.add_argument("reference", metavar="TRC", help="reference reconstruction (.trc)")
+    r.add_argument("--offset", type=int, default=None, metavar="N",
+                   help="reference frame of the estimate's first frame (default: the first video frame the "
+                        "sequence was imported from, else 0)")
+
+
+def cmd_import_video(args: argparse.Namespace) -> int:
+    from data_tools.files import check_output_folder
+    from data_tools.video import import_videos
+
+    check_output_folder(args.out, empty=not args.overwrite, replaceable=("cameras.json",))
+    calibration = args.calibration[0] if len(args.calibration) == 1 else args.calibration
+    result = import_videos(calibration, args.videos, args.out, downscale=args.downscale, frames=args.frames,
+                           mapping=args.map)
+    for note in result.notes:
+        log.info(note)
+    print(f"{len(result.rig)} cameras x {result.n_frames} frames at {result.fps:g} Hz "
+          f"(video frames {result.start}:{result.stop}) -> {result.root}")
+    return 0
+
+
+def cmd_silhouettes(args: argparse.Namespace) -> int:
+    from data_tools.sequence import OWN, read_sequence
+    from tracker.app.silhouettes import write_sequence_masks
+
+    seq = read_sequence(args.sequence)
+    if seq.layout != OWN:
+        raise InputError("silhouettes are written into sequence folders of this toolkit's layout only",
+                         args.sequence)
+    if seq.mask_paths is not None and not args.overwrite:
+        raise InputError("the sequence already has masks/ (pass --overwrite to replace them)", args.sequence)
+    fractions = write_sequence_masks(seq, args.method)
+    for cam, f in zip(seq.rig.names, fractions):
+        log.info(f"{cam}: the person covers {100 * f:.1f}% of the image on average")
+    print(f"{seq.n_views} cameras x {seq.n_frames} frames of silhouettes ({args.method}) -> {seq.root / 'masks'}")
+    return 0
+
+
+def cmd_initialise(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from data_tools.estimates import read_poses_file
+    from data_tools.files import check_output_file
+    from data_tools.sequence import OWN, read_sequence, write_meta
+    from tracker.app.initialise import initialise, limb_lengths
+
+    check_output_file(args.out, "--out", (".npz",))
+    if args.frames < 1:
+        raise InputError(f"--frames must be at least 1, got {args.frames}")
+    seq = read_sequence(args.sequence)
+    if seq.layout != OWN:
+        raise InputError("initialise writes the fitted shape into meta.json: this toolkit's layout only",
+                         args.sequence)
+    near = None if args.near is None else read_poses_file(args.near, "--near", seq.model)[0]
+    found = initialise(seq, 0, near=near, seed=args.seed)
+    meta = dict(seq.meta)
+    meta["body_shape"] = found.shape.to_dict()
+    write_meta(seq.root, meta)
+    np.savez(args.out, poses=np.tile(found.pose, (args.frames, 1)))
+    lengths = ", ".join(f"{k} {v:.0f}" for k, v in limb_lengths(found.model, found.pose).items())
+    log.info(f"stance {found.stance}, scale {found.scale:g}: standing height {found.height:.0f} mm; {lengths} mm")
+    print(f"first pose (log-likelihood {found.score:.1f}) -> {args.out}; body shape -> {seq.root / 'meta.json'}")
+    return 0
+
+
+def _run_files(run: str) -> tuple[Path, dict]:
+    """A track output folder's estimates.npz and its result.json (empty when absent)."""
+    from data_tools.textfiles import read_json
+
+    folder = Path(run)
+    if not (folder / "estimates.npz").is_file():
+        raise InputError("not a tracked run: no estimates.npz", folder)
+    result = read_json(folder / "result.json", "result.json") if (folder / "result.json").is_file() else {}
+    return folder / "estimates.npz", result if isinstance(result, dict) else {}
+
+
+def _run_sequence(result: dict, given: str | None, run: str):
+    from data_tools.sequence import read_sequence
+
+    path = given or result.get("sequence")
+    if not path:
+        raise InputError("result.json names no sequence: give --sequence DIR", run)
+    return read_sequence(path)
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from data_tools.bvh_export import write_bvh
+    from data_tools.estimates import read_poses_file
+    from data_tools.files import check_output_file
+    from data_tools.trc import write_trc
+    from tracker.core.kinematics import markers
+
+    if not args.bvh and not args.trc:
+        raise InputError("nothing to write: give --bvh FILE.bvh and/or --trc FILE.trc")
+    for path, flag, ext in ((args.bvh, "--bvh", ".bvh"), (args.trc, "--trc", ".trc")):
+        if path:
+            check_output_file(path, flag, (ext,))
+    estimates, result = _run_files(args.run)
+    seq = _run_sequence(result, args.sequence, args.run)
+    poses = read_poses_file(estimates, "estimates", seq.model)
+    fps = seq.fps or 60.0
+    if args.bvh:
+        write_bvh(args.bvh, seq.model, poses, fps, unit=args.unit)
+        print(f"{len(poses)} frames at {fps:g} Hz -> {args.bvh} (BVH, y up, {args.unit})")
+    if args.trc:
+        write_trc(args.trc, seq.model.marker_names, markers(seq.model, poses), fps)
+        print(f"{len(poses)} frames at {fps:g} Hz -> {args.trc} (TRC, y up, m)")
+    return 0
+
+
+def cmd_compare_trc(args: argparse.Namespace) -> int:
+    from data_tools.checks import load_npz
+    from data_tools.reference import compare_to_reference
+    from data_tools.trc import read_trc
+
+    estimates, result = _run_files(args.run)
+    markers = load_npz(estimates, "estimates", ("markers",))["markers"]
+    ref = read_trc(args.reference)
+    offset = args.offset
+    if offset is None:
+        offset = 0
+        if result.get("sequence"):
+            meta = _run_sequence(result, None, args.run).meta
+            offset = int(meta.get("first_video_frame", 0))
+    print(compare_to_reference(markers, ref.names, ref.points, offset=offset).table())
+    return 0
+
+
+COMMANDS = {"import-video": cmd_import_video, "silhouettes": cmd_silhouettes,
+            "initialise": cmd_initialise, "export": cmd_export, "compare-trc": cmd_compare_trc}
+
