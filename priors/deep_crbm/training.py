@@ -3,6 +3,7 @@ first one's hidden activations (:mod:`priors.deep_crbm.model`)."""
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -12,9 +13,9 @@ import torch
 from priors.common import torch_generator
 from priors.contrastive import finish_epoch, minibatches, momentum_step, window_index
 from priors.crbm.model import CRBM, CRBMModel, bernoulli
-from priors.crbm.training import growth_orders, make_windows, train_crbm_prior
+from priors.crbm.training import growth_orders, make_windows, train_crbm_prior, training_windows
 from priors.deep_crbm.model import DeepCRBMModel
-from priors.settings import CRBM_TRAIN_OPTIONS, TopConfig
+from priors.settings import CRBM_TRAIN_OPTIONS, CRBMConfig, TopConfig
 from tracker.core.errors import InputError
 from tracker.engine.registry import TrainingData, resolve_options
 
@@ -39,18 +40,17 @@ def train_top(acts: torch.Tensor, follows: torch.Tensor, config: TopConfig, rng:
               progress: Callable[[int, float], None] | None = None) -> tuple[CRBM, list[float]]:
     """The second layer: a CRBM with binary visible units on the activations ``M x H1`` (windows of ``order + 1``
     consecutive rows of one clip), trained with CD-k (binary hidden samples drive the reconstructions, hidden
-    probabilities in both phases' statistics); returns it and the reconstruction error per epoch."""
+    probabilities in both phases' statistics) for ``config.epochs_for(windows)`` epochs; returns it and the
+    reconstruction error per epoch."""
     cfg = config.check()
     device = acts.device
     g = torch_generator(rng, device)
     H1, N = acts.shape[1], cfg.order
-    run = torch.ones(len(acts), dtype=torch.long)  # length of the run of consecutive rows ending at each row
-    for i in range(1, len(acts)):
-        run[i] = run[i - 1] + 1 if follows[i] else 1
-    ends = torch.nonzero(run >= N + 1).flatten()
+    ends = torch.nonzero(run_lengths(follows) >= N + 1).flatten()
     if len(ends) == 0:
         raise InputError(f"the training clips are too short for a second layer of order {N} on top of the first")
     starts = (ends - N).to(device)
+    cfg = replace(cfg, epochs=cfg.epochs_for(len(starts)))  # the update budget
     top = CRBM(H1, cfg.hidden, N, generator=g, device=device)
     velocity = {k: torch.zeros_like(v) for k, v in top.params().items()}
     rates = {k: cfg.autoregressive_learning_rate if k == "A" else cfg.learning_rate for k in CRBM.PARAMS}
@@ -80,6 +80,20 @@ def train_top(acts: torch.Tensor, follows: torch.Tensor, config: TopConfig, rng:
     return top, errors
 
 
+def run_lengths(follows: torch.Tensor) -> torch.Tensor:
+    """The length ``(M,)`` of the run of consecutive rows ending at each row, from ``follows`` ``(M,)`` (true
+    where a row continues the previous row's clip)."""
+    index = torch.arange(len(follows))
+    first = torch.where(follows, torch.zeros_like(index), index)  # each run's first row, where a run starts
+    return index - torch.cummax(first, 0).values + 1
+
+
+def top_windows(clip_lengths: Sequence[int], bottom_order: int, top_order: int) -> int:
+    """How many windows the second layer of ``top_order`` trains on above a first layer of ``bottom_order``, from
+    clips of ``clip_lengths`` frames: what :meth:`~priors.settings.ContrastiveConfig.epochs_for` counts."""
+    return sum(max(length - 1 - bottom_order - top_order, 0) for length in clip_lengths)
+
+
 def train_deep_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator,
                           progress: Callable[[int, int, dict], None] | None = None,
                           checkpoint: Path | None = None) -> DeepCRBMModel:
@@ -92,13 +106,19 @@ def train_deep_crbm_prior(data: TrainingData, options: dict, rng: np.random.Gene
     bottom_options["checkpoint_every"] = None
     bottom_options["pace_input"] = False  # the second layer is trained on, and samples through, a plain first layer
     top_cfg = TopConfig(order=options["top_order"], hidden=options["top_hidden"], epochs=options["top_epochs"],
-                        cd_k=bottom_options["cd_k"], batch_size=bottom_options["batch_size"]).check()
-    stages = 1 + len(growth_orders(bottom_options["grow_from"], bottom_options["order"]))
-    total = bottom_options["epochs"] * stages + top_cfg.epochs
+                        cd_k=bottom_options["cd_k"], batch_size=bottom_options["batch_size"],
+                        updates=bottom_options["updates"]).check()
+    lengths = [len(c) for c in data.clips]
+    orders = growth_orders(bottom_options["grow_from"], bottom_options["order"]) + [bottom_options["order"]]
+    bottom_cfg = CRBMConfig(epochs=bottom_options["epochs"], batch_size=bottom_options["batch_size"],
+                            updates=bottom_options["updates"])
+    top_epochs = top_cfg.epochs_for(top_windows(lengths, bottom_options["order"], top_cfg.order))
+    total = sum(bottom_cfg.epochs_for(training_windows(lengths, o, bottom_options["validation"]))
+                for o in orders) + top_epochs
     bottom = train_crbm_prior(data, bottom_options, rng, None if progress is None else
                               (lambda done, _, metrics: progress(done, total, metrics)))
     acts, follows = first_layer_activations(bottom, list(data.clips))
-    before = total - top_cfg.epochs
+    before = total - top_epochs
     top, errors = train_top(acts, follows, top_cfg, rng, None if progress is None else
                             (lambda epoch, err: progress(before + epoch, total, {"second layer": err})))
-    return DeepCRBMModel(bottom, top, top_cfg, errors, time.perf_counter() - t0)
+    return DeepCRBMModel(bottom, top, replace(top_cfg, epochs=top_epochs), errors, time.perf_counter() - t0)

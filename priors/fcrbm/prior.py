@@ -206,7 +206,7 @@ def train_fcrbm_prior(data: TrainingData, options: dict, rng: np.random.Generato
     of ``data``, labelled by ``options['labels']`` (one per clip, in clip order)."""
     from priors.crbm.training import growth_orders, parse_history_noise
     from priors.fcrbm.model import parse_labels
-    from priors.fcrbm.training import train_fcrbm
+    from priors.fcrbm.training import train_fcrbm, training_windows
 
     if options["labels"] is None:
         raise InputError("the FCRBM needs one label per training clip: --labels walk,walk,run (labels = "
@@ -215,16 +215,19 @@ def train_fcrbm_prior(data: TrainingData, options: dict, rng: np.random.Generato
     noise = parse_history_noise(options["history_noise"])
     config = FCRBMConfig(order=options["order"], hidden=options["hidden"], factors=options["factors"],
                          features=options["features"], epochs=options["epochs"], cd_k=options["cd_k"],
-                         batch_size=options["batch_size"], learning_rate=options["learning_rate"],
+                         batch_size=options["batch_size"], updates=options["updates"],
+                         learning_rate=options["learning_rate"],
                          autoregressive_learning_rate=options["autoregressive_learning_rate"],
                          history_noise=noise).check()
     orders = growth_orders(options["grow_from"], config.order) + [config.order]
     labels = list(dict.fromkeys(clip_labels))
-    total = config.epochs * len(orders)
+    lengths = [len(c) for c in data.clips]
+    epochs = [config.epochs_for(training_windows(lengths, clip_labels, o, config.balance)) for o in orders]
+    total = sum(epochs)
     models = []
     for i, order in enumerate(orders):
         report = None if progress is None else (
-            lambda epoch, err, before=i * config.epochs: progress(before + epoch, total, {"reconstruction": err}))
+            lambda epoch, err, before=sum(epochs[:i]): progress(before + epoch, total, {"reconstruction": err}))
         models.append(train_fcrbm(list(data.clips), clip_labels, replace(config, order=order), data.fps,
                                   data.body_model.dof_names, data.body_model.name, list(data.sources), report,
                                   rng=rng, labels=labels))
@@ -243,6 +246,9 @@ FCRBM_TRAIN_OPTIONS = (
                                 "(e.g. walk,walk,run); or read from each file: a name pattern or a CSV/TOML/JSON "
                                 "file, and the key, e.g. 'dataset-2_{content}_{style}_{take}#style' (see "
                                 "docs/guide/training.md)"),
+    Option("unlabelled", str, None, "the label of clips that a labels pattern or file gives none (e.g. "
+                                    "'normal' for clips of another corpus), which then train as one more style",
+           default_note="none: such a clip is refused"),
     _crbm_option("order", default=FCRBMConfig.order, help="order N"),
     _crbm_option("hidden", default=FCRBMConfig.hidden),
     Option("factors", int, FCRBMConfig.factors, "factors per sub-model", minimum=1,
@@ -252,6 +258,7 @@ FCRBM_TRAIN_OPTIONS = (
     _crbm_option("epochs", default=FCRBMConfig.epochs),
     _crbm_option("cd_k"),
     _crbm_option("batch_size"),
+    _crbm_option("updates"),
     Option("learning_rate", float, FCRBMConfig.learning_rate, "learning rate", minimum=0.0),
     Option("autoregressive_learning_rate", float, FCRBMConfig.autoregressive_learning_rate,
            "learning rate of the autoregressive and label-to-feature weights", minimum=0.0),

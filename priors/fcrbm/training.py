@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -12,7 +13,7 @@ import torch
 from priors.common import torch_generator
 from priors.contrastive import balanced_starts, finish_epoch, minibatches, momentum_step, window_index
 from priors.crbm.model import bernoulli
-from priors.crbm.training import history_noise_scale, make_windows
+from priors.crbm.training import history_noise_scale, make_windows, window_starts
 from priors.fcrbm.model import FCRBM, FCRBMModel, one_hot
 from priors.settings import FCRBMConfig
 from tracker.core.errors import InputError
@@ -36,17 +37,14 @@ def train_fcrbm(clips: Sequence[np.ndarray], clip_labels: Sequence[str], config:
     data = make_windows(clips, cfg.order, dof_names)
     frames = data.frames.to(device)
     K, N, H = frames.shape[1], cfg.order, cfg.hidden
-    # The label of every window: the clip its start lies in (make_windows keeps T_i - 1 frames of clip i).
-    ends = torch.tensor(np.cumsum([len(c) - 1 for c in clips]))
-    clip_of = torch.searchsorted(ends, data.starts, right=True)
-    label_of_clip = torch.tensor([labels.index(t) for t in clip_labels])
-    window_label = label_of_clip[clip_of]
+    window_label = window_labels([len(c) for c in clips], clip_labels, labels, data.starts)
     for i, label in enumerate(labels):
         if not bool((window_label == i).any()):
             short = [s for s, t in zip(sources, clip_labels) if t == label]
             raise InputError(f"label {label!r} has no clip longer than {N + 2} frames to train order {N} on",
                              ", ".join(Path(s).name for s in short) or None)
     starts = balanced_starts(data.starts, window_label) if cfg.balance else data.starts
+    cfg = replace(cfg, epochs=cfg.epochs_for(len(starts)))  # the update budget
     frame_label = torch.zeros(len(frames), dtype=torch.long)
     frame_label[data.starts] = window_label
     frame_label = frame_label.to(device)
@@ -86,3 +84,23 @@ def train_fcrbm(clips: Sequence[np.ndarray], clip_labels: Sequence[str], config:
         finish_epoch(model.reconstruction_errors, err_sum, count, epoch, "FCRBM", progress)
     model.training_seconds = time.perf_counter() - t0
     return model
+
+
+def window_labels(clip_lengths: Sequence[int], clip_labels: Sequence[str], labels: Sequence[str],
+                  starts: torch.Tensor) -> torch.Tensor:
+    """The label index ``(M,)`` of every window starting at ``starts`` ``(M,)`` (into the features of clips of
+    ``clip_lengths`` frames concatenated, :func:`~priors.crbm.training.make_windows`): its clip's label."""
+    ends = torch.tensor(np.cumsum([length - 1 for length in clip_lengths]))
+    clip_of = torch.searchsorted(ends, starts, right=True)
+    return torch.tensor([list(labels).index(t) for t in clip_labels])[clip_of]
+
+
+def training_windows(clip_lengths: Sequence[int], clip_labels: Sequence[str], order: int, balance: bool) -> int:
+    """How many windows (the rarer labels' repeated when ``balance``) an FCRBM of ``order`` trains on per epoch
+    from clips of ``clip_lengths`` frames labelled ``clip_labels``: what
+    :meth:`~priors.settings.ContrastiveConfig.epochs_for` counts."""
+    starts = window_starts(clip_lengths, order)
+    if not len(starts) or not balance:
+        return len(starts)
+    return len(balanced_starts(starts, window_labels(clip_lengths, clip_labels, list(dict.fromkeys(clip_labels)),
+                                                     starts)))
