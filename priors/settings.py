@@ -16,11 +16,13 @@ from tracker.engine.registry import Option
 
 
 #: Most mini-batch updates of one contrastive-divergence training stage (one order of a model, or a deep model's
-#: second layer) by default: the epochs are cut to ``ceil(UPDATE_BUDGET / mini-batches per epoch)`` when the data
-#: has more windows than that allows. 50,000 updates leave every training set of up to 10,000 windows (at the
-#: default 100 windows per mini-batch and 500 epochs) as it was; the largest shipped training sets have about 4,000,
-#: and the shared corpus (CMU and bandai2, about 77,000 frames at 60 Hz) gets 65 passes.
-UPDATE_BUDGET = 50_000
+#: second layer) by default: where the data has more windows than that allows, the epochs are cut to
+#: ``ceil(updates / mini-batches per epoch)`` (:meth:`ContrastiveConfig.epochs_for`), so that training time stops
+#: growing with the data. 25,000 updates leave every training set of up to 5,000 windows (at 100 windows per
+#: mini-batch and 500 epochs) as it was: the largest the shipped experiments train a CRBM on has about 4,000 (at
+#: 60 Hz), the FCRBM's (its windows balanced over the labels) about 8,300 at 300 epochs. A CRBM update takes about
+#: 5 ms on one CPU core, an FCRBM update about 13 ms.
+UPDATE_BUDGET = 25_000
 
 
 @dataclass
@@ -141,6 +143,10 @@ SPARSE_METHODS = ("dtc", "vfe", "fitc")
 EXACT_MAX_FRAMES = 500
 #: Inducing frames of the auto setting (docs/reference/performance.md has the measurements behind it).
 AUTO_INDUCING = 200
+#: Most training frames of a GPDM by default: a larger corpus is cut to stretches of its clips
+#: (:mod:`priors.gpdm.subset`). Sparse with :data:`AUTO_INDUCING` inducing frames, 3,000 frames train in about a
+#: minute and a half on one core; the shipped experiments train GPDMs on at most about 1,800.
+GPDM_MAX_FRAMES = 3000
 #: Fewest inducing frames a sparse model may have.
 MIN_INDUCING = 10
 #: Largest latent noise (multiples of the predictive standard deviation) of the tracking prior: far beyond any
