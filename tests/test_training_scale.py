@@ -113,3 +113,30 @@ def test_gpdm_trained_on_a_subset_records_it_in_its_file(tmp_path):
     model.save(tmp_path / "g.pt")
     back = load_gpdm_prior(tmp_path / "g.pt")
     assert back.subset == model.subset and back.corpus_frames == model.corpus_frames > 120
+
+
+@pytest.mark.parametrize("prior, stop", [("fcrbm", 5), ("crbm", 2)])  # in the order-3 stage; in the growth stage
+def test_an_interrupted_training_resumes_to_the_same_model(prior, stop, tmp_path):
+    import tracker
+    from data_tools.samples import sample_walks
+
+    asf, walks = sample_walks()
+    settings = dict(skeletons=[asf], order=3, epochs=3, hidden=8, cd_k=2, seed=0, checkpoint_every=1)
+    if prior == "fcrbm":
+        settings.update(labels="a,b", factors=4, features=2)
+    whole = tracker.train(prior, walks[:2], **settings)
+    calls = []
+
+    def interrupt(done, total, metrics):
+        calls.append(done)
+        if len(calls) == stop:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        tracker.train(prior, walks[:2], checkpoint=tmp_path / "c.pt", progress=interrupt, **settings)
+    resumed = tracker.train(prior, walks[:2], checkpoint=tmp_path / "c.pt", resume=True, **settings)
+    net = (lambda m: m.fcrbm) if prior == "fcrbm" else (lambda m: m.crbm)
+    for a, b in [(whole, resumed), (whole.growth[0], resumed.growth[0])]:
+        assert all(torch.equal(v, net(b).state_dict()[k]) for k, v in net(a).state_dict().items())
+        assert a.reconstruction_errors == b.reconstruction_errors
+    assert not (tmp_path / "c.pt").exists()

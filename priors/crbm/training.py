@@ -316,13 +316,14 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
                "stage_orders": orders}
         torch_save_atomic(doc, checkpoint)  # a model is never half-written: the rename is atomic
 
-    for i in range(len(done), len(orders)):  # the lower orders first, on the same clips, each with its own draws
+    first = len(done)  # the stage the resumed state belongs to
+    for i in range(first, len(orders)):  # the lower orders first, on the same clips, each with its own draws
         report = None if progress is None else (
             lambda epoch, err, before=sum(epochs[:i]): progress(before + epoch, total, {"reconstruction": err}))
         model = train_crbm(list(data.clips), replace(config, order=orders[i]), data.fps,
                            data.body_model.dof_names, data.body_model.name, list(data.sources), report,
                            None if checkpoint is None else (save, every), rng=rng,
-                           resume=state if i == len(done) else None)
+                           resume=state if i == first else None)
         if i < len(grow):
             done.append(model)
     model.growth = done

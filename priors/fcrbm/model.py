@@ -53,6 +53,8 @@ from priors.settings import FCRBMConfig
 from tracker.core.errors import InputError
 
 FORMAT = "pose-tracker fcrbm v1"
+#: The format of a training checkpoint (``train --checkpoint-every``), never taken for a model file.
+CHECKPOINT_FORMAT = "pose-tracker fcrbm training checkpoint v1"
 
 #: A label: letters, digits, '_', '-' and '.', starting with a letter or digit.
 LABEL_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$")
