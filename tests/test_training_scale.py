@@ -140,3 +140,29 @@ def test_an_interrupted_training_resumes_to_the_same_model(prior, stop, tmp_path
         assert all(torch.equal(v, net(b).state_dict()[k]) for k, v in net(a).state_dict().items())
         assert a.reconstruction_errors == b.reconstruction_errors
     assert not (tmp_path / "c.pt").exists()
+
+
+@pytest.mark.parametrize("stop", [2, 7])  # in the first layer's order-1 stage; in the second layer
+def test_an_interrupted_deep_crbm_training_resumes_to_the_same_model(stop, tmp_path):
+    import tracker
+    from data_tools.samples import sample_walks
+
+    asf, walks = sample_walks()
+    settings = dict(skeletons=[asf], order=2, epochs=2, hidden=8, cd_k=2, top_order=1, top_hidden=4, top_epochs=4,
+                    seed=0, checkpoint_every=1)
+    whole = tracker.train("deep-crbm", walks[:2], **settings)
+    calls = []
+
+    def interrupt(done, total, metrics):
+        calls.append(done)
+        if len(calls) == stop:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        tracker.train("deep-crbm", walks[:2], checkpoint=tmp_path / "c.pt", progress=interrupt, **settings)
+    assert (tmp_path / "c.pt").exists()
+    resumed = tracker.train("deep-crbm", walks[:2], checkpoint=tmp_path / "c.pt", resume=True, **settings)
+    for a, b in [(whole.bottom.crbm, resumed.bottom.crbm), (whole.bottom.growth[0].crbm, resumed.bottom.growth[0].crbm),
+                 (whole.top, resumed.top)]:
+        assert all(torch.equal(v, b.state_dict()[k]) for k, v in a.state_dict().items())
+    assert whole.reconstruction_errors == resumed.reconstruction_errors and not (tmp_path / "c.pt").exists()
