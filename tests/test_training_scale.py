@@ -12,12 +12,21 @@ from tracker.core.errors import InputError
 
 
 @pytest.fixture(scope="module")
-def walk():
-    from data_tools.load import load_training_clips
+def clips():
+    """Two short walks of the shipped samples, retargeted once for the module (120 frames each at 60 Hz)."""
+    from dataclasses import replace
+
+    import tracker
     from data_tools.samples import sample_walks
 
     asf, walks = sample_walks()
-    return load_training_clips([walks[0]], [asf], 60.0, None, cache=None)[0].poses
+    return [replace(c, poses=c.poses[:120], markers=c.markers[:120], model_markers=c.model_markers[:120])
+            for c in tracker.load_clips(walks[:2], skeletons=[asf])]
+
+
+@pytest.fixture(scope="module")
+def walk(clips):
+    return clips[0].poses
 
 
 def test_epochs_are_cut_to_the_update_budget_only_where_they_exceed_it():
@@ -55,18 +64,16 @@ def test_a_budget_that_does_not_bind_gives_the_same_model_and_one_that_binds_cut
     assert cut.reconstruction_errors == free.reconstruction_errors[:3]  # the same draws, stopped sooner
 
 
-def test_fcrbm_and_deep_crbm_progress_counts_the_cut_epochs():
+def test_fcrbm_and_deep_crbm_progress_counts_the_cut_epochs(clips):
     import tracker
-    from data_tools.samples import sample_walks
 
-    asf, walks = sample_walks()
-    small = dict(skeletons=[asf], hidden=8, cd_k=1, seed=0, updates=4, grow_from="none")
+    small = dict(hidden=8, cd_k=1, seed=0, updates=2, grow_from="none")
     seen = []
-    model = tracker.train("fcrbm", walks[:2], labels="a,b", order=1, epochs=50, factors=4, features=2,
+    model = tracker.train("fcrbm", clips, labels="a,b", order=1, epochs=50, factors=4, features=2,
                           progress=lambda done, total, _: seen.append((done, total)), **small)
     assert model.config.epochs == len(model.reconstruction_errors) == seen[-1][0] == seen[-1][1] < 50
     seen.clear()
-    deep = tracker.train("deep-crbm", walks[:2], order=1, epochs=50, top_order=1, top_hidden=4, top_epochs=50,
+    deep = tracker.train("deep-crbm", clips, order=1, epochs=50, top_order=1, top_hidden=4, top_epochs=50,
                          progress=lambda done, total, _: seen.append((done, total)), **small)
     assert seen[-1][0] == seen[-1][1] == len(deep.bottom.reconstruction_errors) + len(deep.reconstruction_errors) < 100
     assert deep.top_config.epochs == len(deep.reconstruction_errors)
@@ -101,13 +108,11 @@ def test_gpdm_subset_keeps_small_corpora_whole_and_spreads_a_large_one_over_fold
     assert again == picked
 
 
-def test_gpdm_trained_on_a_subset_records_it_in_its_file(tmp_path):
+def test_gpdm_trained_on_a_subset_records_it_in_its_file(clips, tmp_path):
     import tracker
-    from data_tools.samples import sample_walks
     from priors.gpdm.file import load_gpdm_prior
 
-    asf, walks = sample_walks()
-    model = tracker.train("gpdm", walks[:2], skeletons=[asf], iterations=2, max_frames=120, seed=0)
+    model = tracker.train("gpdm", clips, iterations=2, max_frames=120, seed=0)
     assert model.subset is not None and sum(s.stop - s.start for s in model.subset) == len(model.gpdm.Y) + 2
     assert "a subset: 2 stretch(es) of 2 clip(s)" in model.summary()
     model.save(tmp_path / "g.pt")
@@ -116,15 +121,13 @@ def test_gpdm_trained_on_a_subset_records_it_in_its_file(tmp_path):
 
 
 @pytest.mark.parametrize("prior, stop", [("fcrbm", 5), ("crbm", 2)])  # in the order-3 stage; in the growth stage
-def test_an_interrupted_training_resumes_to_the_same_model(prior, stop, tmp_path):
+def test_an_interrupted_training_resumes_to_the_same_model(prior, stop, clips, tmp_path):
     import tracker
-    from data_tools.samples import sample_walks
 
-    asf, walks = sample_walks()
-    settings = dict(skeletons=[asf], order=3, epochs=3, hidden=8, cd_k=2, seed=0, checkpoint_every=1)
+    settings = dict(order=3, epochs=3, hidden=8, cd_k=2, seed=0, checkpoint_every=1)
     if prior == "fcrbm":
         settings.update(labels="a,b", factors=4, features=2)
-    whole = tracker.train(prior, walks[:2], **settings)
+    whole = tracker.train(prior, clips, **settings)
     calls = []
 
     def interrupt(done, total, metrics):
@@ -133,8 +136,8 @@ def test_an_interrupted_training_resumes_to_the_same_model(prior, stop, tmp_path
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        tracker.train(prior, walks[:2], checkpoint=tmp_path / "c.pt", progress=interrupt, **settings)
-    resumed = tracker.train(prior, walks[:2], checkpoint=tmp_path / "c.pt", resume=True, **settings)
+        tracker.train(prior, clips, checkpoint=tmp_path / "c.pt", progress=interrupt, **settings)
+    resumed = tracker.train(prior, clips, checkpoint=tmp_path / "c.pt", resume=True, **settings)
     net = (lambda m: m.fcrbm) if prior == "fcrbm" else (lambda m: m.crbm)
     for a, b in [(whole, resumed), (whole.growth[0], resumed.growth[0])]:
         assert all(torch.equal(v, net(b).state_dict()[k]) for k, v in net(a).state_dict().items())
@@ -143,14 +146,12 @@ def test_an_interrupted_training_resumes_to_the_same_model(prior, stop, tmp_path
 
 
 @pytest.mark.parametrize("stop", [2, 7])  # in the first layer's order-1 stage; in the second layer
-def test_an_interrupted_deep_crbm_training_resumes_to_the_same_model(stop, tmp_path):
+def test_an_interrupted_deep_crbm_training_resumes_to_the_same_model(stop, clips, tmp_path):
     import tracker
-    from data_tools.samples import sample_walks
 
-    asf, walks = sample_walks()
-    settings = dict(skeletons=[asf], order=2, epochs=2, hidden=8, cd_k=2, top_order=1, top_hidden=4, top_epochs=4,
+    settings = dict(order=2, epochs=2, hidden=8, cd_k=2, top_order=1, top_hidden=4, top_epochs=4,
                     seed=0, checkpoint_every=1)
-    whole = tracker.train("deep-crbm", walks[:2], **settings)
+    whole = tracker.train("deep-crbm", clips, **settings)
     calls = []
 
     def interrupt(done, total, metrics):
@@ -159,9 +160,9 @@ def test_an_interrupted_deep_crbm_training_resumes_to_the_same_model(stop, tmp_p
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        tracker.train("deep-crbm", walks[:2], checkpoint=tmp_path / "c.pt", progress=interrupt, **settings)
+        tracker.train("deep-crbm", clips, checkpoint=tmp_path / "c.pt", progress=interrupt, **settings)
     assert (tmp_path / "c.pt").exists()
-    resumed = tracker.train("deep-crbm", walks[:2], checkpoint=tmp_path / "c.pt", resume=True, **settings)
+    resumed = tracker.train("deep-crbm", clips, checkpoint=tmp_path / "c.pt", resume=True, **settings)
     for a, b in [(whole.bottom.crbm, resumed.bottom.crbm), (whole.bottom.growth[0].crbm, resumed.bottom.growth[0].crbm),
                  (whole.top, resumed.top)]:
         assert all(torch.equal(v, b.state_dict()[k]) for k, v in a.state_dict().items())
