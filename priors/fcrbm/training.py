@@ -90,13 +90,15 @@ def train_fcrbm(clips: Sequence[np.ndarray], clip_labels: Sequence[str], config:
                 if cfg.history_noise:
                     hist = hist + torch.randn(hist.shape, generator=g, device=device) * noise
                 y = one_hot(frame_label[batch], len(labels))
-                s = net.style_factors(y)
-                a_hat, b_hat = net.biases(hist, s)
+                shared = net.conditioning(hist, y)  # computed once for the biases and both phases
+                s = shared[1]
+                a_hat, b_hat = net.biases(hist, s, shared[2:])
                 h = bernoulli(net.hidden_probabilities(v0, s, b_hat), g)
                 for _ in range(cfg.cd_k):
                     vk = net.visible_means(h, s, a_hat)
                     h = bernoulli(net.hidden_probabilities(vk, s, b_hat), g)
-                pos, neg = net.free_energy_gradients(v0, hist, y), net.free_energy_gradients(vk, hist, y)
+                pos = net.free_energy_gradients(v0, hist, y, shared)
+                neg = net.free_energy_gradients(vk, hist, y, shared)
                 ascent = {k: neg[k] - pos[k] for k in pos}  # lower F at the data, raise it at the reconstructions
                 ar = ascent.pop("Z_autoregressive")
                 ascent["Z"] = ascent["Z"] - ar + ar_share * ar
