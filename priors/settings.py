@@ -20,8 +20,8 @@ from tracker.engine.registry import Option
 #: ``ceil(updates / mini-batches per epoch)`` (:meth:`ContrastiveConfig.epochs_for`), so that training time stops
 #: growing with the data. 25,000 updates leave every training set of up to 5,000 windows (at 100 windows per
 #: mini-batch and 500 epochs) as it was: the largest the shipped experiments train a CRBM on has about 4,000 (at
-#: 60 Hz), the FCRBM's (its windows balanced over the labels) about 8,300 at 300 epochs. A CRBM update takes about
-#: 5 ms on one CPU core, an FCRBM update about 13 ms.
+#: 60 Hz), the FCRBM's (its windows balanced over the labels) about 8,300 at 300 epochs. On two CPU cores a CRBM
+#: stage then takes at most about two minutes (docs/guide/training.md, "Large corpora", has the measurements).
 UPDATE_BUDGET = 25_000
 
 
@@ -144,8 +144,8 @@ EXACT_MAX_FRAMES = 500
 #: Inducing frames of the auto setting (docs/reference/performance.md has the measurements behind it).
 AUTO_INDUCING = 200
 #: Most training frames of a GPDM by default: a larger corpus is cut to stretches of its clips
-#: (:mod:`priors.gpdm.subset`). Sparse with :data:`AUTO_INDUCING` inducing frames, 3,000 frames train in about a
-#: minute and a half on one core; the shipped experiments train GPDMs on at most about 1,800.
+#: (:mod:`priors.gpdm.subset`), so that the training's cost stops growing with the corpus (sparse, with
+#: :data:`AUTO_INDUCING` inducing frames); the shipped experiments train GPDMs on at most about 1,800.
 GPDM_MAX_FRAMES = 3000
 #: Fewest inducing frames a sparse model may have.
 MIN_INDUCING = 10
