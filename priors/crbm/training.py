@@ -20,7 +20,7 @@ import numpy as np
 import torch
 
 from priors.common import read_model_file, torch_generator, torch_save_atomic
-from priors.contrastive import finish_epoch, minibatches, momentum_step
+from priors.contrastive import finish_epoch, minibatches, momentum_step, on_one_thread
 from priors.crbm.file import model_from_document
 from priors.crbm.model import CHECKPOINT_FORMAT, CRBM, INPUT_SETTINGS, CRBMConfig, CRBMModel, bernoulli
 from priors.settings import PACE_SPREAD_FOR_INPUT
@@ -81,6 +81,7 @@ def history_noise_scale(data: WindowData) -> torch.Tensor:
 
 
 
+@on_one_thread
 def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_names: Sequence[str],
                body_model: str = "15-cone", sources: Sequence[str] = (),
                progress: Callable[[int, float], None] | None = None,

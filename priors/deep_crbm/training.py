@@ -11,7 +11,7 @@ import numpy as np
 import torch
 
 from priors.common import read_model_file, torch_generator, torch_save_atomic
-from priors.contrastive import finish_epoch, minibatches, momentum_step, window_index
+from priors.contrastive import finish_epoch, minibatches, momentum_step, on_one_thread, window_index
 from priors.crbm.model import CRBM, CRBMModel, bernoulli
 from priors.crbm.training import growth_orders, make_windows, train_crbm_prior, training_windows
 from priors.crbm.file import model_from_document
@@ -37,6 +37,7 @@ def first_layer_activations(model: CRBMModel, clips: Sequence[np.ndarray]) -> tu
     return acts, follows
 
 
+@on_one_thread
 def train_top(acts: torch.Tensor, follows: torch.Tensor, config: TopConfig, rng: np.random.Generator,
               progress: Callable[[int, float], None] | None = None,
               checkpoint: tuple[Callable[[CRBM, dict], None], int] | None = None,

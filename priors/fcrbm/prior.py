@@ -287,7 +287,7 @@ FCRBM_TRAIN_OPTIONS = (
     _crbm_option("epochs", default=FCRBMConfig.epochs),
     _crbm_option("cd_k"),
     _crbm_option("batch_size"),
-    _crbm_option("updates"),
+    _crbm_option("updates", default=FCRBMConfig.updates),
     Option("learning_rate", float, FCRBMConfig.learning_rate, "learning rate", minimum=0.0),
     Option("autoregressive_learning_rate", float, FCRBMConfig.autoregressive_learning_rate,
            "learning rate of the autoregressive and label-to-feature weights", minimum=0.0),

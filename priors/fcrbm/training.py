@@ -11,7 +11,7 @@ import numpy as np
 import torch
 
 from priors.common import torch_generator
-from priors.contrastive import balanced_starts, finish_epoch, minibatches, momentum_step, window_index
+from priors.contrastive import balanced_starts, finish_epoch, minibatches, momentum_step, on_one_thread, window_index
 from priors.crbm.model import bernoulli
 from priors.crbm.training import history_noise_scale, make_windows, window_starts
 from priors.fcrbm.model import FCRBM, FCRBMModel, one_hot
@@ -20,6 +20,7 @@ from tracker.core.errors import InputError
 from tracker.core.representation import step_rms
 
 
+@on_one_thread
 def train_fcrbm(clips: Sequence[np.ndarray], clip_labels: Sequence[str], config: FCRBMConfig, fps: float,
                 dof_names: Sequence[str], body_model: str = "15-cone", sources: Sequence[str] = (),
                 progress: Callable[[int, float], None] | None = None, device: str = "cpu", *,
