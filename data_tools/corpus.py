@@ -94,9 +94,18 @@ class LabelSource:
             raise InputError(f"labels: no key {missing[0]!r} (the keys: {', '.join(labels) or 'none'})", path)
         return ".".join(labels[k] for k in keys)
 
-    def training_labels(self, sources: Sequence[str | Path]) -> list[str]:
-        """One training label per clip of ``sources``, in their order."""
-        return [self.label_of(s) for s in sources]
+    def training_labels(self, sources: Sequence[str | Path], unlabelled: str | None = None) -> list[str]:
+        """One training label per clip of ``sources``, in their order; a clip the source gives no label (its name
+        does not match, the sidecar lacks it or its key) is refused, or labelled ``unlabelled`` when given."""
+        labels = []
+        for s in sources:
+            try:
+                labels.append(self.label_of(s))
+            except InputError:
+                if unlabelled is None:
+                    raise
+                labels.append(unlabelled)
+        return labels
 
 
 def is_label_source(text: object) -> bool:

@@ -6,12 +6,27 @@ re-export them) load only when a prior is built or trained.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from numbers import Integral
 from typing import ClassVar
 
 from tracker.core.errors import InputError
 from tracker.engine.registry import Option
+
+
+#: Most mini-batch updates of one contrastive-divergence training stage (one order of a model, or a deep model's
+#: second layer) by default: where the data has more windows than that allows, the epochs are cut to
+#: ``ceil(updates / mini-batches per epoch)`` (:meth:`ContrastiveConfig.epochs_for`), so that training time stops
+#: growing with the data. 50,000 updates leave every training set of up to 10,000 windows (at 100 windows per
+#: mini-batch and 500 epochs) as it was: the shipped experiments train a CRBM on at most about 4,000 windows (at
+#: 60 Hz), and CMU's shared walks, runs, punches and kicks without one subject about 9,400. On two CPU cores a
+#: CRBM stage then takes at most about a minute and a half (docs/guide/training.md, "Large corpora", has the
+#: measurements).
+UPDATE_BUDGET = 50_000
+#: The FCRBM's budget: an update costs about two and a half CRBM updates; 25,000 leave its shipped training sets
+#: (at most about 8,300 label-balanced windows at 300 epochs) as they were.
+FCRBM_UPDATE_BUDGET = 25_000
 
 
 @dataclass
@@ -28,11 +43,19 @@ class ContrastiveConfig:
     autoregressive_learning_rate: float = 1e-5
     momentum: float = 0.9
     weight_decay: float = 2e-4
+    #: Most mini-batch updates of the training (:meth:`epochs_for`): the epochs adapt to the data's size.
+    updates: int = UPDATE_BUDGET
 
     #: What messages call the model.
     KIND: ClassVar[str] = "CRBM"
     #: The settings that count something and must be whole numbers of at least 1.
-    COUNTS: ClassVar[tuple[str, ...]] = ("order", "hidden", "epochs", "cd_k", "batch_size")
+    COUNTS: ClassVar[tuple[str, ...]] = ("order", "hidden", "epochs", "cd_k", "batch_size", "updates")
+
+    def epochs_for(self, windows: int) -> int:
+        """The epochs a training on ``windows`` training windows runs: ``epochs``, or fewer where they would take
+        more than ``updates`` mini-batch updates, ``ceil(updates / ceil(windows / batch_size))``."""
+        batches = max(math.ceil(windows / self.batch_size), 1)
+        return min(self.epochs, math.ceil(self.updates / batches))
 
     def check(self):
         """The config itself, checked: counts whole and at least 1, rates and weight decay in [0, 1), momentum in
@@ -99,6 +122,7 @@ class FCRBMConfig(ContrastiveConfig):
     with the paper's defaults, and the factors, style features, history noise and label balance."""
 
     epochs: int = 300
+    updates: int = FCRBM_UPDATE_BUDGET
     learning_rate: float = 1e-2
     autoregressive_learning_rate: float = 1e-3
     factors: int = 100
@@ -124,6 +148,10 @@ SPARSE_METHODS = ("dtc", "vfe", "fitc")
 EXACT_MAX_FRAMES = 500
 #: Inducing frames of the auto setting (docs/reference/performance.md has the measurements behind it).
 AUTO_INDUCING = 200
+#: Most training frames of a GPDM by default: a larger corpus is cut to stretches of its clips
+#: (:mod:`priors.gpdm.subset`), so that the training's cost stops growing with the corpus (sparse, with
+#: :data:`AUTO_INDUCING` inducing frames); the shipped experiments train GPDMs on at most about 1,800.
+GPDM_MAX_FRAMES = 3000
 #: Fewest inducing frames a sparse model may have.
 MIN_INDUCING = 10
 #: Largest latent noise (multiples of the predictive standard deviation) of the tracking prior: far beyond any
@@ -177,8 +205,11 @@ PACE_SPREAD_FOR_INPUT = 0.1
 CRBM_TRAIN_OPTIONS = (
     Option("order", int, CRBMConfig.order, "CRBM order N", minimum=1, maximum=100),
     Option("hidden", int, CRBMConfig.hidden, "hidden units", minimum=1, maximum=100000),
-    Option("epochs", int, CRBMConfig.epochs, "passes through the data", minimum=1,
-           maximum=1000000),
+    Option("epochs", int, CRBMConfig.epochs, "passes through the data (fewer where they exceed --updates)",
+           minimum=1, maximum=1000000),
+    Option("updates", int, CRBMConfig.updates, "most mini-batch updates: on a large corpus the epochs are cut to "
+           "ceil(updates / mini-batches per epoch), so that training time stops growing with the data",
+           minimum=1, maximum=10 ** 9),
     Option("cd_k", int, CRBMConfig.cd_k, "Gibbs steps of contrastive divergence", minimum=1,
            maximum=10000),
     Option("batch_size", int, CRBMConfig.batch_size, "windows per mini-batch", minimum=1,

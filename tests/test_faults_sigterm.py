@@ -213,6 +213,10 @@ TRAINING = {
              "epoch"),
     "gpdm": (["train", "--prior", "gpdm", "--mocap", str(WALKS[0]), "--iterations", "40", "--latent-dim", "2"],
              "done"),
+    "fcrbm": (["train", "--prior", "fcrbm", "--mocap", str(WALKS[0]), "--labels", "walk", "--order", "1", "--epochs",
+               "6", "--hidden", "8", "--factors", "4", "--features", "2"], "epoch"),
+    "deep-crbm": (["train", "--prior", "deep-crbm", "--mocap", str(WALKS[0]), "--order", "1", "--epochs", "3",
+                   "--hidden", "8", "--top-order", "1", "--top-hidden", "4", "--top-epochs", "3"], "epoch"),
 }
 
 
@@ -238,6 +242,8 @@ def whole_models(tmp_path_factory):
     ("gpdm", None, 0, None),
     ("gpdm", "20", 10, 10),  # the progress of a chunk is reported once its state is kept
     ("gpdm", "20", 30, 30),
+    ("fcrbm", "3", 5, 4),
+    ("deep-crbm", None, 5, 1),  # in the second layer, two epochs after the first layer's three
 ], ids=lambda v: str(v))
 def test_train_stopped_by_sigterm_resumes_to_the_uninterrupted_model(prior, every, at, kept, whole_models, tmp_path,
                                                                       capsys, monkeypatch):

@@ -20,7 +20,7 @@ import numpy as np
 import torch
 
 from priors.common import read_model_file, torch_generator, torch_save_atomic
-from priors.contrastive import finish_epoch, minibatches, momentum_step
+from priors.contrastive import finish_epoch, minibatches, momentum_step, on_one_thread
 from priors.crbm.file import model_from_document
 from priors.crbm.model import CHECKPOINT_FORMAT, CRBM, INPUT_SETTINGS, CRBMConfig, CRBMModel, bernoulli
 from priors.settings import PACE_SPREAD_FOR_INPUT
@@ -47,16 +47,29 @@ def make_windows(clips: Sequence[np.ndarray], order: int, dof_names: Sequence[st
     """The training windows of ``clips``; with ``pace_window`` (frames) also every frame's log pace."""
     normed, normaliser = clip_features(clips, dof_names, normaliser)
     pace = None if pace_window is None else np.concatenate([clip_log_pace(c, pace_window) for c in clips])
-    starts, offset = [], 0
-    for f in normed:
-        n = len(f) - order
-        if n > 0:
-            starts.append(offset + np.arange(n))
-        offset += len(f)
-    if not starts:
+    starts = window_starts([len(c) for c in clips], order)
+    if not len(starts):
         raise InputError(f"the training clips are too short for order {order} (need more than {order + 2} frames)")
-    return WindowData(torch.tensor(np.concatenate(normed), dtype=torch.float32),
-                      torch.tensor(np.concatenate(starts)), normaliser, pace)
+    return WindowData(torch.tensor(np.concatenate(normed), dtype=torch.float32), starts, normaliser, pace)
+
+
+def window_starts(clip_lengths: Sequence[int], order: int) -> torch.Tensor:
+    """The start indices ``(M,)`` of the (``order`` + 1)-frame windows of clips of ``clip_lengths`` frames, into
+    their features concatenated (each clip keeps ``T_i - 1`` frames, :func:`make_windows`)."""
+    starts, offset = [np.zeros(0, np.int64)], 0
+    for length in clip_lengths:
+        starts.append(offset + np.arange(max(length - 1 - order, 0)))
+        offset += max(length - 1, 0)
+    return torch.tensor(np.concatenate(starts))
+
+
+def training_windows(clip_lengths: Sequence[int], order: int, validation: float) -> int:
+    """How many windows a CRBM of ``order`` trains on from clips of ``clip_lengths`` frames, after the validation
+    split (:func:`split_validation`): what :meth:`~priors.settings.ContrastiveConfig.epochs_for` counts."""
+    starts = window_starts(clip_lengths, order)
+    if not len(starts):
+        return 0
+    return len(split_validation(starts, clip_lengths, order, validation)[0])
 
 
 
@@ -68,6 +81,7 @@ def history_noise_scale(data: WindowData) -> torch.Tensor:
 
 
 
+@on_one_thread
 def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_names: Sequence[str],
                body_model: str = "15-cone", sources: Sequence[str] = (),
                progress: Callable[[int, float], None] | None = None,
@@ -105,6 +119,7 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
                       pace_label=pace_label)
     starts, held_out = split_validation(data.starts, [len(c) for c in clips], N, cfg.validation)
     starts, held_out = starts.to(device), held_out.to(device)
+    cfg = model.config = replace(cfg, epochs=cfg.epochs_for(len(starts)))  # the update budget
 
     def windows(window_starts: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """The frames to predict ``B x K`` and their conditioning inputs ``B x (C + N K)`` (the pace of the frame
@@ -267,13 +282,16 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
     if pace_input is None:  # auto: only clips of several paces can teach the model what a pace means
         pace_input = paces_vary(list(data.clips), data.fps)
     config = CRBMConfig(order=options["order"], hidden=options["hidden"], epochs=options["epochs"],
-                        cd_k=options["cd_k"], batch_size=options["batch_size"], history_noise=noise,
+                        cd_k=options["cd_k"], batch_size=options["batch_size"], updates=options["updates"],
+                        history_noise=noise,
                         sparsity_target=options["sparsity"], pace_input=pace_input,
                         validation=options["validation"]).check()
     grow = growth_orders(options["grow_from"], config.order)
     every = options["checkpoint_every"] or 0
     orders = grow + [config.order]
-    total = config.epochs * len(orders)
+    lengths = [len(c) for c in data.clips]
+    epochs = [config.epochs_for(training_windows(lengths, o, config.validation)) for o in orders]
+    total = sum(epochs)
     done: list[CRBMModel] = []
     state = None
     if resume:  # the growth models finished before, and the training state of the one in progress
@@ -299,13 +317,14 @@ def train_crbm_prior(data: TrainingData, options: dict, rng: np.random.Generator
                "stage_orders": orders}
         torch_save_atomic(doc, checkpoint)  # a model is never half-written: the rename is atomic
 
-    for i in range(len(done), len(orders)):  # the lower orders first, on the same clips, each with its own draws
+    first = len(done)  # the stage the resumed state belongs to
+    for i in range(first, len(orders)):  # the lower orders first, on the same clips, each with its own draws
         report = None if progress is None else (
-            lambda epoch, err, before=i * config.epochs: progress(before + epoch, total, {"reconstruction": err}))
+            lambda epoch, err, before=sum(epochs[:i]): progress(before + epoch, total, {"reconstruction": err}))
         model = train_crbm(list(data.clips), replace(config, order=orders[i]), data.fps,
                            data.body_model.dof_names, data.body_model.name, list(data.sources), report,
                            None if checkpoint is None else (save, every), rng=rng,
-                           resume=state if i == len(done) else None)
+                           resume=state if i == first else None)
         if i < len(grow):
             done.append(model)
     model.growth = done

@@ -34,6 +34,8 @@ from priors.crbm.model import CRBM, CRBMModel, bernoulli_
 from priors.settings import TopConfig
 
 FORMAT = "pose-tracker deep-crbm v1"
+#: The format of a training checkpoint saved while the second layer trains (while the first trains, the CRBM's).
+CHECKPOINT_FORMAT = "pose-tracker deep-crbm training checkpoint v1"
 
 
 def deep_gibbs(bottom: CRBM, top: CRBM, history: torch.Tensor, steps: int, generator: torch.Generator | None

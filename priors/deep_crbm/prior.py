@@ -69,15 +69,15 @@ class DeepCRBMPrior(CRBMPrior):
 
 def train_deep_crbm_from_data(data: TrainingData, options: dict, rng: np.random.Generator,
                               progress: Callable[[int, int, dict], None] | None = None,
-                              checkpoint: Path | None = None) -> DeepCRBMModel:
+                              checkpoint: Path | None = None, resume: bool = False) -> DeepCRBMModel:
     """``train --prior deep-crbm``: :func:`priors.deep_crbm.training.train_deep_crbm_prior` (imported, with torch,
     when called)."""
     from priors.deep_crbm.training import train_deep_crbm_prior
 
-    return train_deep_crbm_prior(data, options, rng, progress, checkpoint)
+    return train_deep_crbm_prior(data, options, rng, progress, checkpoint, resume)
 
 
-DEEP_TRAIN_OPTIONS = tuple(o for o in CRBM_TRAIN_OPTIONS if o.name not in ("checkpoint_every", "pace_input")) + (
+DEEP_TRAIN_OPTIONS = tuple(o for o in CRBM_TRAIN_OPTIONS if o.name != "pace_input") + (
     Option("top_order", int, TopConfig.order, "order M of the second layer", minimum=1, maximum=100),
     Option("top_hidden", int, TopConfig.hidden, "hidden units of the second layer", minimum=1,
            maximum=100000),
@@ -88,7 +88,7 @@ DEEP_TRAIN_OPTIONS = tuple(o for o in CRBM_TRAIN_OPTIONS if o.name not in ("chec
 
 @register_prior(
     "deep-crbm", summary="two-layer CRBM (Taylor 2009, Sec. 4.3): a second CRBM on the first one's hidden units",
-    model_files="one", train=train_deep_crbm_from_data, train_options=DEEP_TRAIN_OPTIONS,
+    model_files="one", train=train_deep_crbm_from_data, train_options=DEEP_TRAIN_OPTIONS, resumable=True,
     options=(gibbs_steps_option(30), *GroundDiffusion.OPTIONS, *HeightOffset.OPTIONS, *PostureOffset.OPTIONS))
 def build_deep_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> DeepCRBMPrior:
     from priors.deep_crbm.file import load_deep_crbm

@@ -20,6 +20,12 @@ def load_fcrbm(path: str | Path, device: str = "cpu") -> FCRBMModel:
     return _from_document(read_model_file(path, FORMAT, "FCRBM"), path, device)
 
 
+def model_from_document(doc: dict, path: Path, device: str = "cpu") -> FCRBMModel:
+    """An FCRBM model (with its growth models) from a model file's or training checkpoint's dictionary, checked as
+    :func:`load_fcrbm` checks a file."""
+    return _from_document(doc, path, device)
+
+
 def _check_labels(labels: Any, path: Path) -> list[str]:
     if not isinstance(labels, list) or not labels or not all(isinstance(t, str) for t in labels):
         raise InputError("FCRBM model file's labels must be a non-empty list of strings", path)

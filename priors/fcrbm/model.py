@@ -53,6 +53,8 @@ from priors.settings import FCRBMConfig
 from tracker.core.errors import InputError
 
 FORMAT = "pose-tracker fcrbm v1"
+#: The format of a training checkpoint (``train --checkpoint-every``), never taken for a model file.
+CHECKPOINT_FORMAT = "pose-tracker fcrbm training checkpoint v1"
 
 #: A label: letters, digits, '_', '-' and '.', starting with a letter or digit.
 LABEL_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$")
@@ -143,9 +145,19 @@ class FCRBM:
         """The style's input ``B x F`` to every factor from label rows ``y`` ``B x P`` (one-hot or blends)."""
         return (y @ self.R) @ self.Z
 
-    def biases(self, history: torch.Tensor, s: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Dynamic biases ``a_hat`` ``B x K`` and ``b_hat`` ``B x H`` from histories ``B x NK`` and style factors."""
-        return (self.a + ((history @ self.Ap) * s) @ self.Av.T, self.b + ((history @ self.Bp) * s) @ self.Bh.T)
+    def biases(self, history: torch.Tensor, s: torch.Tensor,
+               projected: tuple[torch.Tensor, torch.Tensor] | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        """Dynamic biases ``a_hat`` ``B x K`` and ``b_hat`` ``B x H`` from histories ``B x NK`` and style factors
+        (``projected``: the histories' ``history @ Ap`` and ``history @ Bp`` where already computed)."""
+        ap, bp = projected if projected is not None else (history @ self.Ap, history @ self.Bp)
+        return self.a + (ap * s) @ self.Av.T, self.b + (bp * s) @ self.Bh.T
+
+    def conditioning(self, history: torch.Tensor, y: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        """What a training step computes once from histories ``B x NK`` and labels ``B x P`` for both phases: the
+        style features ``y R`` ``B x L``, the style factors ``B x F`` and the projected histories ``history @ Ap``
+        and ``history @ Bp`` ``B x F`` (the same numbers :meth:`style_factors` and :meth:`biases` compute)."""
+        zs = y @ self.R
+        return zs, zs @ self.Z, history @ self.Ap, history @ self.Bp
 
     def hidden_probabilities(self, v: torch.Tensor, s: torch.Tensor, b_hat: torch.Tensor) -> torch.Tensor:
         return torch.sigmoid(b_hat + ((v @ self.Wv) * s) @ self.Wh.T)
@@ -160,15 +172,15 @@ class FCRBM:
         x = b_hat + ((v @ self.Wv) * s) @ self.Wh.T
         return 0.5 * ((v - a_hat) ** 2).sum(-1) - torch.nn.functional.softplus(x).sum(-1)
 
-    def free_energy_gradients(self, v: torch.Tensor, history: torch.Tensor, y: torch.Tensor
-                              ) -> dict[str, torch.Tensor]:
+    def free_energy_gradients(self, v: torch.Tensor, history: torch.Tensor, y: torch.Tensor,
+                              conditioning: tuple[torch.Tensor, ...] | None = None) -> dict[str, torch.Tensor]:
         """The batch mean of ``dF/dtheta`` for every parameter (eqs. 5.14-5.23 up to sign: the CD statistic of a
         phase), plus ``'Z_autoregressive'``, the part of ``dF/dZ`` that reaches the tied ``Z`` through the
-        autoregressive sub-model (it learns at the autoregressive rate)."""
+        autoregressive sub-model (it learns at the autoregressive rate). ``conditioning``: :meth:`conditioning`
+        of ``history`` and ``y``, where already computed."""
         n = len(v)
-        zs = y @ self.R
-        s = zs @ self.Z
-        ap, bp, fv = history @ self.Ap, history @ self.Bp, v @ self.Wv
+        zs, s, ap, bp = conditioning if conditioning is not None else self.conditioning(history, y)
+        fv = v @ self.Wv
         am, bm = ap * s, bp * s
         e = v - (self.a + am @ self.Av.T)                       # -dF/da_hat
         p = torch.sigmoid(self.b + bm @ self.Bh.T + (fv * s) @ self.Wh.T)  # -dF/db_hat

@@ -201,12 +201,18 @@ class FCRBMPrior(ConditionalPrior):
 
 def train_fcrbm_prior(data: TrainingData, options: dict, rng: np.random.Generator,
                       progress: Callable[[int, int, dict], None] | None = None,
-                      checkpoint: Path | None = None) -> FCRBMModel:
+                      checkpoint: Path | None = None, resume: bool = False) -> FCRBMModel:
     """``train --prior fcrbm``: an FCRBM of ``options['order']`` (and the lower orders it grows from) on the clips
-    of ``data``, labelled by ``options['labels']`` (one per clip, in clip order)."""
+    of ``data``, labelled by ``options['labels']`` (one per clip, in clip order). With ``checkpoint`` (a file) the
+    training state is saved there every ``checkpoint_every`` epochs and when the training is interrupted;
+    ``resume`` continues from it to the model an uninterrupted run gives."""
+    from copy import copy
+
+    from priors.common import read_model_file, torch_save_atomic
     from priors.crbm.training import growth_orders, parse_history_noise
-    from priors.fcrbm.model import parse_labels
-    from priors.fcrbm.training import train_fcrbm
+    from priors.fcrbm.file import model_from_document
+    from priors.fcrbm.model import CHECKPOINT_FORMAT, parse_labels
+    from priors.fcrbm.training import train_fcrbm, training_windows
 
     if options["labels"] is None:
         raise InputError("the FCRBM needs one label per training clip: --labels walk,walk,run (labels = "
@@ -215,21 +221,47 @@ def train_fcrbm_prior(data: TrainingData, options: dict, rng: np.random.Generato
     noise = parse_history_noise(options["history_noise"])
     config = FCRBMConfig(order=options["order"], hidden=options["hidden"], factors=options["factors"],
                          features=options["features"], epochs=options["epochs"], cd_k=options["cd_k"],
-                         batch_size=options["batch_size"], learning_rate=options["learning_rate"],
+                         batch_size=options["batch_size"], updates=options["updates"],
+                         learning_rate=options["learning_rate"],
                          autoregressive_learning_rate=options["autoregressive_learning_rate"],
                          history_noise=noise).check()
     orders = growth_orders(options["grow_from"], config.order) + [config.order]
     labels = list(dict.fromkeys(clip_labels))
-    total = config.epochs * len(orders)
-    models = []
-    for i, order in enumerate(orders):
+    lengths = [len(c) for c in data.clips]
+    epochs = [config.epochs_for(training_windows(lengths, clip_labels, o, config.balance)) for o in orders]
+    total = sum(epochs)
+    models: list[FCRBMModel] = []
+    state = None
+    if resume:  # the growth models finished before, and the training state of the one in progress
+        if checkpoint is None or not checkpoint.exists():
+            raise InputError("no training checkpoint to resume from", checkpoint)
+        doc = read_model_file(checkpoint, CHECKPOINT_FORMAT, "FCRBM training checkpoint")
+        if "training_state" not in doc or doc.get("stage_orders") != orders or doc.get("labels") != labels:
+            raise InputError("the checkpoint is not of this training (other orders or labels, or a finished "
+                             "model)", checkpoint)
+        models = [model_from_document(g, checkpoint) for g in doc["growth"]]
+        state = doc["training_state"]
+        for _ in models:  # the draws the finished stages took from rng
+            rng.integers(2 ** 62)
+
+    def save(stage_model: FCRBMModel, training_state: dict) -> None:
+        snapshot = copy(stage_model)
+        snapshot.growth = list(models)
+        torch_save_atomic({**snapshot.to_document(), "format": CHECKPOINT_FORMAT, "training_state": training_state,
+                           "stage_orders": orders}, checkpoint)  # a model is never half-written
+
+    every, first = options.get("checkpoint_every") or 0, len(models)
+    for i in range(first, len(orders)):
         report = None if progress is None else (
-            lambda epoch, err, before=i * config.epochs: progress(before + epoch, total, {"reconstruction": err}))
-        models.append(train_fcrbm(list(data.clips), clip_labels, replace(config, order=order), data.fps,
+            lambda epoch, err, before=sum(epochs[:i]): progress(before + epoch, total, {"reconstruction": err}))
+        models.append(train_fcrbm(list(data.clips), clip_labels, replace(config, order=orders[i]), data.fps,
                                   data.body_model.dof_names, data.body_model.name, list(data.sources), report,
-                                  rng=rng, labels=labels))
+                                  rng=rng, labels=labels, checkpoint=None if checkpoint is None else (save, every),
+                                  resume=state if i == first else None))
     model = models[-1]
     model.growth = models[:-1]
+    if checkpoint is not None:
+        checkpoint.unlink(missing_ok=True)
     return model
 
 
@@ -243,6 +275,9 @@ FCRBM_TRAIN_OPTIONS = (
                                 "(e.g. walk,walk,run); or read from each file: a name pattern or a CSV/TOML/JSON "
                                 "file, and the key, e.g. 'dataset-2_{content}_{style}_{take}#style' (see "
                                 "docs/guide/training.md)"),
+    Option("unlabelled", str, None, "the label of clips that a labels pattern or file gives none (e.g. "
+                                    "'normal' for clips of another corpus), which then train as one more style",
+           default_note="none: such a clip is refused"),
     _crbm_option("order", default=FCRBMConfig.order, help="order N"),
     _crbm_option("hidden", default=FCRBMConfig.hidden),
     Option("factors", int, FCRBMConfig.factors, "factors per sub-model", minimum=1,
@@ -252,18 +287,20 @@ FCRBM_TRAIN_OPTIONS = (
     _crbm_option("epochs", default=FCRBMConfig.epochs),
     _crbm_option("cd_k"),
     _crbm_option("batch_size"),
+    _crbm_option("updates", default=FCRBMConfig.updates),
     Option("learning_rate", float, FCRBMConfig.learning_rate, "learning rate", minimum=0.0),
     Option("autoregressive_learning_rate", float, FCRBMConfig.autoregressive_learning_rate,
            "learning rate of the autoregressive and label-to-feature weights", minimum=0.0),
     _crbm_option("history_noise"),
     _crbm_option("grow_from"),
+    _crbm_option("checkpoint_every"),
 )
 
 
 @register_prior(
     "fcrbm", summary="factored, style-gated CRBM (Taylor & Hinton 2009): every particle carries a style label; "
                      "result.json reports the posterior over the labels per frame",
-    model_files="one", train=train_fcrbm_prior, train_options=FCRBM_TRAIN_OPTIONS,
+    model_files="one", train=train_fcrbm_prior, train_options=FCRBM_TRAIN_OPTIONS, resumable=True,
     options=(gibbs_steps_option(30),
              *GroundDiffusion.OPTIONS,
              *HeightOffset.OPTIONS,

@@ -8,6 +8,7 @@ from pathlib import Path
 import torch
 
 from priors.common import checked_data_settings, check_weights, normaliser_from_tensors, read_model_file
+from priors.gpdm.subset import Stretch
 from priors.gpdm.model import FORMAT, GPDM, GPDMConfig, GPDMPriorModel, n_dynamics_params
 from tracker.core.errors import InputError
 
@@ -123,4 +124,19 @@ def load_gpdm_prior(path: str | Path) -> GPDMPriorModel:
     seconds = extra.get("training_seconds", 0.0)
     gpdm.training_seconds = float(seconds) if isinstance(seconds, (int, float)) else 0.0
     return GPDMPriorModel(gpdm=gpdm, normaliser=norm, fps=fps, body_model=body_model, dof_names=dof_names,
-                          sources=sources, pose_step_rms=step)
+                          sources=sources, pose_step_rms=step, subset=read_subset(extra.get("subset"), path),
+                          corpus_frames=int(extra.get("corpus_frames", 0)))
+
+
+def read_subset(value: object, path: Path) -> list[Stretch] | None:
+    """The recorded subset of a model file's ``extra`` (None where the whole corpus was used); a malformed one is
+    an :class:`InputError` naming the file."""
+    if value is None:
+        return None
+    try:
+        stretches = [Stretch(str(s["source"]), int(s["start"]), int(s["stop"])) for s in value]
+    except (TypeError, KeyError, ValueError):
+        raise InputError("GPDM model file's 'subset' is not a list of {source, start, stop}", path) from None
+    if any(not 0 <= s.start < s.stop for s in stretches):
+        raise InputError("GPDM model file's 'subset' holds an empty or negative frame range", path)
+    return stretches

@@ -52,6 +52,7 @@ from priors.settings import (  # the settings (priors.settings), read from here 
     AUTO_INDUCING, EXACT_MAX_FRAMES, MIN_INDUCING, SPARSE_METHODS, GPDMConfig,
 )
 from priors.common import ModelData, normaliser_to_tensors, torch_save_atomic
+from priors.gpdm.subset import Stretch
 from tracker.core.errors import InputError
 
 
@@ -371,6 +372,11 @@ class GPDMPriorModel(ModelData):
     (:class:`~priors.common.ModelData`)."""
 
     gpdm: GPDM
+    #: The stretches of the training clips it was trained on, when the corpus was cut (:mod:`priors.gpdm.subset`);
+    #: None: every frame of :attr:`sources`.
+    subset: list[Stretch] | None = None
+    #: Frames of the whole corpus the subset was cut from (0 when not known or not cut).
+    corpus_frames: int = 0
 
     KIND: ClassVar[str] = "GPDM"
 
@@ -380,7 +386,9 @@ class GPDMPriorModel(ModelData):
             "fps": float(self.fps), "body_model": self.body_model, "dof_names": list(self.dof_names),
             "sources": list(self.sources), "pose_step_rms": torch.tensor(self.pose_step_rms),
             "normaliser": normaliser_to_tensors(self.normaliser),
-            "training_seconds": float(self.gpdm.training_seconds)})
+            "training_seconds": float(self.gpdm.training_seconds),
+            **({} if self.subset is None else {"subset": [s.as_dict() for s in self.subset],
+                                               "corpus_frames": int(self.corpus_frames)})})
 
     def summary(self) -> str:
         """One line on how training went."""
@@ -388,4 +396,8 @@ class GPDMPriorModel(ModelData):
         fit = f"objective {h[0]:.1f} -> {h[-1]:.1f}, " if h else ""
         g = self.gpdm
         size = (f"{len(g.Y)} frames, {len(g.active)} inducing" if g.sparse else f"{len(g.Y)} frames, exact")
-        return f"{c.latent_dim}D GPDM ({c.dynamics} dynamics, order {c.order}; {size}): {fit}{g.training_seconds:.1f} s"
+        cut = "" if self.subset is None else (
+            f" (a subset: {len(self.subset)} stretch(es) of {len(set(s.source for s in self.subset))} clip(s) of "
+            f"the {self.corpus_frames} frames given, listed in the model file)")
+        return (f"{c.latent_dim}D GPDM ({c.dynamics} dynamics, order {c.order}; {size}{cut}): {fit}"
+                f"{g.training_seconds:.1f} s")

@@ -9,7 +9,8 @@ from typing import TYPE_CHECKING, Callable, Sequence
 import numpy as np
 
 from priors.common import loaded, source_of
-from priors.settings import AUTO_INDUCING, DYNAMICS, EXACT_MAX_FRAMES, MAX_LATENT_NOISE, GPDMConfig
+from priors.gpdm.subset import MIN_STRETCH
+from priors.settings import AUTO_INDUCING, DYNAMICS, EXACT_MAX_FRAMES, GPDM_MAX_FRAMES, MAX_LATENT_NOISE, GPDMConfig
 from priors.learned import LearnedPrior
 from priors.parts import GroundDiffusion, HeightOffset, PostureOffset, Step
 from tracker.core.errors import InputError
@@ -150,6 +151,9 @@ GPDM_TRAIN_OPTIONS = (
     Option("inducing", int, GPDMConfig.inducing,
            "inducing frames of the sparse GPs, chosen by farthest-point sampling; 0 = exact", minimum=0,
            default_note=f"exact up to {EXACT_MAX_FRAMES} training frames, {AUTO_INDUCING} above"),
+    Option("max_frames", int, GPDM_MAX_FRAMES, "most training frames: a larger corpus is cut to one stretch of "
+           "consecutive frames per clip (clips drawn in turn from every folder where they do not all fit), chosen "
+           "with --seed and listed in the model file", minimum=MIN_STRETCH),
     Option("checkpoint_every", int, None, "also save the training state every this many iterations (at the end of "
                                           "the L-BFGS chunk reaching them), for train --resume", minimum=1),
 )

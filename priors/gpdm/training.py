@@ -15,6 +15,8 @@ import torch
 from priors.common import read_model_file, torch_save_atomic
 from priors.gpdm.file import gpdm_from_document
 from priors.gpdm.model import CHECKPOINT_FORMAT, GPDM, GPDMConfig, GPDMPriorModel, gpdm_document
+from priors.gpdm.subset import Stretch, choose_frames
+from priors.settings import GPDM_MAX_FRAMES
 from tracker.core.errors import InputError
 from tracker.core.representation import clip_features, step_rms
 from tracker.engine.registry import TrainingData
@@ -146,7 +148,9 @@ def train_gpdm_prior(clips: Sequence[np.ndarray], config: GPDMConfig, fps: float
 def train_gpdm_from_data(data: TrainingData, options: dict, rng: np.random.Generator,
                          progress: Callable[[int, int, dict], None] | None = None,
                          checkpoint: Path | None = None, resume: bool = False) -> GPDMPriorModel:
-    """``train --prior gpdm``: a GPDM on the clips of ``data`` (deterministic: ``rng`` is not drawn from).
+    """``train --prior gpdm``: a GPDM on the clips of ``data``, or on the stretches of them that
+    :func:`priors.gpdm.subset.choose_frames` draws from ``rng`` when they hold more than ``options['max_frames']``
+    frames (otherwise deterministic: ``rng`` is not drawn from).
 
     With ``checkpoint`` (a file) the training state is saved there every ``checkpoint_every`` iterations and when
     the training is interrupted, in the checkpoint format (never taken for a model file), atomically; ``resume``
@@ -163,8 +167,17 @@ def train_gpdm_from_data(data: TrainingData, options: dict, rng: np.random.Gener
         torch_save_atomic({**gpdm_document(model), "format": CHECKPOINT_FORMAT, "training_state": training_state},
                           checkpoint)
 
-    model = train_gpdm_prior(list(data.clips), config, data.fps, data.body_model.dof_names, data.body_model.name,
-                             list(data.sources), report, None if checkpoint is None else (save, every), saved)
+    clips = list(data.clips)
+    sources = list(data.sources) or [f"clip {i + 1}" for i in range(len(clips))]
+    picked = choose_frames([len(c) for c in clips], sources, options.get("max_frames", GPDM_MAX_FRAMES), rng)
+    if picked is not None:
+        clips, sources = [clips[i][a:b] for i, a, b in picked], [sources[i] for i, _, _ in picked]
+    model = train_gpdm_prior(clips, config, data.fps, data.body_model.dof_names, data.body_model.name,
+                             sources if picked is not None else list(data.sources), report,
+                             None if checkpoint is None else (save, every), saved)
+    if picked is not None:
+        model.subset = [Stretch(s, a, b) for s, (_, a, b) in zip(sources, picked)]
+        model.corpus_frames = sum(len(c) for c in data.clips)
     if checkpoint is not None:
         checkpoint.unlink(missing_ok=True)
     return model

@@ -318,7 +318,7 @@ def train(prior: str, mocap: str | Path | Iterable[str | Path] | Iterable[Retarg
         clips = load_training_clips(items, skeletons, fps, joint_maps)
         sources = [c.source for c in clips]
     if labelled is not None:
-        resolved["labels"] = ",".join(labelled.training_labels(sources))
+        resolved["labels"] = ",".join(labelled.training_labels(sources, resolved.get("unlabelled")))
     data = TrainingData(tuple(c.poses for c in clips), fps, clips[0].model, tuple(sources))
     extra = {}
     if resume:

@@ -347,7 +347,8 @@ def _read_labels(w: "_Where", options: dict, mocap: tuple[ClipSpec, ...], entry:
         return options
     base = w.data_root if w.data_root is not None else w.path.parent
     try:
-        labels = label_source(options["labels"], base).training_labels([m.path for m in mocap])
+        labels = label_source(options["labels"], base).training_labels([m.path for m in mocap],
+                                                                       options.get("unlabelled"))
     except InputError as exc:
         raise w.error(entry, str(exc)) from None
     return {**options, "labels": ",".join(labels)}
