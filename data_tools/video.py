@@ -13,8 +13,11 @@ decodes (it applies a file's rotation metadata, so phone videos come upright).
 """
 from __future__ import annotations
 
+import os
 import re
 import shutil
+import tempfile
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterable, Iterator, Mapping, Sequence
@@ -23,6 +26,7 @@ import cv2
 import numpy as np
 
 from data_tools.calibration import checked_camera
+from data_tools.files import write_failure
 from data_tools.rig_formats import read_rig
 from data_tools.sequence import FRAME_NAME, _stderr_silenced, write_image, write_sequence_header
 from tracker.core.cameras import Camera, CameraRig
@@ -208,6 +212,30 @@ class ImportResult:
         return self.stop - self.start
 
 
+@contextmanager
+def staged_folder(out: Path) -> Iterator[Path]:
+    """A temporary folder beside ``out`` to write an imported sequence into; when the block succeeds its entries
+    replace ``out``'s (an earlier import's ``images/`` and ``masks/`` go, so frames are never mixed; other files
+    stay), and when it fails or is interrupted it is removed and ``out`` is left as it was."""
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        staged = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
+    except OSError as exc:
+        raise write_failure(out, exc) from None
+    try:
+        yield staged
+        out.mkdir(exist_ok=True)
+        for stale in ("images", "masks"):
+            if (out / stale).is_dir():
+                shutil.rmtree(out / stale)
+        for entry in staged.iterdir():  # made by plain open and mkdir: their modes follow the umask already
+            os.replace(entry, out / entry.name)
+        staged.rmdir()
+    except BaseException:
+        shutil.rmtree(staged, ignore_errors=True)
+        raise
+
+
 def import_videos(calibration: str | Path | Sequence[str | Path], videos: Sequence[str | Path], out: str | Path, *,
                   downscale: float = 1.0, frames: tuple[int, int | None] | str | None = None,
                   mapping: Mapping[str, str] | None = None,
@@ -244,21 +272,19 @@ def import_videos(calibration: str | Path | Sequence[str | Path], videos: Sequen
     out = Path(out)
     meta = {"source": "videos", "videos": [str(v) for v in paired], "calibration": str(calibration),
             "fps": float(infos[0].fps), "first_video_frame": start, "downscale": float(downscale)}
-    for stale in ("images", "masks"):  # a sequence imported here before: its frames are replaced, not mixed
-        if (out / stale).is_dir():
-            shutil.rmtree(out / stale)
-    write_sequence_header(out, fitted, meta)
-    steps = range(len(cams))
-    for v in (progress(steps) if progress else steps):
-        cam = fitted[v]
-        for k, frame in enumerate(video_frames(infos[v], start, stop)):
-            if frame.shape[:2] != (infos[v].height, infos[v].width):
-                raise InputError(f"frame {start + k} is {frame.shape[1]}x{frame.shape[0]}, not the video's "
-                                 f"{infos[v].width}x{infos[v].height}", infos[v].path)
-            frame = padded(frame, cams[v].width, cams[v].height)
-            if (cam.width, cam.height) != (cams[v].width, cams[v].height):
-                frame = cv2.resize(frame, (cam.width, cam.height), interpolation=cv2.INTER_AREA)
-            write_image(out / "images" / cam.name / FRAME_NAME.format(k), frame)
+    with staged_folder(out) as staged:
+        write_sequence_header(staged, fitted, meta)
+        steps = range(len(cams))
+        for v in (progress(steps) if progress else steps):
+            cam = fitted[v]
+            for k, frame in enumerate(video_frames(infos[v], start, stop)):
+                if frame.shape[:2] != (infos[v].height, infos[v].width):
+                    raise InputError(f"frame {start + k} is {frame.shape[1]}x{frame.shape[0]}, not the video's "
+                                     f"{infos[v].width}x{infos[v].height}", infos[v].path)
+                frame = padded(frame, cams[v].width, cams[v].height)
+                if (cam.width, cam.height) != (cams[v].width, cams[v].height):
+                    frame = cv2.resize(frame, (cam.width, cam.height), interpolation=cv2.INTER_AREA)
+                write_image(staged / "images" / cam.name / FRAME_NAME.format(k), frame)
     return ImportResult(out, fitted, paired, start, stop, float(infos[0].fps), notes)
 
 

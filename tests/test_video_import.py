@@ -113,6 +113,28 @@ def test_wrong_sizes_and_bad_files_are_one_line_with_status_2(tmp_path, capsys):
     assert "junk.mp4" in err and "cannot open as a video" in err and len(err.splitlines()) == 1
 
 
+def test_an_import_stopped_halfway_leaves_the_earlier_sequence_as_it_was(tmp_path, monkeypatch):
+    import data_tools.video as video
+
+    cams = rig()
+    write_rig(cams, tmp_path / "rig.toml")
+    videos, _ = write_videos(tmp_path, cams)
+    import_videos(tmp_path / "rig.toml", videos, tmp_path / "seq", frames="0:3")
+    before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
+    written = []
+
+    def stopped_after_four(path, image):
+        if len(written) == 4:
+            raise KeyboardInterrupt
+        written.append(path)
+
+    monkeypatch.setattr(video, "write_image", stopped_after_four)
+    with pytest.raises(KeyboardInterrupt):
+        import_videos(tmp_path / "rig.toml", videos, tmp_path / "seq")
+    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before  # no staging folder either
+    assert read_sequence(tmp_path / "seq").n_frames == 3
+
+
 def test_example_imports_with_both_calibrations_alike(tmp_path):
     videos = sorted(need_shared(EXAMPLE).glob("cam0*.mp4"))
     a = import_videos(EXAMPLE / "Calib_qualisys.toml", videos, tmp_path / "a", downscale=8, frames="0:2")
