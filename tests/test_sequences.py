@@ -173,3 +173,23 @@ def test_synth_frames_past_end_exit_2(mocap_dir, tmp_path):
                            (["--missing-camera", "7", "--frames", "2"], "missing camera 7")]:
         code, err = run_cli("synth", "--mocap", amc, "--out", str(tmp_path / "o"), *args)
         assert code == 2 and expected in err and "Traceback" not in err, (args, err)
+
+
+
+def test_tracking_views_of_different_image_sizes_is_refused_in_one_line(tmp_path):
+    from data_tools.calibration import write_cameras_json
+    from tracker.core.cameras import look_at
+
+    seq = tmp_path / "seq"
+    widths = {"a": 64, "b": 60}
+    for cam, width in widths.items():
+        (seq / "images" / cam).mkdir(parents=True)
+        write_image(seq / "images" / cam / "000000.png", np.zeros((48, width, 3), np.uint8))
+    write_cameras_json([look_at(cam, (3000.0, 1000.0 * k, 1500.0), (0.0, 0.0, 900.0), width, 48)
+                        for k, (cam, width) in enumerate(widths.items())], seq / "cameras.json")
+    from tracker.app.api import available_likelihoods, build_likelihood
+
+    sequence = read_sequence(seq)  # a rig of portrait and landscape views is read, shown and exported alike
+    with pytest.raises(InputError, match=r"image sizes differ \(a 64x48, b 60x48\)"):
+        build_likelihood(available_likelihoods()[0], sequence)
+    build_likelihood(available_likelihoods()[0], sequence, views=[1])  # one size among the views chosen

@@ -263,9 +263,15 @@ def build_likelihood(name: str, sequence: Sequence, views: Iterable[int] | None 
     this process was given (:func:`tracker.set_threads`; default the available cores)."""
     entry = likelihood_entry(name)
     views = check_views(views, sequence.n_views, sequence.root)
+    rig = sequence.rig.subset(views)
+    if len({(c.width, c.height) for c in rig.cameras}) > 1:  # the likelihood scores every view at one size
+        listed = ", ".join(f"{c.name} {c.width}x{c.height}" for c in rig.cameras)
+        raise InputError(f"the views' image sizes differ ({listed}): tracking needs one size for every view (crop "
+                         "or pad the images and their principal points to it, or choose views of one size)",
+                         sequence.root)
     resolved = resolve_options(f"likelihood {name}", entry.options, options)
     device = device_name(device)
-    context = LikelihoodContext(sequence.model, sequence.rig.subset(views), device, configured_threads())
+    context = LikelihoodContext(sequence.model, rig, device, configured_threads())
     likelihood = entry.build(context, resolved)
     sync_torch_threads()  # the GPU path has imported torch
     return likelihood
