@@ -213,6 +213,20 @@ def checked_data_settings(d: dict, kind: str, source=None) -> tuple[float, str, 
     return float(fps), body, list(dofs), list(sources), step.numpy()
 
 
+def epoch_checkpoint(checkpoint: tuple[Callable[[object, dict], None], int] | None, model: object,
+                     training_state: Callable[[int], dict], done: int, epochs: int) -> dict | None:
+    """After ``done`` of ``epochs`` epochs of a training that checkpoints (``checkpoint = (save, every)``, or None):
+    the training state ``training_state(done)``, which ``save(model, state)`` also writes every ``every`` epochs
+    (0: never) but the last; None without checkpointing. The caller keeps it for an interrupt to save."""
+    if checkpoint is None:
+        return None
+    state = training_state(done)
+    save, every = checkpoint
+    if every and done % every == 0 and done < epochs:
+        save(model, state)
+    return state
+
+
 def torch_save_atomic(doc: dict, path: Path, overwrite: bool = True) -> None:
     """``torch.save(doc, path)`` through a temporary file beside ``path`` and an atomic rename, so ``path`` is
     never half-written (a training checkpoint interrupted while saving keeps the one before). The document is

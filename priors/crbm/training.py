@@ -19,7 +19,7 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
-from priors.common import read_model_file, torch_generator, torch_save_atomic
+from priors.common import epoch_checkpoint, read_model_file, torch_generator, torch_save_atomic
 from priors.contrastive import finish_epoch, minibatches, momentum_step, on_one_thread
 from priors.crbm.file import model_from_document
 from priors.crbm.model import CHECKPOINT_FORMAT, CRBM, INPUT_SETTINGS, CRBMConfig, CRBMModel, bernoulli
@@ -201,10 +201,7 @@ def train_crbm(clips: Sequence[np.ndarray], config: CRBMConfig, fps: float, dof_
                 if error < best["error"]:
                     best = {"error": error, "params": crbm.state_dict()}
                     model.best_epoch = epoch + 1
-            if checkpoint is not None:
-                last = training_state(epoch + 1)
-                if checkpoint[1] and (epoch + 1) % checkpoint[1] == 0 and epoch + 1 < cfg.epochs:
-                    checkpoint[0](model, last)
+            last = epoch_checkpoint(checkpoint, model, training_state, epoch + 1, cfg.epochs)
     except KeyboardInterrupt:  # the state after the last finished epoch, for a resume to continue from
         if last is not None:
             crbm.load_state_dict(last["params"])

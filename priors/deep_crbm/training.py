@@ -10,7 +10,7 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
-from priors.common import read_model_file, torch_generator, torch_save_atomic
+from priors.common import epoch_checkpoint, read_model_file, torch_generator, torch_save_atomic
 from priors.contrastive import finish_epoch, minibatches, momentum_step, on_one_thread, window_index
 from priors.crbm.model import CRBM, CRBMModel, bernoulli
 from priors.crbm.training import growth_orders, make_windows, train_crbm_prior, training_windows
@@ -97,10 +97,7 @@ def train_top(acts: torch.Tensor, follows: torch.Tensor, config: TopConfig, rng:
                 err_sum += float((dv ** 2).sum())
                 count += n * H1
             finish_epoch(errors, err_sum, count, epoch, "deep CRBM (second layer)", progress)
-            if checkpoint is not None:
-                last = training_state(epoch + 1)
-                if checkpoint[1] and (epoch + 1) % checkpoint[1] == 0 and epoch + 1 < cfg.epochs:
-                    checkpoint[0](top, last)
+            last = epoch_checkpoint(checkpoint, top, training_state, epoch + 1, cfg.epochs)
     except KeyboardInterrupt:  # the state after the last finished epoch, for a resume to continue from
         if last is not None:
             top.load_state_dict(last["params"])

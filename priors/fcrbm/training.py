@@ -10,7 +10,7 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
-from priors.common import torch_generator
+from priors.common import epoch_checkpoint, torch_generator
 from priors.contrastive import balanced_starts, finish_epoch, minibatches, momentum_step, on_one_thread, window_index
 from priors.crbm.model import bernoulli
 from priors.crbm.training import history_noise_scale, make_windows, window_starts
@@ -107,10 +107,7 @@ def train_fcrbm(clips: Sequence[np.ndarray], clip_labels: Sequence[str], config:
                 err_sum += float(((v0 - vk) ** 2).sum())
                 count += n * K
             finish_epoch(model.reconstruction_errors, err_sum, count, epoch, "FCRBM", progress)
-            if checkpoint is not None:
-                last = training_state(epoch + 1)
-                if checkpoint[1] and (epoch + 1) % checkpoint[1] == 0 and epoch + 1 < cfg.epochs:
-                    checkpoint[0](model, last)
+            last = epoch_checkpoint(checkpoint, model, training_state, epoch + 1, cfg.epochs)
     except KeyboardInterrupt:  # the state after the last finished epoch, for a resume to continue from
         if last is not None:
             net.load_state_dict(last["params"])

@@ -59,19 +59,6 @@ class NeuralConfig:
         return self
 
 
-def parse_noise(value) -> float | str:
-    """The ``history_noise`` option: 'auto' or a number of normalised units in [0, 100]."""
-    if value == "auto":
-        return value
-    try:
-        noise = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"history noise must be 'auto' or a number, got {value!r}") from None
-    if not 0 <= noise <= 100:
-        raise InputError(f"history noise must lie in [0, 100] (normalised units), got {value!r}")
-    return noise
-
-
 NEURAL_TRAIN_OPTIONS = (
     Option("order", int, NeuralConfig.order, "most history frames the network reads (it draws from any number "
                                             "from 1 up)", minimum=1, maximum=100, unit="frames"),

@@ -21,10 +21,12 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
-from priors.common import read_model_file, torch_generator, torch_save_atomic
-from priors.crbm.training import history_noise_scale, make_windows, pace_window, paces_vary, split_validation
+from priors.common import epoch_checkpoint, read_model_file, torch_generator, torch_save_atomic
+from priors.crbm.training import (
+    history_noise_scale, make_windows, pace_window, paces_vary, parse_history_noise, split_validation,
+)
 from priors.neural.model import CHECKPOINT_FORMAT, NeuralModel, build_net
-from priors.neural.settings import NeuralConfig, parse_noise
+from priors.neural.settings import NeuralConfig
 from tracker.core.errors import InputError
 from tracker.core.representation import step_rms
 from tracker.engine.registry import TrainingData
@@ -138,10 +140,7 @@ def train_neural(clips: Sequence[np.ndarray], config: NeuralConfig, fps: float, 
                     model.best_epoch = epoch + 1
             if progress is not None:
                 progress(epoch + 1, report)
-            if checkpoint is not None:
-                last = training_state(epoch + 1)
-                if checkpoint[1] and (epoch + 1) % checkpoint[1] == 0 and epoch + 1 < cfg.epochs:
-                    checkpoint[0](model, last)
+            last = epoch_checkpoint(checkpoint, model, training_state, epoch + 1, cfg.epochs)
     except KeyboardInterrupt:  # the state after the last finished epoch, for a resume to continue from
         if last is not None:
             net.load_state_dict(last["params"])
@@ -169,7 +168,7 @@ def train_neural_prior(data: TrainingData, options: dict, rng: np.random.Generat
     config = NeuralConfig(order=options["order"], hidden=options["hidden"], layers=options["layers"],
                           components=options["components"], epochs=options["epochs"],
                           batch_size=options["batch_size"], learning_rate=options["learning_rate"],
-                          history_noise=parse_noise(options["history_noise"]), pace_input=bool(pace_input),
+                          history_noise=parse_history_noise(options["history_noise"]), pace_input=bool(pace_input),
                           validation=options["validation"]).check()
     state = None
     if resume:
