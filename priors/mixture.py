@@ -26,7 +26,7 @@ blocks of equal size), ``arrived`` ``(P,)`` and ``model_k`` the state of compone
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -249,19 +249,27 @@ MIXTURE_OPTIONS = (
 )
 
 
+def pretrained_default(options: dict, model_files: Sequence[Any]) -> tuple[dict, Sequence[Any]]:
+    """The mixture given no model file and its default components: the package's pretrained learned prior and
+    zero-velocity (:mod:`priors.pretrained`), as options naming them and the shipped model file; anything else
+    as given."""
+    if model_files or options["components"] != DEFAULT_COMPONENTS:
+        return options, model_files
+    from priors.pretrained import MIXTURE_COMPONENTS, mixture_model
+
+    return {**options, "components": MIXTURE_COMPONENTS}, [mixture_model()]
+
+
 @register_prior("mixture", summary="several motion models, each drawing a share of the particles, weighed by "
                                    "their evidence (a learned prior that falls back on zero-velocity)",
-                options=MIXTURE_OPTIONS, model_files="any", referenced_files=component_files)
+                options=MIXTURE_OPTIONS, model_files="any", referenced_files=component_files,
+                given_defaults=pretrained_default)
 def build_mixture(context: PriorContext, model_files: Sequence[Path], options: dict) -> MixturePrior:
     """The mixture of ``options["components"]``, each built by its own prior's builder with its own options and
     model files: those it names (``model=FILE``), else the next of ``model_files`` in order (``models=N`` of
     them; one for a learned component)."""
     owner = "prior mixture"
     components = parse_components(options["components"], owner)
-    if not model_files and not any(c.models for c in components) and options["components"] == DEFAULT_COMPONENTS:
-        from priors.pretrained import MIXTURE_COMPONENTS, mixture_model  # no model given: the shipped one
-
-        components, model_files = parse_components(MIXTURE_COMPONENTS, owner), [mixture_model()]
     entries = [PRIORS.get(c.prior) for c in components]
     takes = [0 if c.models else (c.takes if c.takes is not None else int(e.model_files != "none"))
              for c, e in zip(components, entries)]

@@ -3,6 +3,7 @@ batch, reads any history length as training taught it, and its model files and t
 (the prior contract is run for it in test_prior_contract.py)."""
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 
@@ -180,4 +181,7 @@ def test_the_mixture_without_a_model_file_tracks_with_the_shipped_neural_prior(s
     r = subprocess.run([sys.executable, "-m", "tracker", "track", str(small_walk), "--prior", "mixture",
                         "--particles", "40", "--out", str(tmp_path / "t")], capture_output=True, text=True)
     assert r.returncode == 0 and "mixture" in r.stdout, r.stderr[-500:]
-    assert '"neural"' in (tmp_path / "t" / "result.json").read_text()
+    record = json.loads((tmp_path / "t" / "result.json").read_text())
+    # the record names what ran: the shipped model and its components, not the option's default string
+    assert record["prior_options"]["components"] == "neural,zero-velocity"
+    assert record["prior_models"] == [str(mixture_model())]

@@ -248,7 +248,7 @@ def build_prior(name: str, sequence: Sequence | str | Path | None = None, models
         raise InputError(f"prior {name} needs a model file (train one with: pose-tracker train --prior {name})")
     if entry.model_files == "one" and len(models) > 1:
         raise InputError(f"prior {name} takes one model file, got {len(models)}")
-    resolved = resolve_options(f"prior {name}", entry.options, options)
+    resolved, models = entry.complete(resolve_options(f"prior {name}", entry.options, options), models)
     source = (lambda: step_std) if step_std is not None else (lambda: random_walk_scale(sequence, train_mocap))
     context = PriorContext(sequence.model, sequence.fps, device_name(device), str(sequence.root), source)
     prior = entry.build(context, models, resolved)
@@ -434,7 +434,8 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     rng = make_rng(run["seed"])
     prior_options, likelihood_options = split_options(prior, likelihood, options)
     if isinstance(prior, str):  # every declared option, checked, with its default: recorded in result.json
-        prior_options = resolve_options(f"prior {prior}", prior_entry(prior).options, prior_options)
+        prior_options, models = prior_entry(prior).complete(
+            resolve_options(f"prior {prior}", prior_entry(prior).options, prior_options), models)
     if isinstance(likelihood, str):
         likelihood_options = resolve_options(f"likelihood {likelihood}", likelihood_entry(likelihood).options,
                                              likelihood_options)

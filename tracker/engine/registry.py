@@ -237,6 +237,17 @@ class PriorEntry:
     #: The model files a prior's options name (a mixture's components, ``crbm:model=crbm1.pt``), beside the
     #: model files it is given: ``referenced_files(options) -> [path, ...]``; they enter the run's fingerprint.
     referenced_files: Callable[[dict], Sequence[Path]] | None = None
+    #: What a prior takes when it is given no model file where it has a default one (the mixture: the package's
+    #: pretrained model): ``given_defaults(options, model_files) -> (options, model_files)``, applied to the
+    #: resolved options before the prior is built and before a run records them, so that the record names what ran.
+    given_defaults: Callable[[dict, Sequence[Any]], tuple[dict, Sequence[Any]]] | None = None
+
+    def complete(self, options: dict, model_files: Sequence[Any]) -> tuple[dict, list[Any]]:
+        """``(options, model_files)`` with this prior's :attr:`given_defaults` applied (unchanged without)."""
+        if self.given_defaults is None:
+            return options, list(model_files)
+        options, model_files = self.given_defaults(options, model_files)
+        return options, list(model_files)
 
 
 @dataclass(frozen=True)
@@ -285,7 +296,8 @@ LIKELIHOODS: Registry[LikelihoodEntry] = Registry("likelihood")
 
 def register_prior(name: str, *, summary: str = "", options: Sequence[Option] = (), model_files: str = "none",
                    train: Callable[..., Any] | None = None, train_options: Sequence[Option] = (),
-                   resumable: bool = False, referenced_files: Callable[[dict], Sequence[Path]] | None = None):
+                   resumable: bool = False, referenced_files: Callable[[dict], Sequence[Path]] | None = None,
+                   given_defaults: Callable[[dict, Sequence[Any]], tuple[dict, Sequence[Any]]] | None = None):
     """Decorator registering ``build(context, model_files, options) -> MotionPrior`` under ``name``.
 
     ``model_files`` says whether the prior takes none, ``"one"`` or ``"several"`` model files, or ``"any"``
@@ -293,14 +305,15 @@ def register_prior(name: str, *, summary: str = "", options: Sequence[Option] = 
     (learned priors) is ``train(data: TrainingData, options, rng, progress, checkpoint) -> model`` with
     ``model.save(path)`` and ``model.summary()``, configured by ``train_options``; a ``resumable`` one also
     takes ``resume=True`` to continue from ``checkpoint``; ``referenced_files(options)`` lists the model files
-    that the options name (:attr:`PriorEntry.referenced_files`).
+    that the options name (:attr:`PriorEntry.referenced_files`); ``given_defaults(options, model_files)`` gives
+    the options and model files it takes when given none (:attr:`PriorEntry.given_defaults`).
     """
     if model_files not in ("none", "one", "several", "any"):
         raise ValueError(f"model_files must be 'none', 'one', 'several' or 'any', got {model_files!r}")
 
     def decorate(build):
         PRIORS.add(PriorEntry(name, build, summary, tuple(options), model_files, train, tuple(train_options),
-                              resumable, referenced_files))
+                              resumable, referenced_files, given_defaults))
         return build
     return decorate
 
