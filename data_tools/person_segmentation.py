@@ -48,8 +48,16 @@ def person_masks(frames: Iterable[np.ndarray]) -> Iterator[np.ndarray]:
     """The person's mask (bool ``H x W``) in each of one camera's frames (``H x W x 3`` RGB uint8, in order);
     all False where the model finds no person. Frames are read one at a time, as ``frames`` yields them."""
     pose = require()
-    with _quiet():
-        model = pose.Pose(static_image_mode=False, model_complexity=1, enable_segmentation=True)
+    try:
+        with _quiet():
+            model = pose.Pose(static_image_mode=False, model_complexity=1, enable_segmentation=True)
+    except Exception as exc:  # e.g. a protobuf too new for it: AttributeError deep in its option parsing
+        try:
+            from google.protobuf import __version__ as protobuf
+        except ImportError:
+            protobuf = "missing"
+        raise InputError(f"MediaPipe is installed but cannot build its pose model ({type(exc).__name__}; protobuf "
+                         f"{protobuf}, it needs protobuf < 5): {INSTALL}") from None
     try:
         for image in frames:
             image = np.ascontiguousarray(image, dtype=np.uint8)

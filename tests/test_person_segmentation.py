@@ -27,6 +27,20 @@ def test_a_missing_package_is_refused_in_one_line_naming_the_install(tmp_path, m
     assert not (root / "masks").exists() and not (root / "masks.partial").exists()
 
 
+def test_a_package_that_cannot_build_its_model_is_refused_in_one_line(tmp_path, monkeypatch, capsys):
+    import types
+
+    import data_tools.person_segmentation as segmentation
+
+    def broken(**options):
+        raise AttributeError("'FieldDescriptor' object has no attribute 'label'")  # as with protobuf 7
+
+    monkeypatch.setattr(segmentation, "require", lambda: types.SimpleNamespace(Pose=broken))
+    assert main(["silhouettes", str(sequence(tmp_path, move=False)), "--method", "person"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "cannot build its pose model (AttributeError; protobuf" in err
+
+
 @pytest.mark.skipif(importlib.util.find_spec("mediapipe") is None, reason="mediapipe is not installed")
 def test_the_still_person_is_segmented_in_every_view(tmp_path):
     need_shared(EXAMPLE)
