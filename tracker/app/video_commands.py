@@ -76,7 +76,8 @@ def add_parsers(sub, parents) -> None:
                        description="Search the floor position, heading, body scale and stance (standing, "
                                    "A-pose, T-pose; or around --near, an approximate pose of your own) that the "
                                    "tracker's likelihood rates best on the first frame's silhouettes, refine "
-                                   "every pose number, write the fitted body shape into the sequence's "
+                                   "every pose number from both headings (silhouettes hardly tell front from "
+                                   "back), write the fitted body shape into the sequence's "
                                    "meta.json and the first poses to --out, for track --init.")
     i.add_argument("sequence", metavar="DIR", help="sequence folder with silhouettes (masks/) or plates")
     i.add_argument("--out", required=True, metavar="FILE", help="poses file to write (.npz, for track --init)")
