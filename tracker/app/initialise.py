@@ -9,7 +9,13 @@ would rate best):
    :data:`HEADING_STEP` degrees), the body's scale (:data:`SCALES`, lengths, offsets and radii alike) and the
    stance (standing with arms down, A-pose, T-pose: :data:`STANCES`); or, with ``near``, one approximate pose
    of the user's instead of the stances;
-3. a stochastic local search over every pose number (the limbs), narrowing step by step.
+3. for the best grid poses and for each of them turned by 180 degrees (silhouettes hardly tell front from back,
+   so both headings are refined and the likelihood decides), a narrowing random search over one group of pose
+   numbers at a time (:data:`BLOCKS`: the root, the trunk, each arm, each leg).
+
+Measured on the real four-camera T-pose example (272 x 480 views, seeds 0 to 2), the group-wise search of step 3
+reaches log-likelihoods of -29.0 to -30.5 where one search over all 40 numbers at once reached -34.6 to -45.9
+(and once ended facing backwards).
 
 The result is a pose ``(D,)`` of the fitted body model and its :class:`~tracker.core.body.BodyShape`.
 """
@@ -31,6 +37,11 @@ HEADING_STEP = 15.0
 SCALES = (0.88, 0.94, 1.0, 1.06, 1.12)
 #: Grid poses kept per scale and stance, and how many of all those kept are refined.
 KEEP, REFINE = 3, 8
+#: Pose numbers refined together, by the start of their names (the root, the trunk, each limb).
+BLOCKS = {"root": ("root_",), "trunk": ("abdomen_", "head_"),
+          "left arm": ("left_clavicle", "left_shoulder", "left_elbow", "left_wrist"),
+          "right arm": ("right_clavicle", "right_shoulder", "right_elbow", "right_wrist"),
+          "left leg": ("left_hip", "left_knee", "left_ankle"), "right leg": ("right_hip", "right_knee", "right_ankle")}
 #: Shoulder abduction (radians) of each stance.
 STANCES = {"standing": 0.15, "a-pose": np.pi / 4, "t-pose": np.pi / 2 * 0.95}
 
@@ -90,8 +101,8 @@ def silhouette_centre(rig: CameraRig, masks: list[np.ndarray]) -> np.ndarray:
     return np.linalg.solve(A, b)
 
 
-def initialise(seq, frame: int = 0, *, near: np.ndarray | None = None, seed: int = 0, local_steps: int = 25,
-               samples: int = 400, likelihood: str = "edge-silhouette") -> Initialisation:
+def initialise(seq, frame: int = 0, *, near: np.ndarray | None = None, seed: int = 0, rounds: int = 12,
+               samples: int = 200, likelihood: str = "edge-silhouette") -> Initialisation:
     """Fit the body's scale and first pose to the silhouettes of ``frame`` of ``seq`` (module docstring).
 
     ``near``: an approximate first pose ``(D,)`` of the default model to search around instead of the stances
@@ -133,21 +144,38 @@ def initialise(seq, frame: int = 0, *, near: np.ndarray | None = None, seed: int
             for k in np.argsort(values)[::-1][:KEEP]:
                 candidates.append((float(values[k]), scale, name, grid[k].copy(), model, shape, score))
     candidates.sort(key=lambda c: -c[0])
-    # The limbs: a narrowing random search over every pose number from the best few, the best pose kept.
+    # Both headings of the best few, then the limbs, group by group; the best pose kept.
     refined = []
     for value, scale, name, pose, model, shape, score in candidates[:REFINE]:
-        step = np.full(model.n_dofs, 0.2)
-        step[:3] = 80.0
-        for _ in range(local_steps):
-            trial = model.clip_to_limits(pose + rng.normal(size=(samples, model.n_dofs)) * step)
+        turned = pose.copy()
+        turned[5] += np.pi
+        for start in (pose, turned):
+            found, found_value = refine_pose(score, model, start, float(score(start[None])[0]), rng, rounds, samples)
+            refined.append((found_value, scale, name, found, model, shape))
+    value, scale, name, pose, model, shape = max(refined, key=lambda c: c[0])
+    return Initialisation(pose, shape, model, name, scale, value, standing_height(model))
+
+
+def refine_pose(score, model: BodyModel, pose: np.ndarray, value: float, rng: np.random.Generator, rounds: int,
+                samples: int) -> tuple[np.ndarray, float]:
+    """A narrowing random search from ``pose`` ``(D,)`` (log-likelihood ``value`` under ``score``, which maps
+    ``P x D`` poses to ``(P,)``): in each of ``rounds`` rounds, for each group of :data:`BLOCKS` in turn,
+    ``samples`` Gaussian steps of that group alone (80 mm and 0.25 rad at first, shrinking by 0.8 a round), the best kept when it scores higher. Returns the pose and its log-likelihood."""
+    step = np.full(model.n_dofs, 0.25)
+    step[:3] = 80.0
+    groups = [np.array([i for i, n in enumerate(model.dof_names) if n.startswith(starts)])
+              for starts in BLOCKS.values()]
+    for _ in range(rounds):
+        for idx in groups:
+            trial = np.tile(pose, (samples, 1))
+            trial[:, idx] += rng.normal(size=(samples, len(idx))) * step[idx]
+            trial = model.clip_to_limits(trial)
             values = score(trial)
             k = int(np.argmax(values))
             if values[k] > value:
                 value, pose = float(values[k]), trial[k]
-            step *= 0.85
-        refined.append((value, scale, name, pose, model, shape))
-    value, scale, name, pose, model, shape = max(refined, key=lambda c: c[0])
-    return Initialisation(pose, shape, model, name, scale, value, standing_height(model))
+        step *= 0.8
+    return pose, value
 
 
 def limb_lengths(model: BodyModel, pose: np.ndarray) -> dict[str, float]:

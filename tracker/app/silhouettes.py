@@ -1,6 +1,9 @@
 """The person's silhouettes from the video itself, for sequences without a background plate (imported videos).
 
-Method ``median``: per camera, the per-pixel median of up to :data:`PLATE_FRAMES` frames spread over the
+Method ``person`` (for a person who may stand still): a person-segmentation model,
+:func:`data_tools.person_segmentation.person_masks` (MediaPipe's BlazePose, an optional package).
+
+Method ``median`` (for a person who moves): per camera, the per-pixel median of up to :data:`PLATE_FRAMES` frames spread over the
 sequence is the background plate, and each frame's silhouette is the toolkit's own background subtraction against
 it (:func:`likelihoods.observations.silhouette`: blur, gain compensation, a threshold that follows the noise).
 A background model learnt from the frames needs a person who moves: a pixel the person never leaves is
@@ -9,8 +12,9 @@ median plate's silhouettes overlap the renderer's exact masks by 0.86 (mean inte
 plate on the uncompressed frames gives 0.975), while OpenCV's MOG2 and KNN subtractors, run over the frames and
 then frozen, reached 0.15 and 0.30: they are not offered.
 
-Every mask is then cleaned (:func:`keep_person`): a morphological opening and closing, and only the largest
-connected region is kept, which leaves out smaller movers (another person far behind, a swinging door).
+Every mask is then cleaned (:func:`keep_person`): a morphological opening and closing (``median`` only), and only
+the largest connected region is kept, which leaves out smaller movers (another person far behind, a swinging
+door).
 """
 from __future__ import annotations
 
@@ -21,7 +25,10 @@ import numpy as np
 
 from tracker.core.errors import InputError
 
-METHODS = ("median",)
+METHODS = ("median", "person")
+#: Why a method may find no person, for the refusal.
+NOT_FOUND = {"median": " (a person who does not move is background to it; try --method person)",
+             "person": " (the model does not recognise the person there)"}
 #: Frames the median plate is taken over (spread evenly over the sequence).
 PLATE_FRAMES = 25
 
@@ -50,6 +57,12 @@ def view_masks(frame: Callable[[int], np.ndarray], n_frames: int, method: str) -
     ``frame(k)`` reads frame ``k`` (``H x W x 3`` RGB uint8), so that no more than the plate's frames are held."""
     if method not in METHODS:
         raise InputError(f"unknown silhouette method {method!r}: choose from {', '.join(METHODS)}")
+    if method == "person":
+        from data_tools.person_segmentation import person_masks
+
+        for mask in person_masks(frame(k) for k in range(n_frames)):
+            yield keep_person(mask, radius=0)  # the model's masks are clean; an opening would cut thin arms
+        return
     from likelihoods.observations import BackgroundPlate, silhouette
 
     picks = np.unique(np.linspace(0, n_frames - 1, min(PLATE_FRAMES, n_frames)).round().astype(int))
@@ -78,9 +91,8 @@ def write_sequence_masks(seq, method: str, progress: Callable[[Iterable], Iterab
             total = 0.0
             for k, mask in enumerate(view_masks(lambda i: seq.image(i, v), seq.n_frames, method)):
                 if not mask.any():
-                    raise InputError(f"no person found in camera {cam} at frame {k} by the {method} background "
-                                     "model (a person who does not move is background to it): give masks of your "
-                                     "own in masks/<camera>/", root)
+                    raise InputError(f"no person found in camera {cam} at frame {k} by the {method} method"
+                                     f"{NOT_FOUND[method]}: give masks of your own in masks/<camera>/", root)
                 total += mask.mean()
                 write_image(tmp / cam / FRAME_NAME.format(k), mask.astype(np.uint8) * 255)
             fractions.append(total / seq.n_frames)

