@@ -75,9 +75,10 @@ File layout (every key is checked, unknown ones refused)::
     options = { bidirectional = true }
 
 Paths: the data paths (a sequence's ``path``, ``init``, ``reference``, ``mocap``, ``skeleton``, ``then``,
-``then_skeleton``, ``joint_map`` and ``then_joint_map``, and the training clips and skeletons of ``train`` and ``train_mocap``) are relative to the data root when the file
-declares ``data_root``, and relative to the file otherwise; ``models`` are always relative to the file; absolute
-paths stay as they are. ``compare --data-root DIR`` (the ``data_root`` argument of :func:`load_experiment` and
+``then_skeleton``, ``joint_map`` and ``then_joint_map``, and the training clips and skeletons of ``train`` and
+``train_mocap``) are relative to the data root when the file declares ``data_root``, and relative to the file
+otherwise; ``models`` are always relative to the file; absolute paths stay as they are. ``compare --data-root
+DIR`` (the ``data_root`` argument of :func:`load_experiment` and
 ``tracker.compare``), or else the environment variable ``POSE_TRACKER_DATA_ROOT``, replaces the declared data root,
 so that a file copied elsewhere, or data kept elsewhere, needs no edit; a file that declares no data root is not
 affected by the environment variable, and refuses ``--data-root``.
