@@ -363,6 +363,9 @@ def per_frame_figure(lines: dict[str, list[str]], seqs: list[str], by: dict):
         if drawn:
             ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
         else:
+            ax.set_xticks([])
+            ax.set_yticks([])
+            ax.set_ylabel("")
             ax.text(0.5, 0.5, "no ground truth and no reference to measure the runs against",
                     transform=ax.transAxes, ha="center", va="center", color="#5d6873")
     fig.tight_layout()
