@@ -8,6 +8,7 @@ no tracking removes; they compare runs with each other better than they measure 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -30,8 +31,9 @@ POSE2SIM_MAP: dict[str, tuple[str, ...]] = {
 @dataclass
 class ReferenceComparison:
     """Distances (mm) after one rigid alignment: ``per_joint`` (marker name -> mean over frames), ``mean`` (over
-    joints and frames), ``per_frame`` (T), the alignment (``rotation`` 3x3, ``translation`` (3,), estimate ->
-    reference) and the frames compared."""
+    joints and frames), ``per_frame`` (one per frame compared), the alignment (``rotation`` 3x3, ``translation``
+    (3,), estimate -> reference), how many ``frames`` were compared and which (``compared``: the estimate's frame
+    indices)."""
 
     per_joint: dict[str, float]
     mean: float
@@ -39,6 +41,13 @@ class ReferenceComparison:
     rotation: np.ndarray
     translation: np.ndarray
     frames: int
+    compared: np.ndarray
+
+    def to_dict(self) -> dict:
+        """The distances as JSON-ready numbers (``mean``, ``per_joint``, ``per_frame`` and ``frames``: the
+        estimate's frame of each)."""
+        return {"mean": self.mean, "per_joint": dict(self.per_joint),
+                "per_frame": [float(d) for d in self.per_frame], "frames": [int(k) for k in self.compared]}
 
     def table(self) -> str:
         """A plain-text table: one row per joint, then the mean."""
@@ -96,4 +105,43 @@ def compare_to_reference(markers: np.ndarray, ref_names: Sequence[str], ref_poin
     R, t = rigid_alignment(est[ok].reshape(-1, 3), ref[ok].reshape(-1, 3))
     dist = np.linalg.norm(est[ok] @ R.T + t - ref[ok], axis=-1)  # frames x M
     return ReferenceComparison({n: float(d) for n, d in zip(found, dist.mean(axis=0))}, float(dist.mean()),
-                               dist.mean(axis=1), R, t, int(ok.sum()))
+                               dist.mean(axis=1), R, t, int(ok.sum()), np.flatnonzero(ok))
+
+
+def reference_offset(meta: Mapping) -> int:
+    """The reference frame that a run's first frame is compared with unless told otherwise: the first video frame
+    the sequence was imported from (``meta.json``'s ``first_video_frame``), else 0."""
+    return int(meta.get("first_video_frame", 0))
+
+
+def compare_to_trc(markers: np.ndarray, path: str | Path, offset: int = 0) -> ReferenceComparison:
+    """:func:`compare_to_reference` of estimated markers ``T x 15 x 3`` (mm) against the TRC file ``path``
+    (:func:`data_tools.trc.read_trc`, keypoints mapped by :data:`POSE2SIM_MAP`); a problem is one
+    :class:`InputError` naming the file."""
+    from data_tools.trc import read_trc
+
+    ref = read_trc(path)
+    try:
+        return compare_to_reference(markers, ref.names, ref.points, offset=offset)
+    except InputError as exc:
+        raise InputError(exc.reason, exc.path or path) from None
+
+
+def check_reference(path: str | Path, offset: int, frames: int) -> None:
+    """Refuse, in one :class:`InputError` naming the file, a TRC reference that a run of ``frames`` frames
+    compared from reference frame ``offset`` on could not be compared with: unreadable, too few keypoints of
+    the map, no frame in that range, or none where every mapped keypoint is present."""
+    from data_tools.trc import read_trc
+
+    ref = read_trc(path)
+    try:
+        _, points = mapped_reference(ref.names, ref.points)
+    except InputError as exc:
+        raise InputError(exc.reason, path) from None
+    window = points[offset:offset + frames]
+    if not len(window):
+        raise InputError(f"no frames in common: the reference has {len(points)}, the run would start at its frame "
+                         f"{offset}", path)
+    if not np.all(np.isfinite(window), axis=(1, 2)).any():
+        raise InputError(f"no frame from {offset} to {offset + len(window) - 1} where every mapped keypoint is "
+                         "present", path)

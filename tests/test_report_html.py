@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from tracker.app.compare import compare
-from tracker.app.report_html import TILE_WIDTH, crop_box, pick_runs, representative
+from tracker.app.report_html import (BY_REFERENCE, BY_TRUTH, TILE_WIDTH, UNRANKED, crop_box, pick_runs,
+                                      representative)
 
 SAMPLE = Path(__file__).resolve().parents[1] / "data_tools" / "samples" / "cmu07"
 DATE = re.compile(r'<span class="date">[^<]*</span>')
@@ -161,18 +162,28 @@ def test_best_and_worst_rows_per_sequence_and_view_set_each_shown_by_its_most_ty
             name = "" if len(views) == 2 else ", views 0"
             for row, errors in (("zv", (30, 40, 80)), ("crbm", (10, 22, 30)), ("mix", (40, 45, 50))):
                 results += [result(seq, row + name, i, e + offset + shift, views) for i, e in enumerate(errors)]
-    results += [result("c", "zv", 0, 20.0, truth=False), result("c", "crbm", 0, 30.0, truth=False)]
+    results += [result("c", row, i, 20.0, truth=False) for row in ("zv", "crbm", "mix") for i in (1, 0)]
     results += [result("d", "zv", 0, 20.0)]
+    # without ground truth, ranked by the distance to the reference: crbm is the nearest, zv the farthest
+    for row, distances in (("zv", (90, 70)), ("crbm", (40, 44)), ("mix", (60, 61))):
+        for i, d in enumerate(distances):
+            results.append(result("e", row, i, 0.0, truth=False))
+            results[-1]["reference"] = {"mean": d, "per_frame": [d - 1.0, d + 1.0], "frames": [0, 1]}
     picks, notes = pick_runs(results)
-    assert [(p.sequence, p.variant, p.best.row, p.worst.row) for p in picks] == [
-        ("a", "views 0,1", "crbm", "zv"), ("a", "views 0", "crbm, views 0", "zv, views 0"),
-        ("b", "views 0,1", "crbm", "zv"), ("b", "views 0", "crbm, views 0", "zv, views 0")]
+    assert [(p.sequence, p.variant, p.best.row, p.worst.row, p.basis) for p in picks] == [
+        ("a", "views 0,1", "crbm", "zv", BY_TRUTH), ("a", "views 0", "crbm, views 0", "zv, views 0", BY_TRUTH),
+        ("b", "views 0,1", "crbm", "zv", BY_TRUTH), ("b", "views 0", "crbm, views 0", "zv, views 0", BY_TRUTH),
+        ("c", "views 0,1", "zv", "crbm", UNRANKED), ("e", "views 0,1", "crbm", "zv", BY_REFERENCE)]
     first = picks[0]
     assert first.best.mean_mm == pytest.approx(62 / 3) and first.worst.mean_mm == pytest.approx(50.0)
     # zv's mean is 50: seed 1 (40) is the closest; crbm's is 20.67: seed 1 (22)
     assert first.worst.run["run"]["seed_index"] == 1 and first.best.run["run"]["seed_index"] == 1
-    assert notes == ["c (views 0,1): no video (no ground truth to rank the priors by)",
-                     "d (views 0,1): no video (one prior only)"]
+    unranked, referenced = picks[4], picks[5]
+    assert np.isnan(unranked.best.mean_mm) and unranked.best.run["run"]["seed_index"] == 0  # the lowest seed
+    assert referenced.best.mean_mm == pytest.approx(42.0) and referenced.worst.mean_mm == pytest.approx(80.0)
+    assert referenced.best.run["run"]["seed_index"] == 0 and referenced.best.run_mm == pytest.approx(40.0)
+    assert notes == ["c (views 0,1): the first two of 3 rows shown (no ground truth or reference to rank the "
+                     "priors by)", "d (views 0,1): no video (one prior only)"]
     tie = [result("a", "zv", 0, 10.0), result("a", "zv", 1, 30.0)]
     assert representative(tie)["run"]["seed_index"] == 0  # equally close: the lower seed index
 

@@ -122,12 +122,29 @@ def prepare_scales(exp: Experiment) -> dict[str, np.ndarray | None]:
 
 def check_grid(exp: Experiment, sequence_paths: dict[str, Path], models: dict[str, tuple[Path, ...]],
                scales: dict[str, np.ndarray | None]) -> None:
-    """Views in range, enough frames, and every prior (with its models) fits every sequence: one line naming
-    the experiment file and the entry otherwise."""
+    """Views in range, enough frames, a start (ground truth or ``init``) and a usable ``reference`` for every
+    sequence, and every prior (with its models) fits every sequence: one line naming the experiment file and the
+    entry otherwise."""
+    from data_tools.reference import check_reference
     from tracker.app.api import build_prior, load_sequence
+    from tracker.app.tracking import check_frames
 
+    specs = {s.name: s for s in exp.sequences}
     for name, path in sequence_paths.items():
         seq = load_sequence(path)
+        spec = specs[name]
+        try:
+            init = None if spec.init is None else read_init(spec.init, seq)
+            if init is None and seq.groundtruth is None and seq.initial_poses is None:
+                raise InputError("has no ground truth to start from: give init = \"POSES.npz\" (its first poses, "
+                                 "as `pose-tracker initialise` writes them)")
+            check_frames(seq, exp.tracking["frames"], exp.tracking["known_frames"], init)
+            if spec.reference is not None:
+                check_reference(spec.reference, reference_offset_of(spec, seq), exp.tracking["frames"] or
+                                seq.n_frames)
+        except InputError as exc:
+            text = exc.reason if exc.path is None or Path(exc.path) == Path(path) else str(exc)  # file and line
+            raise InputError(f"sequence {name!r}: {text}", exp.path) from None
         for vs in exp.tracking["views"]:
             if vs is not None and max(vs) >= seq.n_views:
                 raise InputError(f"[tracking] views {vs} out of range for sequence {name!r} "
@@ -141,6 +158,42 @@ def check_grid(exp: Experiment, sequence_paths: dict[str, Path], models: dict[st
                 build_prior(p.name, seq, models[p.label], step_std=scales[p.label], **p.options)
             except InputError as exc:
                 raise InputError(f"prior {p.label!r} on sequence {name!r}: {exc}", exp.path) from None
+
+
+def read_init(path: str | Path, seq) -> np.ndarray:
+    """A sequence's first poses ``n x D`` (rad, mm) from a poses .npz (``init``, as ``initialise`` writes it),
+    checked against the sequence's body model."""
+    from data_tools.estimates import read_poses_file
+
+    return read_poses_file(path, "first poses (init)", seq.model)
+
+
+def reference_offset_of(spec, seq) -> int:
+    """The reference frame of a run's frame 0 for the sequence ``spec`` (its ``reference_offset``, else the
+    default of ``compare-trc``: :func:`data_tools.reference.reference_offset`)."""
+    from data_tools.reference import reference_offset
+
+    return reference_offset(seq.meta) if spec.reference_offset is None else spec.reference_offset
+
+
+def score_references(exp: Experiment, results: list[dict], runs_dir: Path) -> None:
+    """Add to each run's result (``results``, in place) of a sequence with a ``reference`` its distances to that
+    reconstruction (``"reference"``: :meth:`~data_tools.reference.ReferenceComparison.to_dict`), as
+    ``compare-trc`` measures them: the run's markers, one rigid alignment, per joint, per frame and mean (mm)."""
+    from data_tools.checks import load_npz
+    from data_tools.reference import compare_to_trc
+    from tracker.app.api import load_sequence
+
+    specs = {s.name: s for s in exp.sequences if s.reference is not None}
+    offsets: dict[str, int] = {}
+    for r in results:
+        spec = specs.get(r["run"]["sequence"])
+        if spec is None:
+            continue
+        if spec.name not in offsets:
+            offsets[spec.name] = reference_offset_of(spec, load_sequence(r["run"]["sequence_path"]))
+        markers = load_npz(runs_dir / r["run"]["key"] / "estimates.npz", "estimates", ("markers",))["markers"]
+        r["reference"] = compare_to_trc(markers, spec.reference, offsets[spec.name]).to_dict()
 
 
 # -- one run (executed in a worker) ---------------------------------------------------------------------------
@@ -189,8 +242,9 @@ def _execute_run(spec: RunSpec, final: Path, tmp: Path) -> dict:
 
         seed = run_seed(spec.seed_entropy, spec.seed_index)
         seq = load_sequence(spec.sequence_path)
-        run = track(seq, spec.prior, models=spec.models, likelihood=spec.likelihood, **spec.prior_options,
-                    **spec.likelihood_options, **spec.settings(), seed=seed,
+        init = None if spec.init is None else read_init(spec.init, seq)
+        run = track(seq, spec.prior, models=spec.models, likelihood=spec.likelihood, init=init,
+                    **spec.prior_options, **spec.likelihood_options, **spec.settings(), seed=seed,
                     step_std=None if spec.step_std is None else np.array(spec.step_std), on_frame=on_frame)
         log.write(f"done in {time.perf_counter() - t0:.1f} s\n")
     result = run.save(tmp, overwrite=True)  # every metric, as track writes it
@@ -388,6 +442,7 @@ def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str
         r = json.loads((runs_dir / s.key / "result.json").read_text())
         r["run"] = s.as_dict()
         results.append(r)
+    score_references(exp, results, runs_dir)
     meta = {"experiment": str(exp.path), "description": exp.description, "runs": len(unique),
             "ran_now": len(todo), "wall_seconds_now": wall,
             "run_seconds_now": sum(r.get("wall_seconds", 0.0) for r in summaries.values()),

@@ -21,6 +21,12 @@ File layout (every key is checked, unknown ones refused)::
     [[sequence]]                             # a sequence folder ...
     name = "bodytrack"
     path = "bodytrack/sequenceB_1"
+    [[sequence]]                             # ... such as an imported video without ground truth:
+    name = "T-pose"                          # its first poses (as initialise writes them; a folder with
+    path = "seq"                             # ground truth starts from that unless init is given), and
+    init = "init.npz"                        # optionally another method's reconstruction (TRC) that the
+    reference = "static_0-12.trc"            # tables measure each prior's distance to; its frame
+    reference_offset = 0                     # of the run's frame 0 (default: meta.json's first_video_frame, else 0)
     [[sequence]]                             # ... or a mocap clip the runner renders (and caches)
     name = "subject 16 walk"
     mocap = "mocap/cmu/16/16_15.amc"
@@ -68,10 +74,11 @@ File layout (every key is checked, unknown ones refused)::
     name = "edge-silhouette"
     options = { bidirectional = true }
 
-Paths: the data paths (a sequence's ``path``, ``mocap``, ``skeleton``, ``then``, ``then_skeleton``, ``joint_map``
-and ``then_joint_map``, and the training clips and skeletons of ``train`` and ``train_mocap``) are relative to the data root when the file
-declares ``data_root``, and relative to the file otherwise; ``models`` are always relative to the file; absolute
-paths stay as they are. ``compare --data-root DIR`` (the ``data_root`` argument of :func:`load_experiment` and
+Paths: the data paths (a sequence's ``path``, ``init``, ``reference``, ``mocap``, ``skeleton``, ``then``,
+``then_skeleton``, ``joint_map`` and ``then_joint_map``, and the training clips and skeletons of ``train`` and
+``train_mocap``) are relative to the data root when the file declares ``data_root``, and relative to the file
+otherwise; ``models`` are always relative to the file; absolute paths stay as they are. ``compare --data-root
+DIR`` (the ``data_root`` argument of :func:`load_experiment` and
 ``tracker.compare``), or else the environment variable ``POSE_TRACKER_DATA_ROOT``, replaces the declared data root,
 so that a file copied elsewhere, or data kept elsewhere, needs no edit; a file that declares no data root is not
 affected by the environment variable, and refuses ``--data-root``.
@@ -122,7 +129,10 @@ DATA_ROOT_ENV = "POSE_TRACKER_DATA_ROOT"
 SEQUENCE_KEYS = {"name", "path", "mocap", "skeleton", "then", "then_skeleton", "switch_at", "fade", "start", "frames",
                  "cameras", "views", "seed", "noise", "width", "height", "lighting_change", "occluder", "missing_camera",
                  "turn",
-                 "joint_map", "then_joint_map"}
+                 "joint_map", "then_joint_map", "init", "reference", "reference_offset"}
+#: A sequence folder's keys (``path = ...``) besides its name: where its first poses come from, and a reference
+#: reconstruction to measure the runs against.
+FOLDER_KEYS = {"path", "init", "reference", "reference_offset"}
 #: A rendered sequence's keys that describe a change of activity (data_tools.transition) or how its clips are
 #: read (joint maps), not the rendering.
 TRANSITION_KEYS = {"then", "then_skeleton", "switch_at", "fade", "joint_map", "then_joint_map"}
@@ -140,6 +150,12 @@ class SequenceSpec:
     mocap: Path | None = None         # or a clip to render
     skeleton: Path | None = None
     synth: dict = field(default_factory=dict)
+    #: A folder's first poses (a poses .npz, as ``initialise`` writes it; ``track --init``).
+    init: Path | None = None
+    #: Another method's reconstruction of the folder (TRC), and its frame of the runs' frame 0 (None: the
+    #: sequence's ``first_video_frame``, else 0).
+    reference: Path | None = None
+    reference_offset: int | None = None
 
 
 @dataclass(frozen=True)
@@ -540,11 +556,23 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
         if ("path" in s) == ("mocap" in s):
             raise w.error(entry, "give either path (a sequence folder) or mocap (a clip to render)")
         if "path" in s:
-            extra = sorted(set(s) - {"name", "path"})
+            extra = sorted(set(s) - {"name"} - FOLDER_KEYS)
             if extra:
                 raise w.error(entry, f"{', '.join(extra)} apply to rendered sequences (mocap = ...), not to path")
-            sequences.append(SequenceSpec(name, path=w.file(s["path"], entry, folder=True)))
+            if "reference_offset" in s and "reference" not in s:
+                raise w.error(entry, "reference_offset applies to a reference: give reference = \"FILE.trc\"")
+            offset = None if "reference_offset" not in s else w.int_(s["reference_offset"],
+                                                                       f"{entry} reference_offset", 0)
+            sequences.append(SequenceSpec(name, path=w.file(s["path"], entry, folder=True),
+                                          init=w.file(s["init"], f"{entry} init") if "init" in s else None,
+                                          reference=(w.file(s["reference"], f"{entry} reference")
+                                                     if "reference" in s else None),
+                                          reference_offset=offset))
         else:
+            folder_only = sorted(set(s) & (FOLDER_KEYS - {"path"}))
+            if folder_only:
+                raise w.error(entry, f"{', '.join(folder_only)} apply to sequence folders (path = ...), not to "
+                                     "rendered sequences, which start from their ground truth")
             synth = {k: v for k, v in s.items() if k not in ("name", "mocap", "skeleton")}
             if "views" in synth:  # the former name of cameras (a number of cameras; [tracking] views are indices)
                 if "cameras" in synth:
@@ -662,6 +690,8 @@ class RunSpec:
     threads: int = 1
     #: The filter's other settings (``ess_threshold``, ``survival_rate``, ``layer_diffusion_decay``).
     filter_options: dict = field(default_factory=dict)
+    #: The sequence's first poses (a poses .npz), where the experiment gives them (``init``).
+    init: str | None = None
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -709,6 +739,7 @@ def expand_runs(exp: Experiment, sequence_paths: dict[str, Path], sequence_hashe
                 "particles": particles, "annealing_layers": layers, "frames": exp.tracking["frames"],
                 "known_frames": exp.tracking["known_frames"], "resampling": exp.tracking["resampling"],
                 "seed": [exp.seed, i], "version": version, **_filter_options(exp),
+                **({} if seq.init is None else {"init": file_hash(seq.init)}),
             }
             runs.append(RunSpec(
                 key=config_hash(identity), sequence=seq.name, sequence_path=str(sequence_paths[seq.name]),
@@ -718,7 +749,7 @@ def expand_runs(exp: Experiment, sequence_paths: dict[str, Path], sequence_hashe
                 views=None if views is None else tuple(views), particles=particles, annealing_layers=layers,
                 frames=exp.tracking["frames"], known_frames=exp.tracking["known_frames"],
                 resampling=exp.tracking["resampling"], seed_index=i, seed_entropy=exp.seed, out=str(out),
-                filter_options=_filter_options(exp)))
+                filter_options=_filter_options(exp), init=None if seq.init is None else str(seq.init)))
     return runs
 
 

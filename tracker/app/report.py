@@ -8,6 +8,12 @@ every row against the baseline, the mean over seed indices of (row - baseline) a
 percentile bootstrap interval (10,000 resamples of
 the seed indices, seeded): runs of the same seed index share their generator's seed, so the pairing removes
 common sequence difficulty.
+
+A sequence without ground truth (an imported video) has no marker error: it is left out of those tables and has
+its own, with what can be said without one: the seconds per frame, the spread between seeds (how far apart the
+runs of different seeds put the markers, :func:`seed_spread`) and, where the experiment names a reference
+reconstruction, each run's mean distance to it after one rigid alignment
+(:func:`data_tools.reference.compare_to_reference`, as ``compare-trc`` prints it).
 """
 from __future__ import annotations
 
@@ -66,6 +72,35 @@ def split_row_label(row: str, labels: list[str]) -> tuple[str, str]:
     return label, row[len(label):]
 
 
+def has_truth(runs: list[dict]) -> bool:
+    """Whether every run of ``runs`` (``result.json`` contents) has a marker error (its sequence ground truth)."""
+    return bool(runs) and all(per_frame_values(r, PRIMARY) for r in runs)
+
+
+def reference_values(result: dict) -> list[float] | None:
+    """A run's per-frame distances to its sequence's reference reconstruction (mm), or None without one."""
+    return (result.get("reference") or {}).get("per_frame")
+
+
+def seed_spread(markers: list[np.ndarray]) -> float:
+    """How far apart the runs of different seeds put the markers: the mean over frames, markers and runs of each
+    run's distance to the mean over runs (mm); ``markers`` one ``T x 15 x 3`` array per run (its tracked frames,
+    mm). Nan for fewer than two runs."""
+    if len(markers) < 2:
+        return float("nan")
+    n = min(len(m) for m in markers)
+    stack = np.stack([np.asarray(m, float)[:n] for m in markers])  # runs x T x 15 x 3
+    return float(np.linalg.norm(stack - stack.mean(axis=0), axis=-1).mean())
+
+
+def _tracked_markers(result: dict, runs_dir: Path) -> np.ndarray:
+    """A run's markers ``T x 15 x 3`` (mm) in its tracked frames, from its ``estimates.npz``."""
+    from data_tools.checks import load_npz
+
+    markers = load_npz(runs_dir / result["run"]["key"] / "estimates.npz", "estimates", ("markers",))["markers"]
+    return markers[result["tracked_frames"]]
+
+
 def _cell(values: list[float], digits: int = 1) -> str:
     """``mean ± std`` over runs (:func:`~tracker.core.metrics.summarize_runs`), or n/a."""
     v = np.asarray(values, float)
@@ -88,11 +123,13 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
         group.sort(key=lambda r: r["run"]["seed_index"])
 
     md = io.StringIO()
+    free = [s for s in seqs if not all(has_truth(by.get((row, s), [])) for row in rows)]
+    all_seqs, seqs = seqs, [s for s in seqs if s not in free]  # the marker error's tables: ground truth only
     md.write(f"# {exp.description or exp.path.stem}\n\n")
     md.write(f"`{exp.path.name}`: {exp.seeds} seed(s) per configuration, master seed {exp.seed}; "
              f"mean ± std over seeds of each run's mean over its tracked frames.\n")
     csv_rows = [["metric", "row", "sequence", "mean", "std", "runs", "seconds_per_frame"]]
-    for metric, _, title in METRICS:
+    for metric, _, title in METRICS if seqs else ():
         md.write(f"\n## {title}\n\n| prior | " + " | ".join(seqs) + " | s/frame |\n")
         md.write("|---" * (len(seqs) + 2) + "|\n")
         for row in rows:
@@ -120,7 +157,7 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
                       and rows.index(other) < rows.index(row)]
         elif label != exp.baseline and exp.baseline + variant in rows:
             pairs.append((row, exp.baseline + variant))
-    if pairs:
+    if pairs and seqs:
         title = exp.baseline if exp.paired == "baseline" else "each other (row minus compared row)"
         md.write(f"\n## Paired difference to {title} ({PRIMARY}, mm; 95% bootstrap interval over seeds)\n\n")
         md.write("| prior | compared with | " + " | ".join(seqs) + " |\n" + "|---" * (len(seqs) + 2) + "|\n")
@@ -137,8 +174,10 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
                 lo, hi = bootstrap_interval(d)
                 cells.append(f"{d.mean():+.1f} [{lo:+.1f}, {hi:+.1f}]" if d.size > 1 else f"{d.mean():+.1f}")
             md.write(f"| {row} | {base_row} | " + " | ".join(cells) + " |\n")
+    if free:
+        _write_without_truth(md, csv_rows, rows, free, by, out / "runs")
     groups = _replicate_groups(exp, rows, split_row)
-    _write_replicates(md, csv_rows, groups, seqs, lambda row, s: [
+    _write_replicates(md, csv_rows, groups if seqs else {}, seqs, lambda row, s: [
         per_run(r, PRIMARY) for r in by.get((row, s), [])])
     tables = md.getvalue()  # without the line about this invocation (report.html is the same on a rerun)
     cpu = sum({r["run"]["key"]: r.get("wall_seconds", 0.0) for r in results}.values())
@@ -149,8 +188,53 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
     buf = io.StringIO()
     csv.writer(buf).writerows(csv_rows)
     write_text_atomic(out / "table.csv", buf.getvalue())
-    _plot(out / "per_frame.png", _plotted_rows(rows, groups), seqs, by)
+    _plot(out / "per_frame.png", _plotted_rows(rows, groups), all_seqs, by)
     return {"table": md.getvalue(), "tables": tables, "runs": len(results), "run_seconds": cpu}
+
+
+def _write_without_truth(md: io.StringIO, csv_rows: list, rows: list[str], seqs: list[str], by: dict,
+                         runs_dir: Path) -> None:
+    """The tables of the sequences ``seqs`` that have no ground truth: the spread between seeds with the seconds
+    per frame, and the distance to the reference reconstruction where the sequence has one (``by``: the results
+    by ``(row, sequence)``). Their lines in ``table.csv`` are the metrics ``seed_spread`` (its std empty) and
+    ``reference_distance``."""
+    md.write("\n## Without ground truth: spread between seeds (mm)\n\n")
+    md.write("No ground truth, so no marker error: each cell is how far apart the seeds put the markers (the mean "
+             "distance of a run's markers from the mean over seeds, over its tracked frames; n/a with one seed), "
+             "which says how repeatable a prior is, not how right.\n\n")
+    md.write("| prior | " + " | ".join(seqs) + " | s/frame |\n" + "|---" * (len(seqs) + 2) + "|\n")
+    for row in rows:
+        cells, secs = [], []
+        for s in seqs:
+            group = by.get((row, s), [])
+            secs += [r["seconds_per_frame"] for r in group]
+            spread = seed_spread([_tracked_markers(r, runs_dir) for r in group])
+            cells.append("n/a" if not np.isfinite(spread) else f"{spread:.1f}")
+            if group and np.isfinite(spread):
+                csv_rows.append(["seed_spread", row, s, f"{spread:.4f}", "", len(group),
+                                 f"{np.mean([r['seconds_per_frame'] for r in group]):.4f}"])
+        md.write(f"| {row} | " + " | ".join(cells) + f" | {np.mean(secs):.3f} |\n")
+    referenced = [s for s in seqs if any(reference_values(r) for row in rows for r in by.get((row, s), []))]
+    if not referenced:
+        return
+    md.write("\n## Distance to the reference reconstruction (mm), after one rigid alignment\n\n")
+    md.write("Mean ± std over seeds of each run's mean distance to the sequence's reference (its keypoints mapped "
+             "to our markers, one rigid alignment of the whole run, every frame of the run, as `compare-trc` "
+             "prints it). A reference is another method's estimate, not the truth, and its keypoints are not our "
+             "markers (a detector's hip is not the hip joint's centre): the distances hold that difference, and "
+             "compare priors with each other better than they measure error.\n\n")
+    md.write("| prior | " + " | ".join(referenced) + " |\n" + "|---" * (len(referenced) + 1) + "|\n")
+    for row in rows:
+        cells = []
+        for s in referenced:
+            group = by.get((row, s), [])
+            vals = [r["reference"]["mean"] for r in group if reference_values(r)]
+            cells.append(_cell(vals) if len(vals) == len(group) else "n/a")
+            if group and len(vals) == len(group):
+                mean, sd = summarize_runs(vals)
+                csv_rows.append(["reference_distance", row, s, f"{mean:.4f}", f"{sd:.4f}", len(vals),
+                                 f"{np.mean([r['seconds_per_frame'] for r in group]):.4f}"])
+        md.write(f"| {row} | " + " | ".join(cells) + " |\n")
 
 
 def _replicate_groups(exp, rows: list[str], split_row) -> dict[tuple[str, str], list[str]]:
@@ -212,6 +296,11 @@ def _plotted_rows(rows: list[str], groups: dict[tuple[str, str], list[str]]) -> 
     return lines
 
 
+def _rows_on(lines: dict[str, list[str]], sequence: str, by: dict) -> list[str]:
+    """The rows of the plot's ``lines`` that have runs on ``sequence``."""
+    return [member for members in lines.values() for member in members if (member, sequence) in by]
+
+
 def _plot(path: Path, lines: dict[str, list[str]], seqs: list[str], by: dict) -> None:
     """:func:`per_frame_figure` written to ``path`` (PNG), cropped to what is drawn (labels and legend whole)."""
     fig = per_frame_figure(lines, seqs, by)
@@ -221,7 +310,9 @@ def _plot(path: Path, lines: dict[str, list[str]], seqs: list[str], by: dict) ->
 
 def per_frame_figure(lines: dict[str, list[str]], seqs: list[str], by: dict):
     """Per-frame absolute MPJPE of each line (a row, or a ``train_seeds`` group's rows together), mean over its
-    runs with a ±1 std band, one panel per sequence (``by``: the results by ``(row, sequence)``).
+    runs with a ±1 std band, one panel per sequence (``by``: the results by ``(row, sequence)``); for a sequence
+    without ground truth, the distance to its reference reconstruction instead, or a panel that says it has
+    neither.
 
     Each prior gets its own colour (up to 20 distinct ones) and each view set its own line style, so rows
     stay apart however many there are; the legend sits to the right of the panels. The y label is short
@@ -239,25 +330,43 @@ def per_frame_figure(lines: dict[str, list[str]], seqs: list[str], by: dict):
     fig = Figure(figsize=(11.5, height * len(seqs)), dpi=110)
     axes = fig.subplots(len(seqs), 1, squeeze=False)[:, 0]
     for ax, s in zip(axes, seqs):
+        truth = all(has_truth(by.get((row, s), [])) for row in _rows_on(lines, s, by))
+
+        def values(r: dict) -> list[float] | None:
+            return per_frame_values(r, PRIMARY) if truth else reference_values(r)
+
+        def frames_of(r: dict) -> list[int]:
+            return r["tracked_frames"] if truth else r["reference"]["frames"]
+
+        drawn = False
         for row in rows:
-            group = [r for member in lines[row] for r in by.get((member, s), []) if per_frame_values(r, PRIMARY)]
+            group = [r for member in lines[row] for r in by.get((member, s), []) if values(r)]
             if not group:
                 continue
-            n = min(len(per_frame_values(r, PRIMARY)) for r in group)
-            errs = np.array([per_frame_values(r, PRIMARY)[:n] for r in group])
-            frames = np.array(group[0]["tracked_frames"][:n])
+            drawn = True
+            n = min(len(values(r)) for r in group)
+            errs = np.array([values(r)[:n] for r in group])
+            frames = np.array(frames_of(group[0])[:n])
             mean, sd = errs.mean(axis=0), errs.std(axis=0)
             prior, _, views = row.rpartition(", views ") if ", views " in row else (row, "", "")
             colour = palette(priors.index(prior) % palette.N)
             ax.plot(frames, mean, color=colour, linestyle=styles[view_sets.index(views) % len(styles)],
                     label=f"{row} ({errs.mean():.0f} mm)")
             ax.fill_between(frames, mean - sd, mean + sd, color=colour, alpha=0.12, linewidth=0)
-        ax.set_title(s)
+        ax.set_title(s if truth else f"{s} (no ground truth)")
         ax.set_xlabel("frame")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-        ax.set_ylabel(f"{CORE_METRICS[0].title.split(' (')[0]} (mm)")  # "MPJPE, absolute (mm)"
+        # "MPJPE, absolute (mm)"
+        ax.set_ylabel(f"{CORE_METRICS[0].title.split(' (')[0]} (mm)" if truth else "to the reference (mm)")
         ax.set_ylim(bottom=0)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+        if drawn:
+            ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+        else:
+            ax.set_xticks([])
+            ax.set_yticks([])
+            ax.set_ylabel("")
+            ax.text(0.5, 0.5, "no ground truth and no reference to measure the runs against",
+                    transform=ax.transAxes, ha="center", va="center", color="#5d6873")
     fig.tight_layout()
     return fig

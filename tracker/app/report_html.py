@@ -11,7 +11,12 @@ rows that differ only in their prior) one video puts the best and the worst prio
 the lowest and the highest marker error (mean over seeds). Each side shows the run whose own mean error is the
 closest to its row's mean over seeds (the lowest seed index on a tie): its estimate (the mean pose, drawn like
 ``track --video``) and the ground truth over the first camera of the view set, at most
-:data:`VIDEO_FRAMES` frames (every k-th frame of a longer sequence), :data:`TILE_WIDTH` pixels wide per side.
+:data:`VIDEO_FRAMES` frames (every k-th frame of a longer sequence), :data:`TILE_WIDTH` pixels wide per side;
+under it a still of the last frame in every view of the view set, each side's estimate over the frames.
+
+A sequence without ground truth (an imported video) ranks its rows by their distance to the reference
+reconstruction the experiment names for it (:mod:`data_tools.reference`), and without one shows its first two
+rows, unranked, over its own frames.
 """
 from __future__ import annotations
 
@@ -41,23 +46,31 @@ VIDEO_FRAMES = 150
 TILE_WIDTH = 320
 #: x264's constant rate factor for the videos (20 is ``track --video``'s; higher is smaller).
 VIDEO_CRF = 26
+#: Width of each side's grid of views in a still (pixels), and its JPEG quality.
+STILL_WIDTH = 480
+STILL_QUALITY = 85
+#: What ranks a video's rows (:attr:`Side.basis`): the marker error against the ground truth, the distance to a
+#: reference reconstruction, or nothing (a sequence with neither: its first two rows, unranked).
+BY_TRUTH, BY_REFERENCE, UNRANKED = "marker error", "distance to the reference", ""
 
 
 # -- choosing the runs shown --------------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
 class Side:
-    """One side of a comparison video: a table row, its mean marker error over seeds (mm), how many seeds, and
-    the run shown (its ``result.json`` with ``run``)."""
+    """One side of a comparison video: a table row, its mean score over seeds (mm: the marker error, or the
+    distance to the reference, as ``basis`` says; nan when unranked), how many seeds, and the run shown (its
+    ``result.json`` with ``run``)."""
 
     row: str
     mean_mm: float
     seeds: int
     run: dict
+    basis: str = BY_TRUTH
 
     @property
     def run_mm(self) -> float:
-        return _mean_error(self.run)
+        return run_score(self.run, self.basis)
 
 
 @dataclass(frozen=True)
@@ -69,6 +82,11 @@ class Pick:
     variant: str
     best: Side
     worst: Side
+
+    @property
+    def basis(self) -> str:
+        """What ranked the two rows (:data:`BY_TRUTH`, :data:`BY_REFERENCE` or :data:`UNRANKED`)."""
+        return self.best.basis
 
 
 def _variant_key(run: dict) -> tuple:
@@ -99,25 +117,50 @@ def marker_errors(result: dict) -> list[float] | None:
     return per_frame_values(result, PRIMARY)
 
 
-def _mean_error(result: dict) -> float:
-    """A run's mean marker error over its tracked frames (mm)."""
-    from tracker.app.report import PRIMARY, per_run
+def per_frame_scores(result: dict, basis: str) -> dict[int, float]:
+    """A run's score per frame (mm) by ``basis``: frame -> marker error (its tracked frames) or distance to the
+    reference (every frame compared); empty when unranked."""
+    from tracker.app.report import reference_values
 
-    return per_run(result, PRIMARY)
+    if basis == BY_TRUTH:
+        return dict(zip(result["tracked_frames"], marker_errors(result)))
+    if basis == BY_REFERENCE:
+        return dict(zip(result["reference"]["frames"], reference_values(result)))
+    return {}
 
 
-def representative(runs: list[dict]) -> dict:
-    """The run whose mean marker error is the closest to the mean over ``runs`` (the lowest seed index on a
-    tie)."""
-    means = np.array([_mean_error(r) for r in runs])
+def run_score(result: dict, basis: str = BY_TRUTH) -> float:
+    """A run's mean score over its frames (mm) by ``basis`` (:func:`per_frame_scores`); nan when unranked."""
+    values = list(per_frame_scores(result, basis).values())
+    return float(np.mean(values)) if values else float("nan")
+
+
+def representative(runs: list[dict], basis: str = BY_TRUTH) -> dict:
+    """The run whose mean score (:func:`run_score`) is the closest to the mean over ``runs`` (the lowest seed
+    index on a tie, and when unranked)."""
+    if basis == UNRANKED:
+        return min(runs, key=lambda r: r["run"]["seed_index"])
+    means = np.array([run_score(r, basis) for r in runs])
     order = sorted(range(len(runs)), key=lambda i: (abs(means[i] - means.mean()), runs[i]["run"]["seed_index"]))
     return runs[order[0]]
 
 
+def _basis(runs: list[dict]) -> str:
+    """What can rank ``runs``: their marker error where every one has it, else their distance to the reference."""
+    from tracker.app.report import reference_values
+
+    if all(marker_errors(r) for r in runs):
+        return BY_TRUTH
+    if all(reference_values(r) for r in runs):
+        return BY_REFERENCE
+    return UNRANKED
+
+
 def pick_runs(results: list[dict]) -> tuple[list[Pick], list[str]]:
     """The best and the worst row of every sequence and grid variant (by the mean over seeds of each run's mean
-    marker error), each with its :func:`representative` run; and a note for each sequence and variant that has
-    none (no ground truth, or a single prior)."""
+    marker error; without ground truth, its mean distance to the reference; with neither, the first two rows,
+    unranked), each with its :func:`representative` run; and a note for each sequence and variant that has a
+    single prior (no video) or more than two unranked rows (the first two shown)."""
     groups: dict[tuple[str, tuple], dict[str, list[dict]]] = {}
     for r in results:
         groups.setdefault((r["run"]["sequence"], _variant_key(r["run"])), {}).setdefault(r["run"]["row"], []).append(r)
@@ -125,14 +168,20 @@ def pick_runs(results: list[dict]) -> tuple[list[Pick], list[str]]:
     picks, notes = [], []
     for (sequence, key), rows in groups.items():
         where = sequence + (f" ({names[key]})" if names[key] else "")
-        scored = {row: runs for row, runs in rows.items()
-                  if all(marker_errors(r) for r in runs)}
-        if len(scored) < 2:
-            why = "no ground truth to rank the priors by" if len(scored) < len(rows) else "one prior only"
-            notes.append(f"{where}: no video ({why})")
+        if len(rows) < 2:
+            notes.append(f"{where}: no video (one prior only)")
             continue
-        sides = [Side(row, float(np.mean([_mean_error(r) for r in runs])), len(runs),
-                      representative(runs)) for row, runs in scored.items()]
+        basis = _basis([r for runs in rows.values() for r in runs])
+        if basis == UNRANKED:
+            first, second = (Side(row, float("nan"), len(runs), representative(runs, basis), basis)
+                             for row, runs in list(rows.items())[:2])
+            picks.append(Pick(sequence, names[key], first, second))
+            if len(rows) > 2:
+                notes.append(f"{where}: the first two of {len(rows)} rows shown (no ground truth or reference "
+                             "to rank the priors by)")
+            continue
+        sides = [Side(row, float(np.mean([run_score(r, basis) for r in runs])), len(runs),
+                      representative(runs, basis), basis) for row, runs in rows.items()]
         best = min(sides, key=lambda s: s.mean_mm)
         worst = max(sides, key=lambda s: s.mean_mm)
         if best.row == worst.row:  # every row equally good
@@ -176,26 +225,53 @@ def comparison_frames(pick: Pick, seq, runs_dir: Path, labels: list[str]) -> tup
     """The frames of ``pick``'s video (RGB, made as they are iterated), how many, and the step between shown
     sequence frames: a legend, then side by side for each prior its name and errors above the camera's image
     (cut to the part where the figure and the estimates are, :func:`crop_box`) with its estimate, the ground
-    truth and the frame's marker error."""
-    from data_tools.estimates import read_poses_file
-
-    sides = [("best", pick.best), ("worst", pick.worst)]
+    truth where there is one and the frame's score (marker error, or distance to the reference)."""
+    sides = _sides(pick)
     views = pick.best.run["run"]["views"]
     view = 0 if views is None else views[0]
-    poses = [read_poses_file(runs_dir / s.run["run"]["key"] / "estimates.npz", "estimates", seq.model)
-             for _, s in sides]
+    poses = _poses(pick, seq, runs_dir)
     n = min(seq.n_frames, *(len(p) for p in poses))
     step = max(1, math.ceil(n / VIDEO_FRAMES))
     shown = list(range(0, n, step))
-    headers = [[f"{which}: {_short_label(s.row, labels)}",
-                f"{s.mean_mm:.0f} mm over {s.seeds} seed(s); seed {s.run['run']['seed_index']}: {s.run_mm:.0f} mm"]
-               for which, s in sides]
-    errors = [dict(zip(s.run["tracked_frames"], marker_errors(s.run))) for _, s in sides]
-    return _frames(seq, view, poses, shown, headers, errors), len(shown), step
+    headers = [[f"{which}: {_short_label(s.row, labels)}", _score_line(s)] for which, s in sides]
+    errors = [per_frame_scores(s.run, s.basis) for _, s in sides]
+    first = [s.run.get("first_tracked_frame", 0) for _, s in sides]
+    return _frames(seq, view, poses, shown, headers, errors, first), len(shown), step
+
+
+def _sides(pick: Pick) -> list[tuple[str, Side]]:
+    """The two sides with their headings: best and worst, or left and right when unranked."""
+    names = ("left", "right") if pick.basis == UNRANKED else ("best", "worst")
+    return list(zip(names, (pick.best, pick.worst)))
+
+
+def _poses(pick: Pick, seq, runs_dir: Path) -> list[np.ndarray]:
+    """The estimated poses ``T x D`` of the two runs shown."""
+    from data_tools.estimates import read_poses_file
+
+    return [read_poses_file(runs_dir / s.run["run"]["key"] / "estimates.npz", "estimates", seq.model)
+            for s in (pick.best, pick.worst)]
+
+
+def _score_line(side: Side) -> str:
+    """A side's score, over its seeds and of the seed shown, as its header says it."""
+    seed = side.run["run"]["seed_index"]
+    if side.basis == UNRANKED:
+        return f"{side.seeds} seed(s); seed {seed} shown"
+    what = "" if side.basis == BY_TRUTH else " to the reference"
+    return f"{side.mean_mm:.0f} mm{what} over {side.seeds} seed(s); seed {seed}: {side.run_mm:.0f} mm"
+
+
+def _frame_text(k: int, scores: dict[int, float], first: int) -> str:
+    """A tile's caption: the frame, its score (mm) and whether its pose was given."""
+    parts = [f"{scores[k]:.0f} mm"] if k in scores else []
+    if k < first:
+        parts.append("given")
+    return f"frame {k}" + (": " + ", ".join(parts) if parts else "")
 
 
 def _frames(seq, view: int, poses: list[np.ndarray], shown: list[int], headers: list[list[str]],
-            errors: list[dict[int, float]]) -> Iterator[np.ndarray]:
+            errors: list[dict[int, float]], first: list[int]) -> Iterator[np.ndarray]:
     """:func:`comparison_frames`' pictures."""
     import cv2
 
@@ -219,9 +295,9 @@ def _frames(seq, view: int, poses: list[np.ndarray], shown: list[int], headers: 
         est, gt = outlines[k]
         gt = None if gt is None else scale_polygons(gt, scale, (x0, y0))
         tiles = []
-        for polys, err, head in zip(est, errors, heads):
+        for polys, err, head, known in zip(est, errors, heads, first):
             tile = draw_estimate_and_truth(image, seq.model, scale_polygons(polys, scale, (x0, y0)), gt, 2)
-            tile = label(tile, f"frame {k}: " + (f"{err[k]:.0f} mm" if k in err else "given"), (4, 4), 0.45)
+            tile = label(tile, _frame_text(k, err, known), (4, 4), 0.45)
             tiles.append(np.concatenate([head, tile]))
         yield np.concatenate([legend, side_by_side(tiles)])
 
@@ -238,12 +314,42 @@ def render_video(pick: Pick, seq, runs_dir: Path, labels: list[str], fps: float,
 
     frames, count, step = comparison_frames(pick, seq, runs_dir, labels)
     ident = {"runs": [pick.best.run["run"]["key"], pick.worst.run["run"]["key"]],
-             "captions": [[_short_label(s.row, labels), round(s.mean_mm, 6), s.seeds] for s in (pick.best, pick.worst)],
+             "captions": [[_short_label(s.row, labels), _score_line(s), s.seeds] for s in (pick.best, pick.worst)],
+             "scores": [{str(k): round(v, 3) for k, v in per_frame_scores(s.run, s.basis).items()}
+                        for s in (pick.best, pick.worst)],
              "video": [TILE_WIDTH, VIDEO_FRAMES, VIDEO_CRF, float(fps)], "version": tracker.__version__}
     path = cache / f"{config_hash(ident)}.mp4"
     if not path.exists():
         write_video(path, frames, fps, crf=VIDEO_CRF)  # atomically: an interrupted one is not kept
     return path.read_bytes(), count, step
+
+
+def still_image(pick: Pick, seq, runs_dir: Path, labels: list[str]) -> tuple[bytes, int]:
+    """A still of ``pick``'s last frame in every view of its view set, the two sides' estimates (over the ground
+    truth where there is one) next to each other, :data:`STILL_WIDTH` pixels wide each: JPEG bytes and the
+    frame shown."""
+    import cv2
+
+    from tracker.app.visualize import overlay_grid, side_by_side, text_strip
+
+    views = pick.best.run["run"]["views"]
+    views = list(range(seq.n_views)) if views is None else list(views)
+    poses = _poses(pick, seq, runs_dir)
+    k = min(seq.n_frames, *(len(p) for p in poses)) - 1
+    truth = seq.groundtruth.poses[k] if seq.groundtruth is not None and k < len(seq.groundtruth.poses) else None
+    tiles = []
+    for (which, side), pose in zip(_sides(pick), poses):
+        picture = overlay_grid(seq, pose[k], k, views, f"frame {k}", thickness=2, truth=truth,
+                               estimate_name="estimate")
+        height = int(round(picture.shape[0] * STILL_WIDTH / picture.shape[1]))
+        picture = cv2.resize(picture, (STILL_WIDTH, height), interpolation=cv2.INTER_AREA)
+        head = text_strip(STILL_WIDTH, [f"{which}: {_short_label(side.row, labels)}", _score_line(side)])
+        tiles.append(np.concatenate([head, picture]))
+    ok, data = cv2.imencode(".jpg", cv2.cvtColor(side_by_side(tiles), cv2.COLOR_RGB2BGR),
+                            [cv2.IMWRITE_JPEG_QUALITY, STILL_QUALITY])
+    if not ok:  # pragma: no cover - OpenCV encodes any RGB array
+        raise InputError("cannot encode the still as JPEG")
+    return data.tobytes(), k
 
 
 # -- the page -----------------------------------------------------------------------------------------------------
@@ -370,7 +476,7 @@ td.best { font-weight: 700; background: #e3f4e6; }
 td.better { background: #e3f4e6; }
 td.worse { background: #fbe5e3; }
 .note { color: #5d6873; font-size: 0.9em; }
-img.plot { max-width: 100%; height: auto; border: 1px solid #dde2e7; }
+img.plot, img.still { max-width: 100%; height: auto; border: 1px solid #dde2e7; }
 figure { margin: 12px 0 28px; }
 figcaption { color: #47525d; font-size: 0.9em; margin-top: 4px; max-width: 980px; }
 video { display: block; max-width: 100%; height: auto; background: #000; }
@@ -395,7 +501,8 @@ $intro
 $tables
 <h2 id="per-frame">Error per frame</h2>
 <p class="note">Each line is a row's mean over its runs with a band of &plusmn;1 standard deviation; one panel per
-sequence (<code>per_frame.png</code>).</p>
+sequence (<code>per_frame.png</code>); a sequence without ground truth shows the distance to its reference
+reconstruction instead, where it has one.</p>
 <img class="plot" alt="error per frame of every row" src="$plot">
 <h2 id="videos">Best and worst prior, side by side</h2>
 $videos
@@ -436,7 +543,10 @@ def _videos_html(exp, results: list[dict], runs_dir: Path, taken: set[str], say:
              "mean over seeds. Each side shows one run, the seed whose own mean error is the closest to its row's "
              "mean over seeds: its estimate (the mean pose; left segments red, right light blue, centre yellow) "
              "with the ground truth in green, over the first camera of the view set, "
-             f"{TILE_WIDTH} px wide per side.</p>"]
+             f"{TILE_WIDTH} px wide per side; under it, the last frame in every view of the view set. A sequence "
+             "without ground truth ranks its rows by their distance to its reference reconstruction (which is "
+             "another method's estimate, not the truth) or, without one, shows its first two rows unranked (the "
+             "lowest seed index of each).</p>"]
     links, sequences, made = [], {}, 0
     for pick in picks:
         title = pick.sequence + (f": {pick.variant}" if pick.variant else "")
@@ -449,6 +559,7 @@ def _videos_html(exp, results: list[dict], runs_dir: Path, taken: set[str], say:
             seq = sequences[pick.sequence]
             data, count, step = render_video(pick, seq, runs_dir, labels, seq.fps or exp.fps,
                                              runs_dir.parent / "videos")
+            still, still_frame = still_image(pick, seq, runs_dir, labels)
         except InputError as exc:
             note = f"{title}: no video ({exc})"
             say(f"report.html: {note}")
@@ -457,12 +568,21 @@ def _videos_html(exp, results: list[dict], runs_dir: Path, taken: set[str], say:
         made += 1
         shown = f"{count} frames" + (f", one sequence frame in {step} ({step}× speed)" if step > 1 else "")
         best, worst = pick.best, pick.worst
+        if pick.basis == UNRANKED:
+            said = (f"Unranked (no ground truth or reference): left {_inline(best.row)}, right {_inline(worst.row)} "
+                    f"(seeds {best.run['run']['seed_index']} and {worst.run['run']['seed_index']} shown).")
+        else:
+            what = "" if pick.basis == BY_TRUTH else " from the reference"
+            said = (f"Best: {_inline(best.row)}, {best.mean_mm:.1f} mm{what} (seed {best.run['run']['seed_index']} "
+                    f"shown, {best.run_mm:.1f} mm). Worst: {_inline(worst.row)}, {worst.mean_mm:.1f} mm{what} "
+                    f"(seed {worst.run['run']['seed_index']} shown, {worst.run_mm:.1f} mm).")
         parts.append(
             f'<figure>\n<video controls loop muted autoplay playsinline src="{_data_uri("video/mp4", data)}">'
-            f"</video>\n<figcaption>Best: {_inline(best.row)}, {best.mean_mm:.1f} mm (seed "
-            f"{best.run['run']['seed_index']} shown, {best.run_mm:.1f} mm). Worst: {_inline(worst.row)}, "
-            f"{worst.mean_mm:.1f} mm (seed {worst.run['run']['seed_index']} shown, {worst.run_mm:.1f} mm). "
-            f"{shown}, {len(data) // 1024} KB.</figcaption>\n</figure>")
+            f"</video>\n<figcaption>{said} {shown}, {len(data) // 1024} KB.</figcaption>\n</figure>")
+        parts.append(
+            f'<figure>\n<img class="still" alt="the estimates of frame {still_frame} in every view" '
+            f'src="{_data_uri("image/jpeg", still)}">\n<figcaption>Frame {still_frame}, the last, in every view of '
+            "the view set: each side's estimate over the camera images.</figcaption>\n</figure>")
     parts += [f'<p class="note">{_inline(n)}</p>' for n in notes]
     return "\n".join(parts), links, made
 

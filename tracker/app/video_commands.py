@@ -220,19 +220,14 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 def cmd_compare_trc(args: argparse.Namespace) -> int:
     from data_tools.checks import load_npz
-    from data_tools.reference import compare_to_reference
-    from data_tools.trc import read_trc
+    from data_tools.reference import compare_to_trc, reference_offset
 
     estimates, result = _run_files(args.run)
     markers = load_npz(estimates, "estimates", ("markers",))["markers"]
-    ref = read_trc(args.reference)
     offset = args.offset
     if offset is None:
-        offset = 0
-        if result.get("sequence"):
-            meta = _run_sequence(result, None, args.run).meta
-            offset = int(meta.get("first_video_frame", 0))
-    print(compare_to_reference(markers, ref.names, ref.points, offset=offset).table())
+        offset = reference_offset(_run_sequence(result, None, args.run).meta) if result.get("sequence") else 0
+    print(compare_to_trc(markers, args.reference, offset=offset).table())
     return 0
 
 
