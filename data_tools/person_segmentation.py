@@ -44,13 +44,13 @@ def require():
     return pose
 
 
-def person_masks(frames: Iterable[np.ndarray]) -> Iterator[np.ndarray]:
-    """The person's mask (bool ``H x W``) in each of one camera's frames (``H x W x 3`` RGB uint8, in order);
-    all False where the model finds no person. Frames are read one at a time, as ``frames`` yields them."""
+def build_model(segmentation: bool):
+    """BlazePose in video mode (the "full" model), with its segmentation output or without; an
+    :class:`InputError` naming :data:`INSTALL` when the package is missing or cannot build it."""
     pose = require()
     try:
         with _quiet():
-            model = pose.Pose(static_image_mode=False, model_complexity=1, enable_segmentation=True)
+            return pose.Pose(static_image_mode=False, model_complexity=1, enable_segmentation=segmentation)
     except Exception as exc:  # e.g. a protobuf too new for it: AttributeError deep in its option parsing
         try:
             from google.protobuf import __version__ as protobuf
@@ -58,6 +58,12 @@ def person_masks(frames: Iterable[np.ndarray]) -> Iterator[np.ndarray]:
             protobuf = "missing"
         raise InputError(f"MediaPipe is installed but cannot build its pose model ({type(exc).__name__}; protobuf "
                          f"{protobuf}, it needs protobuf < 5): {INSTALL}") from None
+
+
+def person_masks(frames: Iterable[np.ndarray]) -> Iterator[np.ndarray]:
+    """The person's mask (bool ``H x W``) in each of one camera's frames (``H x W x 3`` RGB uint8, in order);
+    all False where the model finds no person. Frames are read one at a time, as ``frames`` yields them."""
+    model = build_model(segmentation=True)
     try:
         for image in frames:
             image = np.ascontiguousarray(image, dtype=np.uint8)

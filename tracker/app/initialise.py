@@ -102,11 +102,14 @@ def silhouette_centre(rig: CameraRig, masks: list[np.ndarray]) -> np.ndarray:
 
 
 def initialise(seq, frame: int = 0, *, near: np.ndarray | None = None, seed: int = 0, rounds: int = 12,
-               samples: int = 200, likelihood: str = "edge-silhouette") -> Initialisation:
+               samples: int = 200, likelihood: str = "edge-silhouette",
+               shape: BodyShape | None = None) -> Initialisation:
     """Fit the body's scale and first pose to the silhouettes of ``frame`` of ``seq`` (module docstring).
 
     ``near``: an approximate first pose ``(D,)`` of the default model to search around instead of the stances
-    (its position and heading are searched too). The sequence needs silhouettes (``masks/``) or plates.
+    (its position and heading are searched too). ``shape``: the person's measured body shape (for example
+    :func:`data_tools.landmarks.shape_from_landmarks`), kept as it is (scale 1) instead of searching the
+    default adult's scale. The sequence needs silhouettes (``masks/``) or plates.
     """
     from tracker.app.plugins import likelihood_entry
     from tracker.app.threads import configured_threads
@@ -122,14 +125,14 @@ def initialise(seq, frame: int = 0, *, near: np.ndarray | None = None, seed: int
     centre = silhouette_centre(seq.rig, masks)
     entry = likelihood_entry(likelihood)
     options = resolve_options(f"likelihood {likelihood}", entry.options, {})
-    base = default_shape()
+    base = default_shape() if shape is None else shape
     starts = {"near": np.asarray(near, float)} if near is not None else None
     offsets = np.arange(-POSITION_SPAN, POSITION_SPAN + 1e-9, POSITION_STEP)
     headings = np.radians(np.arange(0.0, 360.0, HEADING_STEP))
     candidates = []  # (log-likelihood, scale, stance, pose, model, shape, scorer)
-    for scale in SCALES:
-        shape = scaled_shape(base, scale)
-        model = fifteen_cone_model(shape)
+    for scale in (SCALES if shape is None else (1.0,)):
+        body = scaled_shape(base, scale)
+        model = fifteen_cone_model(body)
         score = entry.build(LikelihoodContext(model, seq.rig, "cpu", configured_threads()), options).prepare(fr)
         templates = starts or {name: stance_pose(model, a) for name, a in STANCES.items()}
         for name, template in templates.items():
@@ -142,18 +145,18 @@ def initialise(seq, frame: int = 0, *, near: np.ndarray | None = None, seed: int
             grid[:, 5] = h.ravel()
             values = score(grid)
             for k in np.argsort(values)[::-1][:KEEP]:
-                candidates.append((float(values[k]), scale, name, grid[k].copy(), model, shape, score))
+                candidates.append((float(values[k]), scale, name, grid[k].copy(), model, body, score))
     candidates.sort(key=lambda c: -c[0])
     # Both headings of the best few, then the limbs, group by group; the best pose kept.
     refined = []
-    for value, scale, name, pose, model, shape, score in candidates[:REFINE]:
+    for value, scale, name, pose, model, body, score in candidates[:REFINE]:
         turned = pose.copy()
         turned[5] += np.pi
         for start in (pose, turned):
             found, found_value = refine_pose(score, model, start, float(score(start[None])[0]), rng, rounds, samples)
-            refined.append((found_value, scale, name, found, model, shape))
-    value, scale, name, pose, model, shape = max(refined, key=lambda c: c[0])
-    return Initialisation(pose, shape, model, name, scale, value, standing_height(model))
+            refined.append((found_value, scale, name, found, model, body))
+    value, scale, name, pose, model, body = max(refined, key=lambda c: c[0])
+    return Initialisation(pose, body, model, name, scale, value, standing_height(model))
 
 
 def refine_pose(score, model: BodyModel, pose: np.ndarray, value: float, rng: np.random.Generator, rounds: int,

@@ -78,13 +78,21 @@ def add_parsers(sub, parents) -> None:
                                    "tracker's likelihood rates best on the first frame's silhouettes, refine "
                                    "every pose number from both headings (silhouettes hardly tell front from "
                                    "back), write the fitted body shape into the sequence's "
-                                   "meta.json and the first poses to --out, for track --init.")
+                                   "meta.json (which track then uses) and the first poses to --out, for track "
+                                   "--init. --proportions landmarks measures the person's upper arms, forearms, "
+                                   "thighs and shanks from BlazePose's landmarks triangulated over the first "
+                                   "frames' views and keeps that body instead of searching the scale.")
     i.add_argument("sequence", metavar="DIR", help="sequence folder with silhouettes (masks/) or plates")
     i.add_argument("--out", required=True, metavar="FILE", help="poses file to write (.npz, for track --init)")
     i.add_argument("--near", metavar="POSES.npz", help="an approximate first pose to search around")
     i.add_argument("--frames", type=int, default=2, metavar="N",
                    help="how many first frames the pose is written for (track's --known-frames; default 2)")
     i.add_argument("--seed", type=int, default=0, help="random seed of the local search (default 0)")
+    i.add_argument("--proportions", choices=("scale", "landmarks"), default="scale",
+                   help="scale: the default adult's proportions at the scale the silhouettes fit best "
+                        "(default); landmarks: the person's own segment lengths, measured from BlazePose's "
+                        "landmarks triangulated over the first frames' views (needs the package silhouettes "
+                        "--method person needs)")
 
     x = sub.add_parser("export", parents=parents, help="write a tracked run's poses as BVH and/or TRC",
                        description="Write the poses of a tracked run (its folder, with result.json and "
@@ -162,7 +170,15 @@ def cmd_initialise(args: argparse.Namespace) -> int:
         raise InputError("initialise writes the fitted shape into meta.json: this toolkit's layout only",
                          args.sequence)
     near = None if args.near is None else read_poses_file(args.near, "--near", seq.model)[0]
-    found = initialise(seq, 0, near=near, seed=args.seed)
+    shape = None
+    if args.proportions == "landmarks":
+        from data_tools.landmarks import measure, sequence_landmarks, shape_from_landmarks
+
+        measured = measure(seq.rig, sequence_landmarks(seq), seq.root)
+        shape = shape_from_landmarks(measured.lengths, seq.root)
+        log.info(f"landmarks of {len(measured.points)} frames, reprojection error {np.nanmedian(measured.errors):.1f} "
+                 f"pixels (median): " + ", ".join(f"{k} {v:.0f}" for k, v in measured.lengths.items()) + " mm")
+    found = initialise(seq, 0, near=near, seed=args.seed, shape=shape)
     meta = dict(seq.meta)
     meta["body_shape"] = found.shape.to_dict()
     write_meta(seq.root, meta)
