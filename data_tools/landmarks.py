@@ -15,7 +15,7 @@ gives 33 image landmarks per view with a visibility each. This module
 
 Landmarks are not the body model's joint centres: on the real four-camera example the trunk between
 BlazePose's shoulders' and hips' midpoints measures 568 mm, where the default proportions at the person's size
-have 474 (and Pose2Sim's reconstruction, from another detector's keypoints, 539), and BlazePose has no point
+have 473 (and Pose2Sim's reconstruction, from another detector's keypoints, 539), and BlazePose has no point
 on the head's top. So the trunk, head, widths and radii follow the one scale, and only the limbs take their own
 lengths. Measured on that example (see the real-video guide), a
 body with every length as measured (trunk, head to the ears, shoulder and hip widths too) tracked further from
