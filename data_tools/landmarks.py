@@ -25,11 +25,12 @@ seeds 0 to 7); with the limbs alone it tracked as close (144.3).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Iterable, Iterator
 
 import numpy as np
 
-from tracker.core.body import BodyShape, default_shape
+from tracker.core.body import BodyShape, default_shape, scaled_shape
 from tracker.core.cameras import CameraRig
 from tracker.core.errors import InputError
 
@@ -134,7 +135,7 @@ def sequence_landmarks(seq, frames: int = FRAMES) -> np.ndarray:
                      for v in range(seq.n_views)], axis=1)
 
 
-def measure(rig: CameraRig, landmarks: np.ndarray, source=None) -> Measured:
+def measure(rig: CameraRig, landmarks: np.ndarray, source: str | Path | None = None) -> Measured:
     """Triangulate landmarks ``T x V x 33 x 3`` (pixels and visibility, :func:`sequence_landmarks`) seen by the
     rig's ``V`` views and measure the person; an :class:`InputError` naming ``source`` when a length cannot be
     measured (too few views see its landmarks)."""
@@ -144,7 +145,7 @@ def measure(rig: CameraRig, landmarks: np.ndarray, source=None) -> Measured:
     return Measured(points, errors, segment_lengths(points, source))
 
 
-def segment_lengths(points: np.ndarray, source=None) -> dict[str, float]:
+def segment_lengths(points: np.ndarray, source: str | Path | None = None) -> dict[str, float]:
     """The person's lengths (mm, :data:`LENGTHS`) from BlazePose landmarks ``T x 33 x 3`` (mm): each the median
     over frames, the limbs' left and right averaged, the trunk from the hips' to the shoulders' midpoint. An
     :class:`InputError` names a length no frame measures."""
@@ -180,12 +181,10 @@ def landmark_scale(lengths: dict[str, float]) -> float:
     return (lengths["thigh"] + lengths["shank"] + lengths["trunk"] + lengths["upper arm"]) / default
 
 
-def shape_from_landmarks(lengths: dict[str, float], source=None) -> BodyShape:
+def shape_from_landmarks(lengths: dict[str, float], source: str | Path | None = None) -> BodyShape:
     """The body shape for the measured ``lengths`` (mm, :func:`segment_lengths`): the default adult at
     :func:`landmark_scale` (lengths, offsets and radii alike), with both upper arms, forearms, thighs and shanks
     as measured."""
-    from tracker.app.initialise import scaled_shape
-
     shape = scaled_shape(default_shape(), landmark_scale(lengths))
     limbs = {"upper_arm": "upper arm", "lower_arm": "forearm", "upper_leg": "thigh", "lower_leg": "shank"}
     new = dict(shape.lengths)

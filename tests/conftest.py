@@ -49,6 +49,15 @@ def walk_07_01(mocap_dir):
 
 
 @pytest.fixture
+def no_mediapipe(monkeypatch) -> None:
+    """MediaPipe made unimportable, as if not installed, its modules an earlier test imported included."""
+    import sys
+
+    for name in [n for n in sys.modules if n.split(".")[0] == "mediapipe"] + ["mediapipe"]:
+        monkeypatch.setitem(sys.modules, name, None)
+
+
+@pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(12345)
 

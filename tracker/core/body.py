@@ -16,7 +16,7 @@ links, segments, a pose layout with limits, and named points.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -385,6 +385,20 @@ def default_shape() -> BodyShape:
         left_shoulder_offset=(0.0, 180.0, -60.0), right_shoulder_offset=(0.0, -180.0, -60.0),
         abdomen_offset=(0.0, 0.0, 0.0), foot_pitch=0.3,
     ).validate()
+
+
+def scaled_shape(shape: BodyShape, factor: float) -> BodyShape:
+    """``shape`` with every length, offset and radius multiplied by ``factor``."""
+    def times(table: dict[str, float]) -> dict[str, float]:
+        return {k: v * factor for k, v in table.items()}
+
+    def vec(v: tuple[float, float, float]) -> tuple[float, float, float]:
+        return tuple(float(x) * factor for x in v)
+
+    return replace(shape, lengths=times(shape.lengths), radius_proximal=times(shape.radius_proximal),
+                   radius_distal=times(shape.radius_distal), left_hip_offset=vec(shape.left_hip_offset),
+                   right_hip_offset=vec(shape.right_hip_offset), left_shoulder_offset=vec(shape.left_shoulder_offset),
+                   right_shoulder_offset=vec(shape.right_shoulder_offset), abdomen_offset=vec(shape.abdomen_offset))
 
 
 def fifteen_cone_model(shape: BodyShape | None = None) -> BodyModel:
