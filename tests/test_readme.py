@@ -26,7 +26,19 @@ TINY_SHELL = {"pose-tracker demo": "pose-tracker demo --frames 6", "--frame 40":
 
 
 def blocks(language: str) -> list[str]:
-    return re.findall(rf"```{language}\n(.*?)```", README.read_text(), flags=re.S)
+    """The README's fenced code blocks of ``language`` ("" for those without one), fences paired in order."""
+    found, lines, inside = [], [], None
+    for line in README.read_text().splitlines(keepends=True):
+        if line.startswith("```"):
+            if inside is None:
+                inside, lines = line[3:].strip(), []
+            else:
+                if inside == language:
+                    found.append("".join(lines))
+                inside = None
+        elif inside is not None:
+            lines.append(line)
+    return found
 
 
 def readme_fetch() -> tuple[Path, list[str]]:
