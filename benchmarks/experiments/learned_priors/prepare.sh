@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Trains the learned priors of the learned-priors table (models/, beside this file) on the whole shared corpus
+# less what the table tracks: CMU without subjects 11 and 16, bandai2 without the style "exhausted" and without
+# the content "wave-both-hands" (from $POSE_TRACKER_DATA_ROOT/mocap, default ../shared/mocap beside the checkout).
+# Every prior with train's defaults, training seeds 0 and 1; two trainings at a time, each on one thread.
+# Beside them, the CRBM and the neural prior on the CMU part alone (seed 0), to see what the second lab's data do.
+# bandai2 is CC BY-NC 4.0 (see the data's mocap/README.md): the models made here are for research, not to ship.
+# Run from anywhere: bash benchmarks/experiments/learned_priors/prepare.sh   (about 40 min on two cores)
+set -euo pipefail
+here="$(cd "$(dirname "$0")" && pwd)"
+root="${POSE_TRACKER_DATA_ROOT:-$here/../../../../shared}"
+M="$(cd "$root/mocap" && pwd)"
+mkdir -p "$here/models"
+corpus=()
+while IFS= read -r f; do corpus+=("$f"); done < <(
+  find "$M/cmu" \( -name '*.amc' -o -name '*.bvh' \) ! -path '*/16/*' ! -name '11_*' | sort
+  find "$M/bandai2" -name '*.bvh' ! -name '*_exhausted_*' ! -name '*_wave-both-hands_*' | sort)
+printf '%s\n' "${corpus[@]}" > "$here/models/corpus.txt"
+train() {  # prior seed [train options]
+  local prior="$1" seed="$2"; shift 2
+  local out="$here/models/${prior}_seed$seed.pt"
+  [ -f "$out" ] || python -m tracker --threads 1 train --prior "$prior" --seed "$seed" --mocap "${corpus[@]}" \
+      "$@" --out "$out" --resume
+}
+train_cmu() {  # prior: on the corpus's CMU clips alone, seed 0
+  local out="$here/models/${1}_cmu_seed0.pt"
+  [ -f "$out" ] || python -m tracker --threads 1 train --prior "$1" --seed 0 \
+      --mocap $(printf '%s\n' "${corpus[@]}" | grep '/cmu/') --out "$out" --resume
+}
+lane() {  # seed
+  train neural "$1"
+  train crbm "$1"
+  train fcrbm "$1" --labels 'dataset-2_{content}_{style}_{take}#style' --unlabelled normal
+  train gpdm "$1"
+  train deep-crbm "$1"
+}
+lane 0 & lane 1 & wait
+train_cmu neural & train_cmu crbm & wait
