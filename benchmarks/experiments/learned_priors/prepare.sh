@@ -7,6 +7,9 @@
 # and a second fold (models/fold_b/, for fold_b.toml): CMU without subjects 49 and 91, bandai2 without the style
 # "elderly" and the content "walk-turn-right", the CRBM and the neural prior, training seeds 0 and 1.
 # bandai2 is CC BY-NC 4.0 (see the data's mocap/README.md): the models made here are for research, not to ship.
+#   Bandai-Namco-Research-Motiondataset, Bandai Namco Research Inc. (2022), CC BY-NC 4.0; M. Kobayashi, C.-C. Liao,
+#   K. Inoue, S. Yojima, M. Takahashi, "Motion Capture Dataset for Practical Use of AI-based Motion Editing and
+#   Stylization", arXiv:2306.08861, 2023.
 # Run from anywhere: bash benchmarks/experiments/learned_priors/prepare.sh   (about 50 min on two cores)
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
