@@ -120,14 +120,11 @@ def test_gpdm_trained_on_a_subset_records_it_in_its_file(clips, tmp_path):
     assert back.subset == model.subset and back.corpus_frames == model.corpus_frames > 120
 
 
-@pytest.mark.parametrize("prior, stop", [("fcrbm", 5), ("crbm", 2)])  # in the order-3 stage; in the growth stage
-def test_an_interrupted_training_resumes_to_the_same_model(prior, stop, clips, tmp_path):
+def stopped_then_resumed(prior, clips, stop, checkpoint, settings):
+    """``prior`` trained on ``clips`` stopped (Ctrl-C) at its ``stop``-th progress call with ``checkpoint``, then
+    resumed from it: the resumed model."""
     import tracker
 
-    settings = dict(order=3, epochs=3, hidden=8, cd_k=2, seed=0, checkpoint_every=1)
-    if prior == "fcrbm":
-        settings.update(labels="a,b", factors=4, features=2)
-    whole = tracker.train(prior, clips, **settings)
     calls = []
 
     def interrupt(done, total, metrics):
@@ -136,8 +133,20 @@ def test_an_interrupted_training_resumes_to_the_same_model(prior, stop, clips, t
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        tracker.train(prior, clips, checkpoint=tmp_path / "c.pt", progress=interrupt, **settings)
-    resumed = tracker.train(prior, clips, checkpoint=tmp_path / "c.pt", resume=True, **settings)
+        tracker.train(prior, clips, checkpoint=checkpoint, progress=interrupt, **settings)
+    assert checkpoint.exists()
+    return tracker.train(prior, clips, checkpoint=checkpoint, resume=True, **settings)
+
+
+@pytest.mark.parametrize("prior, stop", [("fcrbm", 5), ("crbm", 2)])  # in the order-3 stage; in the growth stage
+def test_an_interrupted_training_resumes_to_the_same_model(prior, stop, clips, tmp_path):
+    import tracker
+
+    settings = dict(order=3, epochs=3, hidden=8, cd_k=2, seed=0, checkpoint_every=1)
+    if prior == "fcrbm":
+        settings.update(labels="a,b", factors=4, features=2)
+    whole = tracker.train(prior, clips, **settings)
+    resumed = stopped_then_resumed(prior, clips, stop, tmp_path / "c.pt", settings)
     net = (lambda m: m.fcrbm) if prior == "fcrbm" else (lambda m: m.crbm)
     for a, b in [(whole, resumed), (whole.growth[0], resumed.growth[0])]:
         assert all(torch.equal(v, net(b).state_dict()[k]) for k, v in net(a).state_dict().items())
@@ -152,17 +161,7 @@ def test_an_interrupted_deep_crbm_training_resumes_to_the_same_model(stop, clips
     settings = dict(order=2, epochs=2, hidden=8, cd_k=2, top_order=1, top_hidden=4, top_epochs=4,
                     seed=0, checkpoint_every=1)
     whole = tracker.train("deep-crbm", clips, **settings)
-    calls = []
-
-    def interrupt(done, total, metrics):
-        calls.append(done)
-        if len(calls) == stop:
-            raise KeyboardInterrupt
-
-    with pytest.raises(KeyboardInterrupt):
-        tracker.train("deep-crbm", clips, checkpoint=tmp_path / "c.pt", progress=interrupt, **settings)
-    assert (tmp_path / "c.pt").exists()
-    resumed = tracker.train("deep-crbm", clips, checkpoint=tmp_path / "c.pt", resume=True, **settings)
+    resumed = stopped_then_resumed("deep-crbm", clips, stop, tmp_path / "c.pt", settings)
     for a, b in [(whole.bottom.crbm, resumed.bottom.crbm), (whole.bottom.growth[0].crbm, resumed.bottom.growth[0].crbm),
                  (whole.top, resumed.top)]:
         assert all(torch.equal(v, b.state_dict()[k]) for k, v in a.state_dict().items())
