@@ -15,20 +15,23 @@ set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 root="${POSE_TRACKER_DATA_ROOT:-$here/../../../../shared}"
 M="$(cd "$root/mocap" && pwd)"
-mkdir -p "$here/models"
-corpus=()
-while IFS= read -r f; do corpus+=("$f"); done < <(
-  find "$M/cmu" \( -name '*.amc' -o -name '*.bvh' \) ! -path '*/16/*' ! -name '11_*' | sort
-  find "$M/bandai2" -name '*.bvh' ! -name '*_exhausted_*' ! -name '*_wave-both-hands_*' | sort)
-printf '%s\n' "${corpus[@]}" > "$here/models/corpus.txt"
-train() {  # prior seed [train options]
+fold() {  # models subfolder, two CMU subjects, a bandai2 style and a content, all left out of the training corpus
+  out_dir="$here/models$1"
+  mkdir -p "$out_dir"
+  corpus=()
+  while IFS= read -r f; do corpus+=("$f"); done < <(
+    find "$M/cmu" \( -name '*.amc' -o -name '*.bvh' \) ! -path "*/$2/*" ! -name "$2_*" ! -path "*/$3/*" ! -name "$3_*" | sort
+    find "$M/bandai2" -name '*.bvh' ! -name "*_$4_*" ! -name "*_$5_*" | sort)
+  printf '%s\n' "${corpus[@]}" > "$out_dir/corpus.txt"
+}
+train() {  # prior seed [train options]: on the fold's corpus
   local prior="$1" seed="$2"; shift 2
-  local out="$here/models/${prior}_seed$seed.pt"
+  local out="$out_dir/${prior}_seed$seed.pt"
   [ -f "$out" ] || python -m tracker --threads 1 train --prior "$prior" --seed "$seed" --mocap "${corpus[@]}" \
       "$@" --out "$out" --resume
 }
-train_cmu() {  # prior: on the corpus's CMU clips alone, seed 0
-  local out="$here/models/${1}_cmu_seed0.pt"
+train_cmu() {  # prior: on the fold's CMU clips alone, seed 0
+  local out="$out_dir/${1}_cmu_seed0.pt"
   [ -f "$out" ] || python -m tracker --threads 1 train --prior "$1" --seed 0 \
       --mocap $(printf '%s\n' "${corpus[@]}" | grep '/cmu/') --out "$out" --resume
 }
@@ -39,18 +42,9 @@ lane() {  # seed
   train gpdm "$1"
   train deep-crbm "$1"
 }
+fold "" 16 11 exhausted wave-both-hands
 lane 0 & lane 1 & wait
 train_cmu neural & train_cmu crbm & wait
 
-mkdir -p "$here/models/fold_b"
-fold_b=()
-while IFS= read -r f; do fold_b+=("$f"); done < <(
-  find "$M/cmu" \( -name '*.amc' -o -name '*.bvh' \) ! -path '*/49/*' ! -path '*/91/*' | sort
-  find "$M/bandai2" -name '*.bvh' ! -name '*_elderly_*' ! -name '*_walk-turn-right_*' | sort)
-printf '%s\n' "${fold_b[@]}" > "$here/models/fold_b/corpus.txt"
-train_b() {  # prior seed
-  local out="$here/models/fold_b/${1}_seed$2.pt"
-  [ -f "$out" ] || python -m tracker --threads 1 train --prior "$1" --seed "$2" --mocap "${fold_b[@]}" \
-      --out "$out" --resume
-}
-(train_b neural 0; train_b crbm 0) & (train_b neural 1; train_b crbm 1) & wait
+fold /fold_b 49 91 elderly walk-turn-right
+(train neural 0; train crbm 0) & (train neural 1; train crbm 1) & wait
