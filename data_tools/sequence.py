@@ -6,6 +6,7 @@ Own layout (docs/reference/file_formats.md)::
     DIR/images/<camera>/000000.png ...    one image per frame and camera
     DIR/background/<camera>.png           background plate, where there is one
     DIR/masks/<camera>/000000.png ...     foreground masks (non-zero = person), instead of background plates
+    DIR/keypoints/keypoints.npz           2-D keypoints of every frame and camera (data_tools.keypoint_file)
     DIR/groundtruth.npz                   poses T x D, markers T x 15 x 3 (mm), fps -- when known
     DIR/meta.json                         source, subject, fps, body shape, generator settings
 
@@ -40,6 +41,7 @@ import numpy as np
 
 from data_tools.calibration import read_bodytrack_calibration, read_cameras_json, write_cameras_json
 from data_tools.checks import MAX_FPS, body_shape, checked_motion, load_npz, real_number
+from data_tools.keypoint_file import SequenceKeypoints, read_keypoints
 from data_tools.textfiles import read_json
 from tracker.core.body import BodyModel, fifteen_cone_model
 from tracker.core.cameras import CameraRig
@@ -80,6 +82,7 @@ class Sequence:
     fps: float | None
     meta: dict = field(default_factory=dict)
     diffusion_std: np.ndarray | None = None
+    keypoints: SequenceKeypoints | None = None
     _plates: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -122,13 +125,14 @@ class Sequence:
         where the layout has them, else the background plates (one of the two is needed)."""
         views = list(views)
         images = tuple(self.image(frame, v) for v in views)
+        keypoints = None if self.keypoints is None else self.keypoints.points[frame, views]
         if self.mask_paths is not None:
-            return Frame(frame, images, masks=tuple(self.mask(frame, v) for v in views))
+            return Frame(frame, images, masks=tuple(self.mask(frame, v) for v in views), keypoints=keypoints)
         plates = [self.background(v) for v in views]
         missing = [self.rig[v].name for v, b in zip(views, plates) if b is None]
-        if missing:
+        if missing and keypoints is None:
             raise InputError(f"no background plate and no masks for camera(s) {', '.join(missing)}", self.root)
-        return Frame(frame, images, backgrounds=tuple(plates))
+        return Frame(frame, images, backgrounds=None if missing else tuple(plates), keypoints=keypoints)
 
 
 # ---------------------------------------------------------------------------
@@ -385,7 +389,8 @@ def _read_own(root: Path) -> Sequence:
     fps = gt.fps if gt else meta_fps
     seq = Sequence(root=root, layout=OWN, rig=rig, model=model, image_paths=image_paths,
                    background_paths=backgrounds, mask_paths=mask_paths, groundtruth=gt,
-                   initial_poses=None if gt is None else gt.poses, fps=fps, meta=meta)
+                   initial_poses=None if gt is None else gt.poses, fps=fps, meta=meta,
+                   keypoints=read_keypoints(root, rig.names, len(image_paths[0])))
     for v in range(len(rig)):  # fail early on a wrong-sized or unreadable first frame or plate (kept once read)
         seq.image(0, v)
         seq.background(v)

@@ -23,14 +23,17 @@ class Frame:
     ``images``: one uint8 image per view (``H x W x 3`` RGB or ``H x W`` grey); ``masks``: one
     ``H x W`` foreground mask per view (values in [0, 1]) where the source
     provides them, else ``None``; ``backgrounds``: one background plate per view
-    (``H x W x 3`` uint8) where the source has them, else ``None``. ``index`` is
-    the frame's number in its sequence.
+    (``H x W x 3`` uint8) where the source has them, else ``None``; ``keypoints``: 2-D keypoints
+    ``V x K x 3`` (pixel x, y and a confidence in [0, 1] of the body keypoints
+    :data:`tracker.core.keypoints.KEYPOINTS`; confidence 0 and NaN pixels where not found) where the
+    sequence has them, else ``None``. ``index`` is the frame's number in its sequence.
     """
 
     index: int
     images: tuple[np.ndarray, ...]
     masks: tuple[np.ndarray, ...] | None = None
     backgrounds: tuple[np.ndarray, ...] | None = None
+    keypoints: np.ndarray | None = None
 
     @property
     def n_views(self) -> int:
@@ -66,3 +69,34 @@ class Likelihood(ABC):
     def settings(self) -> dict:
         """The likelihood's settings as plain JSON values, recorded in ``result.json`` (none by default)."""
         return {}
+
+
+class SumOfLikelihoods(Likelihood):
+    """Independent evidence multiplied: the log-likelihoods of ``parts`` (each scoring the same views) added,
+    each times its ``weights`` entry (1 by default). Poses impossible to any part are impossible."""
+
+    def __init__(self, parts: "list[Likelihood]", weights: "list[float] | None" = None):
+        if not parts:
+            raise ValueError("a sum of likelihoods needs at least one part")
+        self.parts = list(parts)
+        self.weights = [1.0] * len(parts) if weights is None else [float(w) for w in weights]
+        self.name = "+".join(p.name for p in self.parts)
+
+    def prepare(self, frame: Frame) -> FrameLikelihood:
+        return _PreparedSum([p.prepare(frame) for p in self.parts], self.weights)
+
+    def settings(self) -> dict:
+        return {p.name: p.settings() for p in self.parts}
+
+
+class _PreparedSum(FrameLikelihood):
+    def __init__(self, parts: "list[FrameLikelihood]", weights: "list[float]"):
+        self.parts, self.weights = parts, weights
+
+    def __call__(self, poses: np.ndarray) -> np.ndarray:
+        total = None
+        for part, weight in zip(self.parts, self.weights):
+            score = part(poses)
+            score = score if weight == 1.0 else weight * score
+            total = score if total is None else total + score
+        return total
