@@ -1,0 +1,190 @@
+"""The 2-D keypoint likelihood: a pose's keypoints projected into each view against a detector's keypoints.
+
+For every particle, view and body keypoint (:data:`tracker.core.keypoints.KEYPOINTS`) the pose's keypoint is
+projected and compared with the detection ``(x, y, c)`` by a robust reprojection term, an outlier mixture::
+
+    p(detection | pose) = w * N2(detection; projection, s^2 I) + (1 - w) / (W * H),    w = c * (1 - outliers)
+
+with ``s`` the keypoint's spread (:data:`tracker.core.keypoints.KEYPOINT_SPREAD_MM`, mm on the person, times
+``spread``) seen from the camera at the keypoint's depth (``fx * mm / depth`` pixels), never below
+``min_spread_px``; ``W x H`` is the image. A confident detection near the projection scores high, a wrong
+one costs at most ``-log((1 - w) / (W H))``, and one of confidence 0 (not found) costs nothing at all.
+
+A detector may label one view's left and right arms (or legs, or ears) the wrong way round. Per view and
+left/right group (:data:`tracker.core.keypoints.SWAP_GROUPS`) both assignments are scored and mixed with
+probability ``swap`` for the swapped one, so a swap costs little and is never mistaken for the pose.
+
+The log-likelihood is ``weight`` times the sum over views, keypoints and groups. Poses outside the model's
+joint limits get ``-inf``.
+
+Shapes: poses ``P x D``; detections ``V x K x 3``; projections ``P x V x K x 2``; the result ``(P,)``.
+Registered as ``keypoints``; ``keypoints+edge-silhouette`` adds the edge and silhouette likelihood
+(:class:`tracker.engine.likelihood.SumOfLikelihoods`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from tracker.core.body import BodyModel
+from tracker.core.cameras import CameraRig
+from tracker.core.errors import InputError
+from tracker.core.keypoints import KEYPOINT_INDEX, KEYPOINT_SPREAD_MM, KEYPOINTS, SWAP_GROUPS, keypoints_from_frames
+from tracker.core.kinematics import forward_kinematics
+from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood, SumOfLikelihoods
+from tracker.engine.registry import LIKELIHOODS, LikelihoodContext, Option, register_likelihood
+
+
+@dataclass(frozen=True)
+class KeypointConfig:
+    """``weight`` multiplies the summed log-likelihood; ``spread`` scales every keypoint's spread (mm) of
+    :data:`~tracker.core.keypoints.KEYPOINT_SPREAD_MM`; ``min_spread_px`` is the least spread in pixels;
+    ``outliers`` is the share of confident detections that are wrong; ``swap`` the probability that a view's
+    left/right group is swapped; ``min_confidence`` the confidence below which a detection is ignored."""
+
+    weight: float = 1.0
+    spread: float = 1.0
+    min_spread_px: float = 1.5
+    outliers: float = 0.05
+    swap: float = 0.05
+    min_confidence: float = 0.1
+
+    def check(self) -> "KeypointConfig":
+        if not (self.weight > 0 and self.spread > 0 and self.min_spread_px > 0):
+            raise InputError(f"keypoint weight, spread and min_spread_px must be positive, got {self}")
+        if not (0 < self.outliers < 1 and 0 <= self.swap < 1 and 0 <= self.min_confidence < 1):
+            raise InputError(f"keypoint outliers must be in (0, 1), swap and min_confidence in [0, 1), got {self}")
+        return self
+
+
+class KeypointLikelihood(Likelihood):
+    """Log-likelihood of body poses given one frame's 2-D keypoints in the cameras of ``rig`` (see the module)."""
+
+    name = "keypoints"
+
+    def __init__(self, model: BodyModel, rig: CameraRig, config: KeypointConfig = KeypointConfig()):
+        self.model = model
+        self.rig = rig
+        self.config = config.check()
+        spread = np.array([KEYPOINT_SPREAD_MM[name] for name in KEYPOINTS]) * config.spread
+        self.spread_mm = spread  # (K,)
+        self.focal = rig.focal.mean(axis=1)  # (V,) pixels per unit of normalised image
+        self.log_uniform = -np.log(np.array([c.width * c.height for c in rig.cameras], float))  # (V,)
+        grouped = [(np.array([KEYPOINT_INDEX[n] for n in left]), np.array([KEYPOINT_INDEX[n] for n in right]))
+                   for left, right in SWAP_GROUPS]
+        self.groups = grouped
+        in_group = np.zeros(len(KEYPOINTS), bool)
+        for left, right in grouped:
+            in_group[left] = in_group[right] = True
+        self.single = np.flatnonzero(~in_group)
+
+    def settings(self) -> dict:
+        c = self.config
+        return {"weight": c.weight, "spread": c.spread, "min_spread_px": c.min_spread_px, "outliers": c.outliers,
+                "swap": c.swap, "min_confidence": c.min_confidence}
+
+    def prepare(self, frame: Frame) -> "PreparedKeypoints":
+        """The frame's keypoints, checked against the views; an :class:`InputError` when it has none."""
+        if frame.keypoints is None:
+            raise InputError(f"frame {frame.index} has no keypoints: the keypoint likelihood needs the "
+                             "sequence's keypoints (pose-tracker keypoints SEQ)")
+        detections = np.asarray(frame.keypoints, float)
+        if detections.shape != (len(self.rig), len(KEYPOINTS), 3):
+            raise InputError(f"frame {frame.index}'s keypoints are {detections.shape}, expected "
+                             f"{(len(self.rig), len(KEYPOINTS), 3)}")
+        return PreparedKeypoints(self, detections)
+
+    def view_terms(self, poses: np.ndarray, detections: np.ndarray) -> np.ndarray:
+        """Per-view log-likelihoods ``P x V`` of poses ``P x D`` (unweighted, swaps mixed in); the keypoints'
+        detections ``V x K x 3``."""
+        c = self.config
+        fk = forward_kinematics(self.model, poses)
+        points = keypoints_from_frames(self.model, fk.rotations, fk.origins)  # P x K x 3
+        pixels, depth = self.rig.project(points)  # P x V x K x 2, P x V x K
+        conf = np.where(detections[..., 2] >= c.min_confidence, detections[..., 2], 0.0)  # V x K
+        observed = np.nan_to_num(detections[..., :2])
+        spread_px = np.maximum(self.focal[:, None] * self.spread_mm[None, :] / np.maximum(depth, 1.0),
+                               c.min_spread_px)  # P x V x K
+        log_in = np.log(np.maximum(conf * (1.0 - c.outliers), 1e-300))  # V x K
+        log_out = np.log1p(-conf * (1.0 - c.outliers)) + self.log_uniform[:, None]  # V x K
+
+        def score(points: np.ndarray, labels: np.ndarray) -> np.ndarray:
+            """Log terms ``P x V x k`` of the pose's keypoints ``points`` against the detections labelled
+            ``labels`` (``(k,)`` each)."""
+            r2 = np.sum((pixels[:, :, points] - observed[None, :, labels]) ** 2, axis=-1)
+            s = spread_px[:, :, points]
+            inlier = log_in[None, :, labels] - np.log(2.0 * np.pi) - 2.0 * np.log(s) - 0.5 * r2 / s ** 2
+            inlier = np.where(depth[:, :, points] > 0, inlier, -np.inf)
+            mixed = np.logaddexp(inlier, log_out[None, :, labels])
+            # a keypoint not found (confidence 0) adds nothing: log((1 - 0) / (W H)) is the same for every pose
+            return np.where(conf[None, :, labels] > 0, mixed - log_out[None, :, labels], 0.0)
+
+        total = score(self.single, self.single).sum(axis=-1)
+        keep, swap = np.log1p(-c.swap), (np.log(c.swap) if c.swap > 0 else -np.inf)
+        for left, right in self.groups:
+            both = np.concatenate([left, right])
+            as_labelled = score(both, both).sum(axis=-1)
+            if c.swap > 0:
+                crossed = score(both, np.concatenate([right, left])).sum(axis=-1)
+                total = total + np.logaddexp(keep + as_labelled, swap + crossed)
+            else:
+                total = total + as_labelled
+        return total
+
+    def log_likelihood(self, poses: np.ndarray, detections: np.ndarray) -> np.ndarray:
+        """Log-likelihoods ``(P,)`` of poses ``P x D`` (``-inf`` outside the joint limits)."""
+        poses = np.asarray(poses, float)
+        out = self.config.weight * self.view_terms(poses, detections).sum(axis=-1)
+        return np.where(self.model.within_limits(poses), out, -np.inf)
+
+
+class PreparedKeypoints(FrameLikelihood):
+    """The keypoint likelihood bound to one frame's detections ``V x K x 3``."""
+
+    def __init__(self, likelihood: KeypointLikelihood, detections: np.ndarray):
+        self.likelihood = likelihood
+        self.detections = detections
+
+    def __call__(self, poses: np.ndarray) -> np.ndarray:
+        return self.likelihood.log_likelihood(poses, self.detections)
+
+
+_OPTIONS = (
+    Option("keypoint_weight", float, KeypointConfig.weight, "multiplies the keypoint log-likelihood",
+           minimum=0.0, strict=True, maximum=1e6),
+    Option("keypoint_spread", float, KeypointConfig.spread,
+           "scales each keypoint's spread on the person (mm; 30-50 mm at 1)", minimum=0.0, strict=True,
+           maximum=100.0),
+    Option("keypoint_outliers", float, KeypointConfig.outliers, "share of confident detections that are wrong",
+           minimum=0.0, strict=True, maximum=1.0, strict_max=True),
+    Option("keypoint_swap", float, KeypointConfig.swap,
+           "probability that a view's left and right arms, legs or ears are swapped", minimum=0.0, maximum=1.0,
+           strict_max=True),
+)
+
+
+def _config(options: dict) -> KeypointConfig:
+    return KeypointConfig(weight=options["keypoint_weight"], spread=options["keypoint_spread"],
+                          outliers=options["keypoint_outliers"], swap=options["keypoint_swap"])
+
+
+@register_likelihood("keypoints", summary="2-D keypoints of a detector, robust to outliers and left/right swaps",
+                     options=_OPTIONS)
+def build_keypoints(context: LikelihoodContext, options: dict) -> KeypointLikelihood:
+    return KeypointLikelihood(context.body_model, context.rig, _config(options))
+
+
+def _edge_silhouette_options() -> tuple[Option, ...]:
+    import likelihoods.edge_silhouette  # noqa: F401 -- registers edge-silhouette
+
+    return LIKELIHOODS.get("edge-silhouette").options
+
+
+@register_likelihood("keypoints+edge-silhouette",
+                     summary="keypoints and Deutscher & Reid's edge + silhouette likelihood together",
+                     options=_OPTIONS + _edge_silhouette_options())
+def build_keypoints_and_silhouettes(context: LikelihoodContext, options: dict) -> SumOfLikelihoods:
+    silhouettes = LIKELIHOODS.get("edge-silhouette")
+    own = {o.name: options[o.name] for o in silhouettes.options}
+    return SumOfLikelihoods([build_keypoints(context, options), silhouettes.build(context, own)])
