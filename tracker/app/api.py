@@ -387,9 +387,15 @@ def run_settings(given: Mapping[str, Any], sequence: Sequence) -> dict[str, Any]
     return out
 
 
+def default_likelihood(sequence: Sequence) -> str:
+    """The likelihood a run takes unless told: ``keypoints+edge-silhouette`` for a sequence with 2-D keypoints
+    (``seq/keypoints/``), else ``edge-silhouette``."""
+    return "keypoints+edge-silhouette" if getattr(sequence, "keypoints", None) is not None else "edge-silhouette"
+
+
 @records_call
 def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velocity", *,
-          models: Seq[str | Path | Any] = (), likelihood: str | Likelihood = "edge-silhouette",
+          models: Seq[str | Path | Any] = (), likelihood: str | Likelihood | None = None,
           init: np.ndarray | None = None, train_mocap: Iterable[str | Path] | None = None,
           step_std: np.ndarray | None = None,
           record: Iterable[str] | Mapping[str, Callable[[FrameStep], Any]] = DEFAULT_RECORD,
@@ -407,7 +413,9 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     ``layer_diffusion_decay``. The filter starts from the ground truth's first poses (or ``init``, or a bodytrack
     ``InitialPose.txt``).
 
-    ``prior`` and ``likelihood`` are registered names or ready objects. A prior given by name is built from
+    ``prior`` and ``likelihood`` are registered names or ready objects; ``likelihood`` None takes
+    :func:`default_likelihood` (the keypoints with the edges and silhouettes where the sequence has keypoints,
+    else the edges and silhouettes). A prior given by name is built from
     ``models`` (model files, or the models :func:`train` returns) and a likelihood by name; the other
     ``settings`` are their options, each going to the one that declares it (``track(seq, "crbm",
     models=[model], gibbs_steps=10, sharpness=40)``; ``pose-tracker track --prior crbm --help`` lists them).
@@ -427,6 +435,7 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     ``resume=True`` continues from the checkpoint to the result an uninterrupted run gives.
     """
     seq = sequence if isinstance(sequence, Sequence) else load_sequence(sequence)
+    likelihood = default_likelihood(seq) if likelihood is None else likelihood
     given, options = split_settings(settings)
     run = run_settings(given, seq)
     check_frames(seq, run["frames"], run["known_frames"], init)  # before anything is built or loaded

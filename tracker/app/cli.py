@@ -24,7 +24,7 @@ from data_tools.files import (atomic_path, check_not_inside, check_output_file, 
                               undone_unless_started)
 from tracker.app.console import (PROG, close_bars, configure_logging, error_line, interrupted_status, invoked_as,
                                  progress_bar, shows_progress, stop_signals, verbosity)
-from tracker.app.parser import build_parser, given_options, parse_arguments
+from tracker.app.parser import UNNAMED_LIKELIHOOD, build_parser, given_options, parse_arguments
 from tracker.app.plugins import import_plugin, likelihood_entry, prior_entry
 from tracker.app.schema import TRACK_SETTINGS
 from tracker.app.threads import set_threads
@@ -366,7 +366,7 @@ def _track_arguments(args: argparse.Namespace) -> argparse.Namespace:
 def cmd_track(args: argparse.Namespace) -> int:
     from data_tools.estimates import read_poses_file
     from data_tools.files import write_text_atomic
-    from tracker.app.api import load_sequence
+    from tracker.app.api import default_likelihood, load_sequence
     from tracker.app.tracking import TrackingInterrupted, check_frames, metrics_line
     from tracker.app.visualize import overlay_frames, write_video
 
@@ -384,6 +384,13 @@ def cmd_track(args: argparse.Namespace) -> int:
         with undone_unless_started(first_missing(out)) as work:  # refused or stopped before the first frame:
             # nothing stays behind
             seq = load_sequence(args.sequence)
+            likelihood = args.likelihood or default_likelihood(seq)
+            likelihood_options = given_options(args, likelihood_entry(likelihood).options)
+            foreign = sorted(set(given_options(args, likelihood_entry(UNNAMED_LIKELIHOOD).options))
+                             - set(likelihood_options))
+            if foreign:
+                raise InputError(f"--{foreign[0].replace('_', '-')} does not apply to the {likelihood} likelihood, "
+                                 "which this sequence takes (it has no keypoints)", args.sequence)
             views = _parse_views(args.views, seq.n_views)
             init = read_poses_file(args.init, "initial poses", seq.model) if args.init else None
             T, _, n_known = check_frames(seq, args.frames, args.known_frames, init)
@@ -405,9 +412,8 @@ def cmd_track(args: argparse.Namespace) -> int:
                     bars[0].set_postfix({"mpjpe_abs": f"{err:.0f} mm", "mean": f"{np.mean(errors):.0f} mm"})
 
             try:
-                run = track(seq, args.prior, models=args.model or (), likelihood=args.likelihood,
-                            **given_options(args, prior_entry(args.prior).options),
-                            **given_options(args, likelihood_entry(args.likelihood).options),
+                run = track(seq, args.prior, models=args.model or (), likelihood=likelihood,
+                            **given_options(args, prior_entry(args.prior).options), **likelihood_options,
                             **{name: getattr(args, name) for name in TRACK_SETTINGS if name != "views"},
                             views=views, init=init, train_mocap=args.train_mocap, on_frame=on_frame,
                             checkpoint=checkpoint, resume=bool(args.resume) and checkpoint.exists())

@@ -234,8 +234,9 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     t.add_argument("--model", nargs="+", metavar="MODEL",
                    help="a learned prior's model file(s) (a CRBM takes several: orders that grow the history, or an "
                         "ensemble of one order)")
-    t.add_argument("--likelihood", default="edge-silhouette", choices=available_likelihoods(), metavar="NAME",
-                   help="image likelihood (default edge-silhouette)")
+    t.add_argument("--likelihood", default=None, choices=available_likelihoods(), metavar="NAME",
+                   help="image likelihood (default keypoints+edge-silhouette for a sequence with 2-D keypoints, "
+                        "else edge-silhouette)")
     add_flags(t, ("particles", "views", "frames", "seed", "annealing_layers", "resampling"))
     t.add_argument("--init", help="POSES.npz whose 'poses' are the known first frames (default: ground truth, or "
                                   "the bodytrack InitialPose.txt)")
@@ -269,7 +270,7 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                           + _catalogue("likelihoods", available_likelihoods(), "track", "--likelihood"))
     else:
         _plugin_group(t, f"options of the {prior} prior", prior_entry(prior).options)
-    likelihood = _chosen(argv, "--likelihood") or "edge-silhouette"
+    likelihood = _chosen(argv, "--likelihood") or UNNAMED_LIKELIHOOD
     if likelihood in available_likelihoods():
         _plugin_group(t, f"options of the {likelihood} likelihood", likelihood_entry(likelihood).options)
 
@@ -398,6 +399,11 @@ def _plugin_group(parser: argparse.ArgumentParser, title: str, options: Sequence
                                help=o.described())
 
 
+#: Whose options a ``track`` command line takes when it names no likelihood: the default likelihood is chosen by
+#: the sequence (:func:`tracker.app.api.default_likelihood`), and these are the options of both choices.
+UNNAMED_LIKELIHOOD = "keypoints+edge-silhouette"
+
+
 def given_options(args: argparse.Namespace, declared: Sequence[Option]) -> dict:
     """The options of one plugin set on the command line (or in a resumed run's saved arguments)."""
     return {o.name: getattr(args, o.name) for o in declared if getattr(args, o.name, None) is not None}
@@ -408,7 +414,7 @@ def _refuse_foreign_flags(argv: Sequence[str]) -> None:
     if not argv or argv[0] not in ("train", "track"):
         return
     command = argv[0]
-    prior, likelihood = _chosen(argv, "--prior"), _chosen(argv, "--likelihood") or "edge-silhouette"
+    prior, likelihood = _chosen(argv, "--prior"), _chosen(argv, "--likelihood") or UNNAMED_LIKELIHOOD
     owners: dict[str, list[str]] = {}
     for name in available_priors():
         entry = prior_entry(name)
