@@ -33,6 +33,14 @@ NOT_FOUND = {"median": " (a person who does not move is background to it; try --
 PLATE_FRAMES = 25
 
 
+def default_method() -> str:
+    """``person`` where MediaPipe is installed (it finds a person who stands still, which a background learnt
+    from the frames cannot), else ``median``."""
+    import importlib.util
+
+    return "person" if importlib.util.find_spec("mediapipe") is not None else "median"
+
+
 def keep_person(mask: np.ndarray, radius: int = 2) -> np.ndarray:
     """``mask`` (bool ``H x W``) opened and closed with a disc of ``radius`` px, then only its largest connected
     region (8-connected); all False when nothing is left."""
