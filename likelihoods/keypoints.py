@@ -89,6 +89,8 @@ class KeypointLikelihood(Likelihood):
         if frame.keypoints is None:
             raise InputError(f"frame {frame.index} has no keypoints: the keypoint likelihood needs the "
                              "sequence's keypoints (pose-tracker keypoints SEQ)")
+        if frame.n_views != len(self.rig):
+            raise InputError(f"frame {frame.index} has {frame.n_views} views but the rig has {len(self.rig)} cameras")
         detections = np.asarray(frame.keypoints, float)
         if detections.shape != (len(self.rig), len(KEYPOINTS), 3):
             raise InputError(f"frame {frame.index}'s keypoints are {detections.shape}, expected "
@@ -135,8 +137,14 @@ class KeypointLikelihood(Likelihood):
     def log_likelihood(self, poses: np.ndarray, detections: np.ndarray) -> np.ndarray:
         """Log-likelihoods ``(P,)`` of poses ``P x D`` (``-inf`` outside the joint limits)."""
         poses = np.asarray(poses, float)
+        if poses.ndim != 2 or poses.shape[1] != self.model.n_dofs:
+            raise InputError(f"poses must be P x {self.model.n_dofs}, got shape {poses.shape}")
+        if len(poses) == 0:
+            return np.zeros(0)
+        valid = self.model.within_limits(poses) & np.isfinite(poses).all(axis=1)
+        poses = np.where(valid[:, None], poses, self.model.rest_pose())
         out = self.config.weight * self.view_terms(poses, detections).sum(axis=-1)
-        return np.where(self.model.within_limits(poses), out, -np.inf)
+        return np.where(valid, out, -np.inf)
 
 
 class PreparedKeypoints(FrameLikelihood):

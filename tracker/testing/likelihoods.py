@@ -139,7 +139,8 @@ class LikelihoodContract:
 
 
 def _views(frame: Frame, views: list[int]) -> Frame:
-    """``frame`` with the images (and masks and background plates, where it has them) of ``views``."""
+    """``frame`` with the images (and masks, background plates and keypoints, where it has them) of ``views``."""
     pick = (lambda items: None if items is None else tuple(items[v] for v in views))
+    keypoints = None if frame.keypoints is None else frame.keypoints[views]
     return dataclasses.replace(frame, images=pick(frame.images), masks=pick(frame.masks),
-                               backgrounds=pick(frame.backgrounds))
+                               backgrounds=pick(frame.backgrounds), keypoints=keypoints)
