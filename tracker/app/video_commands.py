@@ -1,4 +1,5 @@
-"""Commands for real video: ``import-video`` (videos and a calibration to a sequence folder) and ``export``
+"""Commands for real video: ``import-video`` (videos and a calibration to a sequence folder), ``silhouettes``,
+``keypoints`` (2-D keypoints detected, or read from another tool's files), ``initialise`` and ``export``
 (tracked poses to BVH or TRC). :func:`add_parsers` adds their parsers, :data:`COMMANDS` maps names to handlers."""
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import argparse
 import logging
 from pathlib import Path
 
+from data_tools.keypoints.layouts import LAYOUTS
 from data_tools.person_segmentation import INSTALL as SEGMENTATION_INSTALL
 from tracker.core.errors import InputError
 
@@ -71,6 +73,30 @@ def add_parsers(sub, parents) -> None:
                    help="median: background learnt from the frames (a moving person; default); person: a "
                         "person-segmentation model (a person who may stand still)")
     m.add_argument("--overwrite", action="store_true", help="replace masks/ where the sequence has it")
+
+    k = sub.add_parser("keypoints", parents=parents,
+                       help="write a sequence's 2-D keypoints: detected, or read from another tool's files",
+                       description="Write keypoints/keypoints.npz, the body keypoints of every frame and camera. "
+                                   "Without --from a detector finds them in the sequence's images. With --from "
+                                   "they are read from another tool: OpenPose-style JSON, a folder of one file per "
+                                   "frame per camera (OpenPose, Pose2Sim, EasyMocap, Sports2D; of several people "
+                                   "the one with the largest summed confidence is taken), or an array file (.npy "
+                                   "T x V x J x 3, or T x J x 3 for one camera: x, y, confidence; .npz with "
+                                   "'points' and optionally 'layout' and 'cameras'). Sources follow the "
+                                   "sequence's camera order, or are given as CAMERA=PATH. Their pixels are those "
+                                   "of the full-resolution videos and their frame k is video frame k: both are "
+                                   "converted with the downscale and first video frame import-video wrote into "
+                                   "meta.json. Prints the frames, views, detector and the share of keypoints "
+                                   "found.")
+    k.add_argument("sequence", metavar="DIR", help="sequence folder (e.g. written by import-video)")
+    k.add_argument("--from", dest="sources", nargs="+", action="extend", metavar="PATH",
+                   help="read keypoints from these folders of JSON files or array files, one per camera in the "
+                        "sequence's camera order, or CAMERA=PATH each (instead of detecting them)")
+    k.add_argument("--layout", choices=tuple(LAYOUTS),
+                   help="the other tool's keypoint layout (needed for 25 points: OpenPose's body_25 or "
+                        "body_25b; inferred from 17, 26 or 33 points)")
+    k.add_argument("--overwrite", action="store_true", help="replace keypoints/keypoints.npz where the sequence "
+                                                            "has it")
 
     i = sub.add_parser("initialise", parents=parents,
                        help="fit the body's size and first pose to a sequence's first silhouettes",
@@ -152,6 +178,56 @@ def cmd_silhouettes(args: argparse.Namespace) -> int:
     for cam, f in zip(seq.rig.names, fractions):
         log.info(f"{cam}: the person covers {100 * f:.1f}% of the image on average")
     print(f"{seq.n_views} cameras x {seq.n_frames} frames of silhouettes ({args.method}) -> {seq.root / 'masks'}")
+    return 0
+
+
+def _count_bar(desc: str, unit: str):
+    """A ``progress(done, total)`` callback drawing one bar, created at the first call (none under ``--quiet``)."""
+    from tracker.app.console import progress_bar
+
+    state = {}
+
+    def progress(done: int, total: int) -> None:
+        if "bar" not in state:
+            state["bar"] = progress_bar(total=total, desc=desc, unit=unit)
+        state["bar"].update(done - state["bar"].n)
+        if done >= total:
+            state["bar"].close()
+
+    return progress
+
+
+def cmd_keypoints(args: argparse.Namespace) -> int:
+    from data_tools.keypoint_file import keypoints_path, write_keypoints
+    from data_tools.keypoints.readers import found_share
+
+    path = keypoints_path(args.sequence)
+    if path.exists() and not args.overwrite:
+        raise InputError("the sequence already has keypoints (pass --overwrite to replace them)", path)
+    if args.sources:
+        from data_tools.keypoints.readers import import_keypoints
+
+        keypoints = import_keypoints(args.sequence, args.sources, args.layout)
+    else:
+        if args.layout:
+            raise InputError("--layout names the layout of files read with --from; the detector knows its own")
+        try:
+            from data_tools.keypoints.detect import detect_sequence_keypoints
+        except ModuleNotFoundError as exc:
+            if exc.name != "data_tools.keypoints.detect":
+                raise
+            raise InputError("this installation has no keypoint detector: read keypoints from another tool with "
+                             "--from PATH ...") from None
+        from data_tools.sequence import read_sequence
+
+        seq = read_sequence(args.sequence)
+        keypoints = detect_sequence_keypoints(seq, progress=_count_bar("keypoints", "image"))
+        write_keypoints(seq.root, keypoints)
+    source = keypoints.source
+    detector = " ".join(str(s) for s in (source.get("detector", "detector"), source.get("version")) if s)
+    layout = f", {source['layout']} layout" if source.get("layout") else ""
+    print(f"{keypoints.n_frames} frames x {len(keypoints.cameras)} views of keypoints ({detector}{layout}): "
+          f"{100 * found_share(keypoints):.0f}% of the keypoints found -> {path}")
     return 0
 
 
@@ -248,6 +324,6 @@ def cmd_compare_trc(args: argparse.Namespace) -> int:
     return 0
 
 
-COMMANDS = {"import-video": cmd_import_video, "silhouettes": cmd_silhouettes,
+COMMANDS = {"import-video": cmd_import_video, "silhouettes": cmd_silhouettes, "keypoints": cmd_keypoints,
             "initialise": cmd_initialise, "export": cmd_export, "compare-trc": cmd_compare_trc}
 
