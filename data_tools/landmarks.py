@@ -7,7 +7,9 @@ gives 33 image landmarks per view with a visibility each. This module
 1. runs it over each camera's first frames (:func:`view_landmarks`);
 2. triangulates every landmark of every frame by the direct linear transform over the views that see it with a
    visibility of at least :data:`MIN_VISIBILITY` (:func:`triangulate`: undistorted normalised coordinates, one
-   homogeneous least-squares solve), at least two views;
+   homogeneous least-squares solve), at least two views (the equations and the solve, :func:`dlt_rows` and
+   :func:`dlt_solve`, batched and weighted, also serve the robust keypoint triangulation of
+   :mod:`data_tools.keypoints.triangulate`);
 3. reads the lengths off the 3-D points, each the median over frames (:func:`segment_lengths`: upper arm,
    forearm, thigh, shank, both sides averaged, and the trunk between the hips' and the shoulders' midpoints);
 4. builds the body shape with them (:func:`shape_from_landmarks`): the default adult scaled to the measured
@@ -72,12 +74,12 @@ def view_landmarks(frames: Iterable[np.ndarray]) -> Iterator[np.ndarray]:
 
 
 def _normalised(rig: CameraRig, v: int, pixels: np.ndarray, iterations: int = 200) -> np.ndarray:
-    """Undistorted normalised coordinates ``K x 2`` of view ``v``'s pixels ``K x 2``: skew removed, then the
+    """Undistorted normalised coordinates ``(..., 2)`` of view ``v``'s pixels ``(..., 2)``: skew removed, then the
     distortion of :mod:`tracker.core.cameras` inverted by fixed-point iteration."""
     cam = rig[v]
-    pixels = np.asarray(pixels, float).reshape(-1, 2)
-    yd = (pixels[:, 1] - cam.cy) / cam.fy
-    xd = (pixels[:, 0] - cam.cx) / cam.fx - cam.skew * yd
+    pixels = np.asarray(pixels, float)
+    yd = (pixels[..., 1] - cam.cy) / cam.fy
+    xd = (pixels[..., 0] - cam.cx) / cam.fx - cam.skew * yd
     k1, k2, p1, p2, k3 = cam.dist
     x, y = xd.copy(), yd.copy()
     for _ in range(iterations if any(cam.dist) else 0):
@@ -88,32 +90,55 @@ def _normalised(rig: CameraRig, v: int, pixels: np.ndarray, iterations: int = 20
     return np.stack([x, y], axis=-1)
 
 
-def triangulate(rig: CameraRig, pixels: np.ndarray, seen: np.ndarray) -> np.ndarray:
-    """World points ``K x 3`` (mm) from their pixels ``V x K x 2`` in the rig's ``V`` views, each by the direct
-    linear transform over the views where ``seen`` (``V x K`` bool) holds; NaN for a point seen in fewer than
-    two views."""
-    pixels = np.asarray(pixels, float)
-    V, K = pixels.shape[:2]
-    rows = np.zeros((V, K, 2, 4))
+def dlt_rows(rig: CameraRig, pixels: np.ndarray) -> np.ndarray:
+    """The direct linear transform's two equations ``(..., V, K, 2, 4)`` for each pixel ``(..., V, K, 2)`` of the
+    rig's ``V`` views (undistorted normalised coordinates; camera centres in metres, so that the four unknowns
+    are of one scale). A NaN pixel gives finite rows: its weight in :func:`dlt_solve` must be 0."""
+    pixels = np.nan_to_num(np.asarray(pixels, float))
+    V = pixels.shape[-3]
+    if V != len(rig):
+        raise ValueError(f"pixels of {V} views for a rig of {len(rig)}")
+    rows = np.zeros(pixels.shape[:-1] + (2, 4))
     for v in range(V):
-        xy = _normalised(rig, v, np.nan_to_num(pixels[v]))
+        xy = _normalised(rig, v, pixels[..., v, :, :])
         P = np.concatenate([rig[v].R, np.asarray(rig[v].t, float)[:, None] / 1000.0], axis=1)  # metres: balanced
-        rows[v, :, 0] = xy[:, :1] * P[2] - P[0]
-        rows[v, :, 1] = xy[:, 1:] * P[2] - P[1]
-    rows *= np.asarray(seen, bool)[:, :, None, None]
-    A = rows.transpose(1, 0, 2, 3).reshape(K, 2 * V, 4)
-    X = np.linalg.svd(A)[2][:, -1]
-    points = X[:, :3] / X[:, 3:] * 1000.0
-    points[np.asarray(seen, bool).sum(axis=0) < 2] = np.nan
+        rows[..., v, :, 0, :] = xy[..., :1] * P[2] - P[0]
+        rows[..., v, :, 1, :] = xy[..., 1:] * P[2] - P[1]
+    return rows
+
+
+def dlt_solve(rows: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """World points ``(..., K, 3)`` (mm) from the equations ``(..., V, K, 2, 4)`` of :func:`dlt_rows`, each view's
+    two scaled by its weight ``(..., V, K)`` (>= 0; 0 leaves the view out, a detector's confidence weights it as
+    Pose2Sim does), by one homogeneous least-squares solve per point; NaN for a point with fewer than two views
+    of positive weight."""
+    weights = np.asarray(weights, float)
+    A = np.moveaxis(rows * weights[..., None, None], -4, -3)  # ..., K, V, 2, 4
+    A = A.reshape(A.shape[:-3] + (-1, 4))
+    X = np.linalg.svd(A)[2][..., -1, :]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        points = X[..., :3] / X[..., 3:] * 1000.0
+    points[(weights > 0).sum(axis=-2) < 2] = np.nan
     return points
 
 
+def triangulate(rig: CameraRig, pixels: np.ndarray, seen: np.ndarray, weights: np.ndarray | None = None
+                ) -> np.ndarray:
+    """World points ``(..., K, 3)`` (mm) from their pixels ``(..., V, K, 2)`` in the rig's ``V`` views, each by
+    the direct linear transform over the views where ``seen`` (``(..., V, K)`` bool) holds, each view weighted by
+    ``weights`` (``(..., V, K)``, default 1: :func:`dlt_solve`); NaN for a point seen in fewer than two views."""
+    seen = np.asarray(seen, bool)
+    w = seen if weights is None else np.where(seen, np.asarray(weights, float), 0.0)
+    return dlt_solve(dlt_rows(rig, pixels), w)
+
+
 def reprojection_errors(rig: CameraRig, points: np.ndarray, pixels: np.ndarray, seen: np.ndarray) -> np.ndarray:
-    """Distance (pixels) ``V x K`` between each seen landmark's pixel ``V x K x 2`` and its triangulated point
-    ``K x 3`` projected into that view; NaN where unseen or untriangulated."""
+    """Distance (pixels) ``(..., V, K)`` between each seen landmark's pixel ``(..., V, K, 2)`` and its
+    triangulated point ``(..., K, 3)`` projected into that view; NaN where unseen or untriangulated."""
+    points = np.asarray(points, float)
     projected, _ = rig.project(np.nan_to_num(points))
     errors = np.linalg.norm(projected - pixels, axis=-1)
-    return np.where(np.asarray(seen, bool) & np.isfinite(points[:, 0])[None], errors, np.nan)
+    return np.where(np.asarray(seen, bool) & np.isfinite(points[..., 0])[..., None, :], errors, np.nan)
 
 
 @dataclass
