@@ -54,23 +54,11 @@ LENGTHS = ("upper arm", "forearm", "thigh", "shank", "trunk")
 
 def view_landmarks(frames: Iterable[np.ndarray]) -> Iterator[np.ndarray]:
     """BlazePose's landmarks ``33 x 3`` (pixel x, y of the pixel-centre convention; visibility 0 to 1) in each of
-    one camera's frames (``H x W x 3`` RGB uint8, in order; video mode); all NaN where it finds no person."""
-    from data_tools.person_segmentation import build_model
-    from data_tools.sequence import _stderr_silenced as quiet
+    one camera's frames (``H x W x 3`` RGB uint8, in order; video mode); all NaN where it finds no person
+    (:func:`data_tools.person_segmentation.pose_landmarks`)."""
+    from data_tools.person_segmentation import pose_landmarks
 
-    model = build_model(segmentation=False)
-    try:
-        for image in frames:
-            image = np.ascontiguousarray(image, dtype=np.uint8)
-            height, width = image.shape[:2]
-            with quiet():
-                found = model.process(image).pose_landmarks
-            if found is None:
-                yield np.full((len(BLAZEPOSE), 3), np.nan)
-            else:
-                yield np.array([(p.x * width - 0.5, p.y * height - 0.5, p.visibility) for p in found.landmark])
-    finally:
-        model.close()
+    return pose_landmarks(frames)
 
 
 def _normalised(rig: CameraRig, v: int, pixels: np.ndarray, iterations: int = 200) -> np.ndarray:
