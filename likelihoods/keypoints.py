@@ -31,7 +31,6 @@ from tracker.core.body import BodyModel
 from tracker.core.cameras import CameraRig
 from tracker.core.errors import InputError
 from tracker.core.keypoints import KEYPOINT_INDEX, KEYPOINT_SPREAD_MM, KEYPOINTS, SWAP_GROUPS, keypoints_from_frames
-from tracker.core.kinematics import forward_kinematics
 from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood, SumOfLikelihoods
 from tracker.engine.registry import LIKELIHOODS, LikelihoodContext, Option, register_likelihood
 
@@ -100,6 +99,8 @@ class KeypointLikelihood(Likelihood):
     def view_terms(self, poses: np.ndarray, detections: np.ndarray) -> np.ndarray:
         """Per-view log-likelihoods ``P x V`` of poses ``P x D`` (unweighted, swaps mixed in); the keypoints'
         detections ``V x K x 3``."""
+        from tracker.core.kinematics import forward_kinematics  # numba: loaded when scoring, not when registering
+
         c = self.config
         fk = forward_kinematics(self.model, poses)
         points = keypoints_from_frames(self.model, fk.rotations, fk.origins)  # P x K x 3
