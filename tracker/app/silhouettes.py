@@ -33,12 +33,18 @@ NOT_FOUND = {"median": " (a person who does not move is background to it; try --
 PLATE_FRAMES = 25
 
 
-def default_method() -> str:
-    """``person`` where MediaPipe is installed (it finds a person who stands still, which a background learnt
-    from the frames cannot), else ``median``."""
+def default_method(seq) -> str:
+    """The method for the sequence ``seq``: ``person`` where MediaPipe is installed and its model finds a person
+    in the first frame of every camera (it finds a person who stands still, whom a background learnt from the
+    frames makes a ghost of), else ``median`` (a rendered body of cones is no person to the model)."""
     import importlib.util
 
-    return "person" if importlib.util.find_spec("mediapipe") is not None else "median"
+    if importlib.util.find_spec("mediapipe") is None:
+        return "median"
+    from data_tools.person_segmentation import person_masks
+
+    found = all(next(person_masks([seq.image(0, v)])).any() for v in range(seq.n_views))
+    return "person" if found else "median"
 
 
 def keep_person(mask: np.ndarray, radius: int = 2) -> np.ndarray:

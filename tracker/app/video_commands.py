@@ -69,9 +69,10 @@ def add_parsers(sub, parents) -> None:
                                    "of your own go in masks/<camera>/ (non-zero = person, one PNG per frame, "
                                    "named as the images).")
     m.add_argument("sequence", metavar="DIR", help="sequence folder (e.g. written by import-video)")
-    m.add_argument("--method", choices=("median", "person"), default="median",
-                   help="median: background learnt from the frames (a moving person; default); person: a "
-                        "person-segmentation model (a person who may stand still)")
+    m.add_argument("--method", choices=("median", "person"), default=None,
+                   help="median: background learnt from the frames (a person who moves); person: a "
+                        "person-segmentation model (a person who may stand still). Default: person where "
+                        "MediaPipe is installed and finds a person in every camera's first frame, else median")
     m.add_argument("--overwrite", action="store_true", help="replace masks/ where the sequence has it")
 
     k = sub.add_parser("keypoints", parents=parents,
@@ -166,18 +167,19 @@ def cmd_import_video(args: argparse.Namespace) -> int:
 
 def cmd_silhouettes(args: argparse.Namespace) -> int:
     from data_tools.sequence import OWN, read_sequence
-    from tracker.app.silhouettes import write_sequence_masks
+    from tracker.app.silhouettes import default_method, write_sequence_masks
 
     seq = read_sequence(args.sequence)
+    method = args.method or default_method(seq)
     if seq.layout != OWN:
         raise InputError("silhouettes are written into sequence folders of this toolkit's layout only",
                          args.sequence)
     if seq.mask_paths is not None and not args.overwrite:
         raise InputError("the sequence already has masks/ (pass --overwrite to replace them)", args.sequence)
-    fractions = write_sequence_masks(seq, args.method)
+    fractions = write_sequence_masks(seq, method)
     for cam, f in zip(seq.rig.names, fractions):
         log.info(f"{cam}: the person covers {100 * f:.1f}% of the image on average")
-    print(f"{seq.n_views} cameras x {seq.n_frames} frames of silhouettes ({args.method}) -> {seq.root / 'masks'}")
+    print(f"{seq.n_views} cameras x {seq.n_frames} frames of silhouettes ({method}) -> {seq.root / 'masks'}")
     return 0
 
 
