@@ -1,0 +1,213 @@
+"""Calibrated videos in, tracked poses out, in one call: ``capture(videos, calibration, out)``.
+
+The steps, each with its defaults, each skipped when a rerun finds it done (with the same settings):
+
+1. **import** the videos (:func:`data_tools.video.import_videos`, shrunk by ``downscale``) into ``out/sequence``;
+   with ``views``, only those cameras (indices into the calibration's cameras, in its order);
+2. **silhouettes** of the person (:func:`tracker.app.silhouettes.write_sequence_masks`, the method of
+   :func:`tracker.app.silhouettes.default_method`);
+3. **keypoints** detected in every frame and view (:func:`data_tools.keypoints.detect.detect_sequence_keypoints`);
+4. **start**: the body's size and first poses from the keypoints (:func:`tracker.app.keypoint_start.
+   initialise_from_keypoints`), written to ``out/init.npz`` and the body shape into the sequence's ``meta.json``;
+5. **track** with the prior (default the recommended ``mixture``: the shipped neural prior with zero-velocity)
+   and the keypoint and silhouette likelihood together, into ``out/run`` (``result.json``, ``estimates.npz``);
+6. **export**: ``out/poses.trc`` and ``out/poses.bvh`` (the tracked body), ``out/triangulated.trc`` (the
+   keypoints triangulated robustly and median-filtered, with two or more views: the baseline to compare the
+   tracked poses with), ``out/overlay.mp4`` (the estimate over every view) and ``out/result.json`` (the
+   settings, what each step took, and the paths).
+
+Every file is written whole or not at all; a stopped capture resumes where it stopped.
+"""
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from tracker.core.errors import InputError
+
+#: What ``capture`` does by default.
+DEFAULT_PRIOR = "mixture"
+DEFAULT_DOWNSCALE = 4.0
+DEFAULT_PARTICLES = 1000
+STEPS = ("import", "silhouettes", "keypoints", "start", "track", "export")
+
+
+@dataclass
+class CaptureResult:
+    """Where a capture wrote its files and how long each step took (seconds; 0 for a step found done)."""
+
+    out: Path
+    files: dict[str, Path]
+    seconds: dict[str, float] = field(default_factory=dict)
+    skipped: list[str] = field(default_factory=list)
+
+
+def _same(path: Path, settings: dict) -> bool:
+    """Whether ``path`` (a JSON record) holds exactly ``settings``."""
+    try:
+        return json.loads(path.read_text(encoding="utf-8")) == settings
+    except (OSError, ValueError):
+        return False
+
+
+def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Path, *,
+            views: Sequence[int] | None = None, prior: str = DEFAULT_PRIOR, seed: int = 0,
+            particles: int = DEFAULT_PARTICLES, downscale: float = DEFAULT_DOWNSCALE,
+            frames: str | None = None, overwrite: bool = False,
+            on_step: Callable[[str, str], None] | None = None) -> CaptureResult:
+    """Run the steps of the module docstring on ``videos`` (one per camera of ``calibration``, paired by sorted
+    name) into the folder ``out``. ``views``: the cameras to use (indices into the calibration's, default all);
+    ``prior``, ``seed`` and ``particles`` go to ``track``; ``downscale`` and ``frames`` (``"A:B"``) to the
+    import. ``on_step(step, line)`` hears one line per finished step. A rerun skips the steps whose settings
+    are unchanged; a folder holding a capture of other videos or views is refused without ``overwrite``."""
+    from data_tools.files import write_text_atomic
+    from data_tools.video import pair_videos, probe_video
+
+    from tracker.app.plugins import prior_entry
+
+    prior_entry(prior)  # an unknown prior is refused before any work
+    if particles < 1:
+        raise InputError(f"particles must be at least 1, got {particles}")
+    out = Path(out)
+    videos = [Path(v) for v in videos]
+    for v in videos:
+        probe_video(v)  # every video readable before anything is written
+    from data_tools.rig_formats import read_rig
+
+    rig = read_rig(calibration)
+    paired = pair_videos(rig.names, videos)
+    chosen = list(range(len(rig))) if views is None else list(views)
+    bad = [v for v in chosen if not 0 <= v < len(rig)]
+    if bad or not chosen or len(set(chosen)) != len(chosen):
+        raise InputError(f"views must be distinct camera indices 0..{len(rig) - 1}, got {chosen}", calibration)
+    source = {"videos": [str(p.resolve()) for p in paired], "calibration": str(Path(calibration).resolve()),
+              "views": chosen, "downscale": float(downscale), "frames": frames}
+    record = out / "capture_source.json"
+    if out.exists() and any(out.iterdir()) and not _same(record, source):
+        if not overwrite:
+            raise InputError("the folder holds other files or a capture of other videos, views or import "
+                             "settings: give --overwrite to start it again, or another --out", out)
+        import shutil
+
+        shutil.rmtree(out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(record, json.dumps(source, indent=1, sort_keys=True))
+    result = CaptureResult(out, {})
+    say = on_step or (lambda step, line: None)
+
+    def step(name: str, done: bool, work: Callable[[], str]) -> None:
+        if done:
+            result.skipped.append(name)
+            result.seconds[name] = 0.0
+            say(name, "done before: kept")
+            return
+        started = time.perf_counter()
+        line = work()
+        result.seconds[name] = time.perf_counter() - started
+        say(name, f"{line} ({result.seconds[name]:.1f} s)")
+
+    seq_dir = out / "sequence"
+    mapping = {rig.names[v]: str(paired[v]) for v in chosen}
+
+    def do_import() -> str:
+        from data_tools.video import import_videos
+
+        imported = import_videos(calibration, paired, seq_dir, downscale=downscale, frames=frames, mapping=mapping)
+        first = imported.rig[0]
+        return (f"{len(imported.rig)} camera(s), {imported.stop - imported.start} frames of "
+                f"{first.width}x{first.height} -> {seq_dir}")
+
+    step("import", (seq_dir / "meta.json").is_file(), do_import)
+    from data_tools.sequence import read_sequence
+
+    seq = read_sequence(seq_dir)
+
+    def do_masks() -> str:
+        from tracker.app.silhouettes import default_method, write_sequence_masks
+
+        method = default_method(seq)
+        fractions = write_sequence_masks(seq, method)
+        return f"{method} masks, the person {100 * float(np.mean(fractions)):.1f}% of each image"
+
+    step("silhouettes", (seq_dir / "masks").is_dir(), do_masks)
+
+    def do_keypoints() -> str:
+        from data_tools.keypoint_file import write_keypoints
+        from data_tools.keypoints.detect import detect_sequence_keypoints
+
+        found = detect_sequence_keypoints(read_sequence(seq_dir))
+        write_keypoints(seq_dir, found)
+        share = float(np.mean(found.confidence > 0))
+        return f"{found.source.get('detector')}: {100 * share:.0f}% of keypoints found"
+
+    step("keypoints", (seq_dir / "keypoints" / "keypoints.npz").is_file(), do_keypoints)
+    seq = read_sequence(seq_dir)
+    init_path = out / "init.npz"
+
+    def do_start() -> str:
+        from data_tools.files import atomic_path
+        from data_tools.sequence import write_meta
+        from tracker.app.keypoint_start import initialise_from_keypoints
+
+        start = initialise_from_keypoints(seq)
+        meta = dict(seq.meta)
+        meta["body_shape"] = start.shape.to_dict()
+        write_meta(seq_dir, meta)
+        with atomic_path(init_path) as tmp:
+            with open(tmp, "wb") as f:
+                np.savez(f, poses=start.poses)
+        return f"standing height {start.height:.0f} mm, first pose fitted (cost {start.cost:.1f})"
+
+    step("start", init_path.is_file(), do_start)
+    seq = read_sequence(seq_dir)
+    run_dir = out / "run"
+    track_settings = {"prior": prior, "seed": seed, "particles": particles}
+    track_record = out / "track_settings.json"
+
+    def do_track() -> str:
+        import shutil
+
+        from tracker.app.api import track
+
+        if run_dir.exists():
+            shutil.rmtree(run_dir)
+        init = np.load(init_path)["poses"]
+        run = track(seq, prior, init=init, seed=seed, particles=particles, known_frames=len(init))
+        run.save(run_dir)
+        write_text_atomic(track_record, json.dumps(track_settings, sort_keys=True))
+        return f"{prior}, {particles} particles, {run.seconds_per_frame:.3f} s per frame -> {run_dir}"
+
+    step("track", (run_dir / "result.json").is_file() and _same(track_record, track_settings), do_track)
+
+    def do_export() -> str:
+        from data_tools.bvh_export import write_bvh
+        from data_tools.keypoints.triangulate import median_filter, triangulate_keypoints, write_keypoints_trc
+        from data_tools.trc import write_trc
+        from tracker.app.visualize import overlay_frames, write_video
+        from tracker.core.kinematics import markers
+
+        poses = np.load(run_dir / "estimates.npz")["poses"]
+        fps = seq.fps or 60.0
+        write_trc(out / "poses.trc", seq.model.marker_names, markers(seq.model, poses), fps)
+        write_bvh(out / "poses.bvh", seq.model, poses, fps)
+        written = ["poses.trc", "poses.bvh"]
+        if seq.n_views >= 2:
+            points = median_filter(triangulate_keypoints(seq.rig, seq.keypoints.points).points)
+            write_keypoints_trc(out / "triangulated.trc", points, fps)
+            written.append("triangulated.trc")
+        write_video(out / "overlay.mp4", overlay_frames(seq, poses, list(range(seq.n_views))), fps)
+        written.append("overlay.mp4")
+        return ", ".join(written) + f" -> {out}"
+
+    step("export", False, do_export)
+    result.files = {name: out / name for name in ("poses.trc", "poses.bvh", "triangulated.trc", "overlay.mp4",
+                                                  "init.npz", "run", "sequence") if (out / name).exists()}
+    summary = {"settings": {**source, **track_settings}, "seconds": result.seconds, "skipped": result.skipped,
+               "files": {k: str(v) for k, v in result.files.items()}}
+    write_text_atomic(out / "result.json", json.dumps(summary, indent=1, sort_keys=True))
+    return result
