@@ -2,40 +2,15 @@
 written as MPEG-4 videos, imported, segmented, initialised and tracked back to the known poses."""
 from __future__ import annotations
 
-import cv2
 import numpy as np
 import pytest
 
 from data_tools.rig_formats import write_rig
 from data_tools.sequence import read_sequence
-from data_tools.synth import SynthConfig, synthesize
 from data_tools.video import import_videos
 from tracker.app.cli import main
 
-FRAMES = 8
-
-
-@pytest.fixture(scope="module")
-def rendered_walk(mocap_dir, tmp_path_factory):
-    """The held-out walk 07_11 at 15 Hz (so that in a few frames the walker leaves every pixel of the start,
-    as a background learnt from the frames needs), 8 frames in four 480 x 360 views, written as one MPEG-4
-    video per camera; returns the folder, the rendered sequence and the videos."""
-    from data_tools.asf_amc import asf_amc_clip
-    from data_tools.retarget import retarget
-
-    walk = retarget(asf_amc_clip(mocap_dir / "07" / "07.asf", mocap_dir / "07" / "07_11.amc"), fps=15)
-    folder = tmp_path_factory.mktemp("round_trip")
-    synthesize(walk, folder / "rendered", SynthConfig(views=4, frames=FRAMES, width=480, height=360, seed=1))
-    rendered = read_sequence(folder / "rendered")
-    videos = []
-    for v, cam in enumerate(rendered.rig.cameras):
-        path = folder / f"{cam.name}.mp4"
-        out = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), rendered.fps, (cam.width, cam.height))
-        for k in range(rendered.n_frames):
-            out.write(cv2.cvtColor(rendered.image(k, v), cv2.COLOR_RGB2BGR))
-        out.release()
-        videos.append(path)
-    return folder, rendered, videos
+from conftest import ROUND_TRIP_FRAMES as FRAMES
 
 
 @pytest.mark.parametrize("name", ["rig.toml", "rig.qca.txt", "rig.yml", "cameras.json"])
