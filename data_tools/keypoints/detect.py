@@ -15,7 +15,7 @@ point; only a frame without a person (or a view not detected) gives confidence 0
 
 It detects on the sequence's images as they are. BlazePose looks at a crop of 256 x 256 pixels around the
 person, so a larger image adds decoding time and no detail: on the real four-camera example, images of 272 x 480
-(``import-video --downscale 4``) give the same cross-view agreement as the full 1088 x 1920 at a quarter of
+(``import-video --downscale 4``) give the same cross-view agreement as the full 1088 x 1920 in under half
 the time (see the real-video guide, "Keypoints: which detector").
 """
 from __future__ import annotations
