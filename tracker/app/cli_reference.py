@@ -18,7 +18,7 @@ from tracker.app.parser import build_parser
 #: Columns the help is formatted to (argparse reads ``COLUMNS``).
 WIDTH = 100
 COMMANDS = ("convert", "corpus", "synth", "show", "train", "track", "compare", "demo", "fetch", "import-video",
-            "silhouettes", "keypoints", "initialise", "export", "compare-trc")
+            "silhouettes", "keypoints", "capture", "initialise", "export", "compare-trc")
 
 
 def _subparser(argv: Sequence[str], command: str) -> argparse.ArgumentParser:
