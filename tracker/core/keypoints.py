@@ -8,18 +8,25 @@ all by forward kinematics (:func:`keypoint_positions`):
 =================  ==================================================================================
 keypoint           place on the model (rest pose: the body faces +x, its left is +y, up is +z)
 =================  ==================================================================================
-``nose``           the head link, half the head's length above the thorax point, ahead of the head's
+``nose``           the head link, 0.62 of the head's length above the thorax point, ahead of the head's
                    axis by the head's mid depth radius plus 20 mm
-``left_ear`` ...   the head link, at the nose's height, to each side by the head's mid width radius
+``left_ear`` ...   the head link, 0.78 of the head's length above the thorax point, 0.4 of the mid depth
+                   radius ahead of the axis and 0.75 of the mid width radius to each side
 ``neck``           the shoulder joints' midpoint at rest (OpenPose's ``Neck``)
 ``head_top``       the model's ``head`` point: the top of the head cone
 shoulders ... ankles  the model's joint centres
 ``left_toe`` ...   the end of the foot cone (a detector's big toe or foot index)
 =================  ==================================================================================
 
-A detector's points are not joint centres: its hip lies lower and further out than the hip joint's centre,
-its shoulder higher. The keypoint likelihood allows for that with a spread per keypoint
-(:data:`KEYPOINT_SPREAD_MM`), not with a guessed offset. Only the 15-cone model has these points.
+The face's points are placed where BlazePose puts them on a real person: on the real four-camera example
+(``docs/guide/real_video.md``) the keypoints triangulated over the views lay, on average over the frames, 29 mm
+above the nose's first placement (half the head's length) and 70 mm above, 32 mm ahead of and 18 mm inside the
+ears' (half the head's length, on the head's axis, at its width radius), once the body was tracked to them;
+these placements take that in (the only real footage they were measured on: the first frames of a person
+standing still). A detector's joints are not joint centres either: on the same example, with these placements,
+its hips lay 8 to 16 mm ahead of and 11 to 18 mm outside the tracked hip joints, its toes 33 mm ahead of the
+foot cones' ends, its other joints within 19 mm (means over the frames). The keypoint likelihood allows for such offsets with a spread per keypoint
+(:data:`KEYPOINT_SPREAD_MM`) rather than shifting the joints. Only the 15-cone model has these points.
 
 Left/right pairs (:data:`SWAP_GROUPS`) are what a detector mixes up: a view may label a whole arm, leg or
 the ears the wrong way round.
@@ -96,8 +103,9 @@ def keypoint_table(model: BodyModel) -> tuple[np.ndarray, np.ndarray]:
     length = shape.lengths["head"]
     radius = 0.5 * (shape.radius_proximal["head"] + shape.radius_distal["head"])
     depth = radius * shape.depth_scale["head"]
-    for name, offset in (("nose", (depth + 20.0, 0.0, 0.5 * length)), ("left_ear", (0.0, radius, 0.5 * length)),
-                         ("right_ear", (0.0, -radius, 0.5 * length))):
+    for name, offset in (("nose", (depth + 20.0, 0.0, 0.62 * length)),
+                         ("left_ear", (0.4 * depth, 0.75 * radius, 0.78 * length)),
+                         ("right_ear", (0.4 * depth, -0.75 * radius, 0.78 * length))):
         links[KEYPOINT_INDEX[name]] = head
         offsets[KEYPOINT_INDEX[name]] = offset
     torso = names.index("torso")
