@@ -100,8 +100,11 @@ def add_parsers(sub, parents) -> None:
                                                             "has it")
 
     i = sub.add_parser("initialise", parents=parents,
-                       help="fit the body's size and first pose to a sequence's first silhouettes",
-                       description="Search the floor position, heading, body scale and stance (standing, "
+                       help="fit the body's size and first poses to a sequence's keypoints or first silhouettes",
+                       description="For a sequence with keypoints (pose-tracker keypoints): measure the body's "
+                                   "limbs from the keypoints triangulated over the views and fit the first "
+                                   "poses' 40 numbers to the keypoints in every view (one view: the default "
+                                   "body, placed by its height in the image). Otherwise: search the floor position, heading, body scale and stance (standing, "
                                    "A-pose, T-pose; or around --near, an approximate pose of your own) that the "
                                    "tracker's likelihood rates best on the first frame's silhouettes, refine "
                                    "every pose number from both headings (silhouettes hardly tell front from "
@@ -116,6 +119,10 @@ def add_parsers(sub, parents) -> None:
     i.add_argument("--frames", type=int, default=2, metavar="N",
                    help="how many first frames the pose is written for (track's --known-frames; default 2)")
     i.add_argument("--seed", type=int, default=0, help="random seed of the local search (default 0)")
+    i.add_argument("--evidence", choices=("keypoints", "silhouettes"), default=None,
+                   help="what the start is fitted to: keypoints (the default for a sequence with keypoints: the "
+                        "body measured from the keypoints triangulated over the views, the pose fitted to them) "
+                        "or silhouettes (the default otherwise: the search described above)")
     i.add_argument("--proportions", choices=("scale", "landmarks"), default="scale",
                    help="scale: the default adult's proportions at the scale the silhouettes fit best "
                         "(default); landmarks: the person's own segment lengths, measured from BlazePose's "
@@ -271,6 +278,22 @@ def cmd_initialise(args: argparse.Namespace) -> int:
     if seq.layout != OWN:
         raise InputError("initialise writes the fitted shape into meta.json: this toolkit's layout only",
                          args.sequence)
+    evidence = args.evidence or ("keypoints" if seq.keypoints is not None else "silhouettes")
+    if evidence == "keypoints":
+        if args.near is not None or args.proportions != "scale":
+            raise InputError("--near and --proportions apply to a start from silhouettes (--evidence silhouettes)")
+        from tracker.app.keypoint_start import initialise_from_keypoints
+
+        start = initialise_from_keypoints(seq, known_frames=args.frames)
+        meta = dict(seq.meta)
+        meta["body_shape"] = start.shape.to_dict()
+        write_meta(seq.root, meta)
+        np.savez(args.out, poses=start.poses)
+        lengths = ", ".join(f"{k} {v:.0f}" for k, v in start.lengths.items())
+        log.info(f"standing height {start.height:.0f} mm" + (f"; measured {lengths} mm" if lengths else ""))
+        print(f"first poses fitted to the keypoints (cost {start.cost:.1f}) -> {args.out}; body shape -> "
+              f"{seq.root / 'meta.json'}")
+        return 0
     near = None if args.near is None else read_poses_file(args.near, "--near", seq.model)[0]
     shape = None
     if args.proportions == "landmarks":
