@@ -25,9 +25,8 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping, Sequence as 
 import numpy as np
 
 from data_tools.corpus import is_label_source, label_source
-from data_tools.load import load_mocap, load_retargeted, load_training_clips
-from data_tools.retarget import RetargetResult, retarget
-from data_tools.samples import sample_walks
+from data_tools.load import load_retargeted, load_training_clips
+from data_tools.retarget import RetargetResult
 from data_tools.sequence import Sequence, read_sequence
 from tracker.app import schema
 from tracker.app.schema import FILTER_OPTIONS, RECORDED_SETTINGS, TRACK_SETTINGS
@@ -36,6 +35,7 @@ from tracker.app.plugins import (  # the discovery functions of the API
     available_likelihoods, available_priors, likelihood_entry, prior_entry,
 )
 from tracker.app.threads import configured_threads, sync_torch_threads
+from tracker.app.walk_scale import walk_scale
 from tracker.app.tracking import (
     TrackingInterrupted, TrackingResult, check_frames, check_views, records_call, run_tracking, seed_description,
 )
@@ -155,8 +155,8 @@ def synthesize(mocap: str | Path | RetargetResult, out: str | Path, *, skeleton:
 
 def random_walk_scale(seq: Sequence, train_mocap: Iterable[str | Path] | None = None) -> np.ndarray:
     """Per-dof random-walk scale ``(D,)`` for ``seq``: the RMS frame-to-frame change of training clips at the
-    sequence's frame rate (default: the shipped subject-7 walks), or a bodytrack folder's
-    ``PoseParameters.txt``."""
+    sequence's frame rate (default: the shipped subject-7 walks, whose scale is shipped for the usual rates,
+    :mod:`tracker.app.walk_scale`), or a bodytrack folder's ``PoseParameters.txt``."""
     if seq.layout == "bodytrack":
         if seq.diffusion_std is None:
             raise InputError("bodytrack folder has no PoseParameters.txt for the random-walk scale", seq.root)
@@ -164,11 +164,8 @@ def random_walk_scale(seq: Sequence, train_mocap: Iterable[str | Path] | None = 
     if seq.fps is None:
         raise InputError("the sequence states no frame rate (groundtruth.npz or meta.json 'fps')", seq.root)
     if train_mocap is None:
-        asf, walks = sample_walks()
-        clips = [retarget(load_mocap(w, asf), fps=seq.fps).poses for w in walks]
-    else:
-        clips = [r.poses for r in load_training_clips(list(train_mocap), None, seq.fps)]
-    return step_rms(clips)
+        return walk_scale(seq.fps)
+    return step_rms([r.poses for r in load_training_clips(list(train_mocap), None, seq.fps)])
 
 
 def show(sequence: Sequence | str | Path, *, frame: int = 0, poses: str | Path | np.ndarray | None = None,
