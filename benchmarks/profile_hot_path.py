@@ -102,7 +102,7 @@ def main() -> None:
             synthesize(tracker.load_clip(SHARED / "mocap" / "cmu" / "07" / "07_11.amc"), folder,
                        SynthConfig(frames=20))
         seq = tracker.load_sequence(folder)
-        std = tracker.random_walk_scale(seq)  # (retargets the shipped walks: not part of a frame's work)
+        std = tracker.random_walk_scale(seq)  # (not part of a frame's work)
         profile(f"synthetic 15-cone, 1000 particles x 4 views, {seq.n_frames - 2} frames",
                 lambda: tracker.track(seq, "zero-velocity", particles=1000, seed=0, step_std=std,
                                       annealing_layers=1), args.top)
