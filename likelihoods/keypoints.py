@@ -31,7 +31,7 @@ from tracker.core.body import BodyModel
 from tracker.core.cameras import CameraRig
 from tracker.core.errors import InputError
 from tracker.core.keypoints import KEYPOINT_INDEX, KEYPOINT_SPREAD_MM, KEYPOINTS, SWAP_GROUPS, keypoints_from_frames
-from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood, SumOfLikelihoods
+from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood, RefiningFrameLikelihood, SumOfLikelihoods
 from tracker.engine.registry import LIKELIHOODS, LikelihoodContext, Option, register_likelihood
 
 
@@ -40,7 +40,8 @@ class KeypointConfig:
     """``weight`` multiplies the summed log-likelihood; ``spread`` scales every keypoint's spread (mm) of
     :data:`~tracker.core.keypoints.KEYPOINT_SPREAD_MM`; ``min_spread_px`` is the least spread in pixels;
     ``outliers`` is the share of confident detections that are wrong; ``swap`` the probability that a view's
-    left/right group is swapped; ``min_confidence`` the confidence below which a detection is ignored."""
+    left/right group is swapped; ``min_confidence`` the confidence below which a detection is ignored;
+    ``refine_steps`` how many steps move the filter's proposals towards the detections (0: none)."""
 
     weight: float = 1.0
     spread: float = 1.0
@@ -48,10 +49,13 @@ class KeypointConfig:
     outliers: float = 0.05
     swap: float = 0.05
     min_confidence: float = 0.1
+    refine_steps: int = 1
 
     def check(self) -> "KeypointConfig":
         if not (self.weight > 0 and self.spread > 0 and self.min_spread_px > 0):
             raise InputError(f"keypoint weight, spread and min_spread_px must be positive, got {self}")
+        if not (isinstance(self.refine_steps, (int, np.integer)) and 0 <= self.refine_steps <= 10):
+            raise InputError(f"keypoint refine_steps must be an integer from 0 to 10, got {self.refine_steps!r}")
         if not (0 < self.outliers < 1 and 0 <= self.swap < 1 and 0 <= self.min_confidence < 1):
             raise InputError(f"keypoint outliers must be in (0, 1), swap and min_confidence in [0, 1), got {self}")
         return self
@@ -77,11 +81,15 @@ class KeypointLikelihood(Likelihood):
         for left, right in grouped:
             in_group[left] = in_group[right] = True
         self.single = np.flatnonzero(~in_group)
+        named = {"head_top": "head", **{k: k for k in KEYPOINTS if k in model.marker_names or k.endswith("_toe")}}
+        names = [p.name for p in model.points]
+        self.named = np.array([KEYPOINT_INDEX[k] for k in KEYPOINTS if named.get(k) in names])  # keypoints
+        self.named_points = np.array([names.index(named[KEYPOINTS[k]]) for k in self.named])  # model points
 
     def settings(self) -> dict:
         c = self.config
         return {"weight": c.weight, "spread": c.spread, "min_spread_px": c.min_spread_px, "outliers": c.outliers,
-                "swap": c.swap, "min_confidence": c.min_confidence}
+                "swap": c.swap, "min_confidence": c.min_confidence, "refine_steps": c.refine_steps}
 
     def prepare(self, frame: Frame) -> "PreparedKeypoints":
         """The frame's keypoints, checked against the views; an :class:`InputError` when it has none."""
@@ -94,7 +102,7 @@ class KeypointLikelihood(Likelihood):
         if detections.shape != (len(self.rig), len(KEYPOINTS), 3):
             raise InputError(f"frame {frame.index}'s keypoints are {detections.shape}, expected "
                              f"{(len(self.rig), len(KEYPOINTS), 3)}")
-        return PreparedKeypoints(self, detections)
+        return (RefiningKeypoints if self.config.refine_steps else PreparedKeypoints)(self, detections)
 
     def view_terms(self, poses: np.ndarray, detections: np.ndarray) -> np.ndarray:
         """Per-view log-likelihoods ``P x V`` of poses ``P x D`` (unweighted, swaps mixed in); the keypoints'
@@ -148,6 +156,52 @@ class KeypointLikelihood(Likelihood):
         return np.where(valid, out, -np.inf)
 
 
+    def refine(self, poses: np.ndarray, detections: np.ndarray, steps: int = 1) -> np.ndarray:
+        """Poses ``P x D`` moved towards the detections ``V x K x 3``: ``steps`` Levenberg-Marquardt steps on the
+        keypoints that are named points of the model (the joints, the head's top, the toes), each a
+        Gauss-Newton step on the confidence-weighted reprojection error with the robust (Cauchy) weights of the
+        current residuals, damped by one unit of the normalised cost per pose number; the result clipped to the
+        joint limits. Batched over particles: one ``D x D`` solve each."""
+        from tracker.core.kinematics import forward_kinematics, point_jacobians
+
+        c = self.config
+        conf = np.where(detections[..., 2] >= c.min_confidence, detections[..., 2], 0.0)[:, self.named]  # V x k
+        observed = np.nan_to_num(detections[..., :2])[:, self.named]  # V x k x 2
+        R, t = self.rig.R, self.rig.t[None, None]
+        f = self.rig.focal  # V x 2
+        D = self.model.n_dofs
+        out = np.asarray(poses, float).copy()
+        V, k = len(self.rig), len(self.named)
+        rows = R.reshape(3 * V, 3)  # the cameras' rotations stacked: one product for every particle and point
+        for _ in range(steps):
+            P = len(out)
+            fk = forward_kinematics(self.model, out)
+            X = fk.points[:, self.named_points]  # P x k x 3
+            J = point_jacobians(self.model, out, fk, self.named_points)  # P x k x 3 x D, laid out P x k x D x 3
+            Xc = (X.reshape(-1, 3) @ rows.T).reshape(P, k, V, 3) + t  # P x k x V x 3
+            z = np.maximum(Xc[..., 2], 1.0)
+            JXc = (np.swapaxes(J, -1, -2).reshape(-1, 3) @ rows.T).reshape(P, k, D, V, 3).transpose(3, 4, 0, 1, 2)
+            pixels, _ = self.rig.project(X)  # P x V x k x 2 (with the lens distortion)
+            r = observed[None] - pixels  # P x V x k x 2
+            zv = z.transpose(2, 0, 1)  # V x P x k
+            s2 = np.maximum(self.focal[:, None, None] * self.spread_mm[self.named][None, None, :] / zv,
+                            c.min_spread_px) ** 2
+            w = conf[:, None, :] / (s2 + np.sum(r ** 2, axis=-1).transpose(1, 0, 2))  # Cauchy weights / s^2
+            root = np.sqrt(np.where(Xc[..., 2].transpose(2, 0, 1) > 0, w, 0.0)) / zv  # V x P x k
+            A = np.empty((P, D, V, k, 2))
+            b = np.empty((P, V, k, 2))
+            for a in (0, 1):  # d(u, v) / d(pose), without the lens distortion's small derivative
+                d = (JXc[:, a] - (Xc[..., a].transpose(2, 0, 1) / z.transpose(2, 0, 1))[..., None] * JXc[:, 2])
+                d *= (f[:, a][:, None, None] * root)[..., None]  # V x P x k x D
+                A[..., a] = d.transpose(1, 3, 0, 2)
+                b[..., a] = r[..., a] * (root * zv).transpose(1, 0, 2)
+            A = A.reshape(P, D, -1)
+            H = A @ A.transpose(0, 2, 1) + np.eye(D)
+            g = (A @ b.reshape(P, -1, 1))[..., 0]
+            out = self.model.clip_to_limits(out + np.linalg.solve(H, g[..., None])[..., 0])
+        return out
+
+
 class PreparedKeypoints(FrameLikelihood):
     """The keypoint likelihood bound to one frame's detections ``V x K x 3``."""
 
@@ -157,6 +211,14 @@ class PreparedKeypoints(FrameLikelihood):
 
     def __call__(self, poses: np.ndarray) -> np.ndarray:
         return self.likelihood.log_likelihood(poses, self.detections)
+
+
+class RefiningKeypoints(PreparedKeypoints, RefiningFrameLikelihood):
+    """The keypoint likelihood of one frame that also moves the filter's proposals towards the detections
+    (``refine_steps`` steps of :meth:`KeypointLikelihood.refine`)."""
+
+    def refine(self, poses: np.ndarray) -> np.ndarray:
+        return self.likelihood.refine(poses, self.detections, self.likelihood.config.refine_steps)
 
 
 _OPTIONS = (
@@ -170,12 +232,16 @@ _OPTIONS = (
     Option("keypoint_swap", float, KeypointConfig.swap,
            "probability that a view's left and right arms, legs or ears are swapped", minimum=0.0, maximum=1.0,
            strict_max=True),
+    Option("keypoint_refine", int, KeypointConfig.refine_steps,
+           "steps that move each proposed pose towards the keypoints before it is weighed (0: none)",
+           minimum=0, maximum=10),
 )
 
 
 def _config(options: dict) -> KeypointConfig:
     return KeypointConfig(weight=options["keypoint_weight"], spread=options["keypoint_spread"],
-                          outliers=options["keypoint_outliers"], swap=options["keypoint_swap"])
+                          outliers=options["keypoint_outliers"], swap=options["keypoint_swap"],
+                          refine_steps=options["keypoint_refine"])
 
 
 @register_likelihood("keypoints", summary="2-D keypoints of a detector, robust to outliers and left/right swaps",

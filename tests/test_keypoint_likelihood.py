@@ -118,3 +118,33 @@ def test_confidence_weighs_a_detection(walk):
     truth_high, truth_low = score(walk, exact_detections(walk, FRAME, 0.95), truth), score(
         walk, exact_detections(walk, FRAME, 0.4), truth)
     assert (truth_high - score(walk, high, truth))[0] > (truth_low - score(walk, low, truth))[0]
+
+
+def test_refining_moves_proposals_towards_the_keypoints_within_the_limits(walk):
+    from likelihoods.edge_silhouette import EdgeSilhouetteLikelihood
+    from tracker.core.kinematics import markers
+    from tracker.engine.likelihood import RefiningFrameLikelihood
+
+    truth = walk.groundtruth.poses[FRAME]
+    rng = np.random.default_rng(2)
+    scale = np.r_[[60.0] * 3, [0.15] * (truth.size - 3)]
+    proposals = walk.model.clip_to_limits(truth + rng.standard_normal((200, truth.size)) * scale)
+    detections = simulate_detections(walk.rig, keypoint_positions(walk.model, truth[None]), rng)[0]
+    likelihood = KeypointLikelihood(walk.model, walk.rig)
+    frame = walk.frame(FRAME, range(walk.n_views))
+    frame = type(frame)(frame.index, frame.images, frame.masks, frame.backgrounds, detections)
+    prepared = likelihood.prepare(frame)
+    assert isinstance(prepared, RefiningFrameLikelihood)
+    refined = prepared.refine(proposals)
+    assert np.all(walk.model.within_limits(refined))
+
+    def error(poses):
+        return np.linalg.norm(markers(walk.model, poses) - walk.groundtruth.markers[FRAME], axis=-1)[:, 3:15].mean()
+
+    assert error(refined) < 0.7 * error(proposals), (error(refined), error(proposals))
+    assert np.mean(prepared(refined)) > np.mean(prepared(proposals))
+    summed = SumOfLikelihoods([likelihood, EdgeSilhouetteLikelihood(walk.model, walk.rig)]).prepare(frame)
+    assert isinstance(summed, RefiningFrameLikelihood)
+    assert np.array_equal(summed.refine(proposals), refined)
+    still = KeypointLikelihood(walk.model, walk.rig, KeypointConfig(refine_steps=0)).prepare(frame)
+    assert not isinstance(still, RefiningFrameLikelihood)

@@ -264,8 +264,10 @@ def _jacobian_tables(model: BodyModel) -> dict:
     return cache["jac_tables"]
 
 
-def point_jacobians(model: BodyModel, poses: np.ndarray, fk: Kinematics | None = None) -> np.ndarray:
-    """Derivatives of every named point with respect to every pose number: ``B x M x 3 x D``.
+def point_jacobians(model: BodyModel, poses: np.ndarray, fk: Kinematics | None = None,
+                    points: np.ndarray | None = None) -> np.ndarray:
+    """Derivatives of every named point (or of the named points ``points``, indices ``(M,)``) with respect to
+    every pose number: ``B x M x 3 x D``.
 
     Analytic: a rotational dof with world axis ``w`` about joint centre ``o``
     moves a downstream point ``p`` at ``w x (p - o)`` (mm per radian); root
@@ -306,10 +308,12 @@ def point_jacobians(model: BodyModel, poses: np.ndarray, fk: Kinematics | None =
                 pre[..., j, :, :] = pre[..., j - 1, :, :] @ factors[..., j - 1, :, :]
         axes[..., ed, :] = np.einsum("...jab,jb->...ja", pre, ea)
         pivots[..., ed, :] = o[..., el, :]
-    pts = fk.points
+    pts, mask = fk.points, jt["mask"]
+    if points is not None:
+        pts, mask = pts[..., points, :], mask[points]
     # B x M x D x 3
     J = np.cross(axes[..., None, :, :], pts[..., :, None, :] - pivots[..., None, :, :])
-    J *= jt["mask"][..., None]
+    J *= mask[..., None]
     J[..., rd[0:3], :] = np.eye(3)
     return np.swapaxes(J, -1, -2)
 

@@ -50,7 +50,7 @@ import numpy as np
 
 from tracker.core.blas import serial_blas
 from tracker.engine.config import FilterConfig  # the filter's settings, declared with their options
-from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood
+from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood, RefiningFrameLikelihood
 from tracker.engine.prior import MotionPrior, PriorState, label_for, restart, summarize
 from tracker.engine.recording import DEFAULT_RECORD, FrameStep, Recording
 from tracker.engine.resampling import SCHEMES
@@ -172,11 +172,14 @@ class ParticleFilter:
         return new_state, step
 
     def _weigh(self, state: FilterState, frame_lik: FrameLikelihood) -> Weighed:
-        """Every particle's next pose from the prior, given its own history and state, weighed by the frame: the
-        likelihood of the prior's samples (its ``evidence``), sharpened through the annealing layers when
+        """Every particle's next pose from the prior, given its own history and state (moved towards the frame's
+        evidence first where the likelihood refines, :class:`~tracker.engine.likelihood.RefiningFrameLikelihood`),
+        weighed by the frame: the likelihood of those poses (its ``evidence``), sharpened through the annealing layers when
         configured; re-diffused around the last estimate when no particle explains the frame; made weights by
         the strategy."""
         x, prior_state = self.prior.sample(state.history, state.available, state.prior_state, self.rng)
+        if isinstance(frame_lik, RefiningFrameLikelihood):  # the prior's samples moved towards the evidence
+            x = frame_lik.refine(x)
         history, carried = state.history, state.weights
         ll = evidence = frame_lik(x)
         if self.config.annealing_layers > 1:  # ll becomes the last layer's tempered log-likelihood
