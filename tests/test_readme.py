@@ -115,7 +115,8 @@ def test_the_readme_shell_blocks_run(tmp_path, mocap_dir):
     for file in fetched_files():
         (tmp_path / file).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / file).symlink_to(mocap_dir / file.relative_to(root / CMU_FOLDER))
-    runnable = [b for b in blocks("") if "pose-tracker" in b and "compare" not in b and "bash " not in b]
+    runnable = [b for b in blocks("") if "pose-tracker" in b and "compare" not in b and "bash " not in b
+                and "pose-tracker capture" not in b]
     used = set()
     script = []
     for block in runnable:
@@ -137,3 +138,12 @@ def test_the_readme_shell_blocks_run(tmp_path, mocap_dir):
                      "crbm.pt", "runs/mixture/result.json"):
         assert (tmp_path / produced).exists(), produced
 
+
+def test_the_readme_capture_line_parses():
+    """The real-video block names videos the reader has, not the test: its command line must parse as written
+    (capture itself runs end to end in tests/test_capture.py)."""
+    from tracker.app.parser import parse_arguments
+
+    (line,) = [line for block in blocks("") for line in commands(block) if line.startswith("pose-tracker capture")]
+    args = parse_arguments(shlex.split(line)[1:])
+    assert args.command == "capture" and len(args.videos) == 4 and args.out == "take1"
