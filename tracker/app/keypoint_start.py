@@ -12,8 +12,7 @@
    height matches the person's height in pixels, and every :data:`MONOCULAR_HEADINGS`-th heading.
 3. **The pose**: from each start (both stances of :data:`STANCES`), the 40 numbers fitted to the frame's
    keypoints in every view (:func:`tracker.core.keypoint_fit.fit_pose`, joint limits respected); the cheapest
-   kept (with two or more views only the :data:`FIT_KEEP` cheapest starts after a fifth of the steps go on).
-   Each further known frame starts from the one before.
+   kept. Each further known frame starts from the one before.
 """
 from __future__ import annotations
 
@@ -34,9 +33,8 @@ MEASURE_FRAMES = 10
 STANCES = {"standing": 0.15, "t-pose": np.pi / 2 * 0.95}
 #: Heading step (degrees) of the starts with one view.
 MONOCULAR_HEADINGS = 45.0
-#: Steps of the first frame's fit, and with two or more views how many of its starts are fitted to the end (the
-#: cheapest after a fifth of the steps; with one view every start is).
-FIT_ITERATIONS, FIT_KEEP = 250, 2
+#: Steps of the first frame's fit.
+FIT_ITERATIONS = 250
 
 
 @dataclass
@@ -174,9 +172,8 @@ def initialise_from_keypoints(seq, views=None, known_frames: int = 2, shape: Bod
     model = fifteen_cone_model(shape if shape is not None else seq.model.shape)
     starts = (_multiview_starts(model, points[0]) if points is not None
               else _monocular_starts(model, rig, detections[0, 0]))
-    # With one view many starts fit almost as well for a while (a limb forward or back): all are fitted through.
-    first: Fitted = fit_pose(model, rig, detections[0], starts, iterations=FIT_ITERATIONS,
-                             keep=FIT_KEEP if points is not None else None)
+    # Every start is fitted through: after a fifth of the steps the turned start can still look the cheaper one.
+    first: Fitted = fit_pose(model, rig, detections[0], starts, iterations=FIT_ITERATIONS)
     poses = [first.pose]
     for k in range(1, known_frames):
         poses.append(fit_pose(model, rig, detections[k], poses[-1][None], iterations=100, step=0.02).pose)

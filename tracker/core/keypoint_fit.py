@@ -112,17 +112,12 @@ class KeypointCost:
 
 
 def fit_pose(model: BodyModel, rig: CameraRig, detections: np.ndarray, starts: np.ndarray, iterations: int = 250,
-             step: float = 0.05, prior: float = 0.05, keep: int | None = None) -> Fitted:
+             step: float = 0.05, prior: float = 0.05) -> Fitted:
     """Fit every start pose ``B x D`` to one frame's ``detections`` ``V x K x 3`` in the views of ``rig``
     (module docstring): ``iterations`` Adam steps of ``step`` radians (root position: ``step`` metres),
-    shrinking to a tenth along a cosine. With ``keep``, only the ``keep`` cheapest starts after a fifth of the
-    steps are fitted on (and returned)."""
+    shrinking to a tenth along a cosine."""
     cost = KeypointCost(model, rig, detections, prior)
     starts = model.clip_to_limits(np.atleast_2d(np.asarray(starts, float)))
-    if keep is not None and keep < len(starts):
-        first = fit_pose(model, rig, detections, starts, max(iterations // 5, 1), step, prior)
-        starts = first.poses[np.argsort(first.costs)[:keep]]
-        iterations -= max(iterations // 5, 1)
     scale = torch.ones(model.n_dofs, dtype=torch.float64)
     scale[:3] = 1000.0  # position in metres inside the optimiser: one step size for all numbers
     x = (torch.as_tensor(starts) / scale).requires_grad_(True)
