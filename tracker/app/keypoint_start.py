@@ -59,9 +59,11 @@ def keypoint_lengths(points: np.ndarray, source=None) -> dict[str, float]:
     triangulated body keypoints ``T x K x 3`` (mm, NaN where not triangulated); an :class:`InputError` names
     a length no frame measures."""
     def limb(a: str, b: str) -> np.ndarray:
-        sides = [np.linalg.norm(_point(points, f"{s}_{a}") - _point(points, f"{s}_{b}"), axis=-1)
-                 for s in ("left", "right")]
-        return np.nanmean(np.stack(sides), axis=0) if np.isfinite(sides).any() else np.full(len(points), np.nan)
+        """Per frame, the mean of the sides measured (NaN where neither is)."""
+        sides = np.stack([np.linalg.norm(_point(points, f"{s}_{a}") - _point(points, f"{s}_{b}"), axis=-1)
+                          for s in ("left", "right")])
+        seen = np.isfinite(sides)
+        return np.where(seen, sides, 0.0).sum(axis=0) / np.where(seen.any(axis=0), seen.sum(axis=0), np.nan)
 
     mid_hip = 0.5 * (_point(points, "left_hip") + _point(points, "right_hip"))
     mid_shoulder = 0.5 * (_point(points, "left_shoulder") + _point(points, "right_shoulder"))
