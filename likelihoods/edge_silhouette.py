@@ -123,6 +123,12 @@ class EdgeSilhouetteLikelihood(Likelihood):
         """
         from likelihoods.observations import observe
 
+        bare = [v for v in range(frame.n_views) if (frame.masks is None or frame.masks[v] is None)
+                and (frame.backgrounds is None or frame.backgrounds[v] is None)]
+        if bare:  # (a sequence with keypoints hands out frames without either)
+            raise InputError(f"frame {frame.index}, view(s) {', '.join(map(str, bare))}: neither a foreground mask "
+                             f"nor a background plate, one of which the {self.name} likelihood needs: write masks "
+                             "first (pose-tracker silhouettes SEQ), or track with --likelihood keypoints")
         plates = None if frame.backgrounds is None else [self._plate(v, b) for v, b in enumerate(frame.backgrounds)]
         return self.prepare_observations(observe(list(frame.images), plates,
                                                  None if frame.masks is None else list(frame.masks),

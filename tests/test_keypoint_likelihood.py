@@ -148,3 +148,17 @@ def test_refining_moves_proposals_towards_the_keypoints_within_the_limits(walk):
     assert np.array_equal(summed.refine(proposals), refined)
     still = KeypointLikelihood(walk.model, walk.rig, KeypointConfig(refine_steps=0)).prepare(frame)
     assert not isinstance(still, RefiningFrameLikelihood)
+
+
+def test_silhouettes_beside_keypoints_refuse_a_frame_without_masks_or_plates(walk):
+    """A sequence with keypoints hands out frames without silhouettes: the silhouette part refuses in one line."""
+    from likelihoods.edge_silhouette import EdgeSilhouetteLikelihood
+    from tracker.core.errors import InputError
+
+    frame = walk.frame(FRAME, range(walk.n_views))
+    bare = type(frame)(frame.index, frame.images, None, None, exact_detections(walk, FRAME))
+    summed = SumOfLikelihoods([KeypointLikelihood(walk.model, walk.rig),
+                               EdgeSilhouetteLikelihood(walk.model, walk.rig)])
+    with pytest.raises(InputError, match="silhouettes SEQ"):
+        summed.prepare(bare)
+    KeypointLikelihood(walk.model, walk.rig).prepare(bare)  # the keypoints alone need neither
