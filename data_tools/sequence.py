@@ -351,7 +351,7 @@ def write_sequence_header(root: Path, rig: CameraRig, meta: dict) -> None:
     write_meta(root, meta)
 
 
-def _read_own(root: Path) -> Sequence:
+def _read_own(root: Path, keypoints: bool = True) -> Sequence:
     rig = read_cameras_json(root / "cameras.json")
     meta_path = root / "meta.json"
     meta = read_json(meta_path, "meta.json") if meta_path.exists() else {}
@@ -390,7 +390,7 @@ def _read_own(root: Path) -> Sequence:
     seq = Sequence(root=root, layout=OWN, rig=rig, model=model, image_paths=image_paths,
                    background_paths=backgrounds, mask_paths=mask_paths, groundtruth=gt,
                    initial_poses=None if gt is None else gt.poses, fps=fps, meta=meta,
-                   keypoints=read_keypoints(root, rig.names, len(image_paths[0])))
+                   keypoints=read_keypoints(root, rig.names, len(image_paths[0])) if keypoints else None)
     for v in range(len(rig)):  # fail early on a wrong-sized or unreadable first frame or plate (kept once read)
         seq.image(0, v)
         seq.background(v)
@@ -451,13 +451,14 @@ def _bodytrack_cameras(root: Path) -> list[int]:
     return sorted(cals)
 
 
-def read_sequence(root: str | Path) -> Sequence:
-    """Open a sequence folder in either layout (own: ``cameras.json``; bodytrack: ``CALIB/``)."""
+def read_sequence(root: str | Path, keypoints: bool = True) -> Sequence:
+    """Open a sequence folder in either layout (own: ``cameras.json``; bodytrack: ``CALIB/``). ``keypoints``
+    False leaves its ``keypoints/keypoints.npz`` unread (for what replaces that file, which may be broken)."""
     root = Path(root)
     if not root.is_dir():
         raise InputError("sequence folder does not exist", root)
     if (root / "cameras.json").exists():
-        return _read_own(root)
+        return _read_own(root, keypoints)
     if (root / "CALIB").is_dir():
         return _read_bodytrack(root)
     raise InputError("not a sequence folder: neither cameras.json nor a bodytrack CALIB/ folder", root)

@@ -307,3 +307,32 @@ def test_keypoints_command_without_from_writes_what_the_detector_finds(seq, monk
     assert out.startswith(f"4 frames x 2 views of keypoints (fake, coco_17 layout): {100 * 2 / 30:.0f}% of the "
                           "keypoints found")
     assert read_keypoints(seq, CAMERAS, T).source["detector"] == "fake"
+
+
+def test_keypoints_command_replaces_a_broken_keypoint_file(seq, tmp_path, capsys):
+    """A keypoint file that cannot be read (or is of other cameras) is what --overwrite is for: the sequence is
+    read without it."""
+    rng = np.random.default_rng(6)
+    np.save(tmp_path / "both.npy", np.stack([detections(rng, FIRST + T, "coco_17") for _ in CAMERAS], axis=1))
+    keypoints_path(seq).parent.mkdir(parents=True)
+    keypoints_path(seq).write_bytes(b"not a zip archive")
+    assert main(["track", str(seq), "--prior", "zero-velocity", "--out", str(tmp_path / "run")]) == 2
+    assert "keypoints.npz: cannot read the keypoints file" in capsys.readouterr().err
+    assert main(["keypoints", str(seq), "--from", str(tmp_path / "both.npy"), "--overwrite"]) == 0
+    assert read_keypoints(seq, CAMERAS, T).source["layout"] == "coco_17"
+
+
+def test_keypoints_are_refused_for_a_layout_that_does_not_read_them(seq, tmp_path, monkeypatch):
+    """Only this toolkit's own layout reads keypoints/keypoints.npz: another layout's would be ignored."""
+    import data_tools.keypoints.readers as readers
+    from data_tools.sequence import read_sequence
+
+    np.save(tmp_path / "both.npy", np.stack([detections(np.random.default_rng(7), FIRST + T, "coco_17")
+                                             for _ in CAMERAS], axis=1))
+    other = read_sequence(seq)
+    other.layout = "bodytrack"
+    monkeypatch.setattr(readers, "read_sequence", lambda root, keypoints=True: other)
+    with pytest.raises(InputError) as exc:
+        import_keypoints(seq, [tmp_path / "both.npy"], write=False)
+    assert "this toolkit's layout only" in one_line(exc, seq)
+

@@ -47,7 +47,7 @@ import numpy as np
 from data_tools.checks import MAX_PRINCIPAL_PX, load_npz, real_number
 from data_tools.keypoint_file import SequenceKeypoints, write_keypoints
 from data_tools.keypoints.layouts import LAYOUT_NAMES, LAYOUTS, layout_index, to_canonical
-from data_tools.sequence import read_sequence
+from data_tools.sequence import OWN, read_sequence
 from data_tools.textfiles import read_json
 from tracker.core.errors import InputError
 from tracker.core.keypoints import KEYPOINTS
@@ -349,6 +349,14 @@ def _assign(views: list[ViewDetections], cameras: tuple[str, ...], seq_root: Pat
     return out
 
 
+def check_keypoint_layout(seq) -> None:
+    """Refuse a sequence (:class:`~data_tools.sequence.Sequence`) whose layout does not read keypoints: only
+    this toolkit's own layout has ``keypoints/keypoints.npz`` (a PARSEC bodytrack folder's is never read)."""
+    if seq.layout != OWN:
+        raise InputError(f"keypoints are read from sequence folders of this toolkit's layout only, not {seq.layout}",
+                         seq.root)
+
+
 def sequence_placement(meta: Mapping, meta_path: Path) -> tuple[float, int]:
     """``downscale`` (>= 1) and ``first_video_frame`` (>= 0) of a sequence's ``meta.json`` (1 and 0 if absent)."""
     downscale = real_number(meta.get("downscale", 1.0), "downscale", meta_path, lo=1.0, hi=64.0)
@@ -415,7 +423,8 @@ def import_keypoints(seq_root: str | Path, sources: Iterable[str | Path] | Mappi
     """
     if layout is not None and layout not in LAYOUTS:
         raise InputError(f"unknown keypoint layout {layout!r} (known: {', '.join(LAYOUTS)})")
-    seq = read_sequence(seq_root)
+    seq = read_sequence(seq_root, keypoints=False)  # the file this replaces may be broken or of other cameras
+    check_keypoint_layout(seq)
     downscale, first = sequence_placement(seq.meta, seq.root / "meta.json")
     frames = range(first, first + seq.n_frames)
     views: list[ViewDetections] = []

@@ -250,9 +250,11 @@ def cmd_keypoints(args: argparse.Namespace) -> int:
                 raise
             raise InputError("this installation has no keypoint detector: read keypoints from another tool with "
                              "--from PATH ...") from None
+        from data_tools.keypoints.readers import check_keypoint_layout
         from data_tools.sequence import read_sequence
 
-        seq = read_sequence(args.sequence)
+        seq = read_sequence(args.sequence, keypoints=False)  # the file this replaces may be broken
+        check_keypoint_layout(seq)
         keypoints = detect_sequence_keypoints(seq, progress=_count_bar("keypoints", "image"))
         write_keypoints(seq.root, keypoints)
     source = keypoints.source
