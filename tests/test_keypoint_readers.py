@@ -336,3 +336,9 @@ def test_keypoints_are_refused_for_a_layout_that_does_not_read_them(seq, tmp_pat
         import_keypoints(seq, [tmp_path / "both.npy"], write=False)
     assert "this toolkit's layout only" in one_line(exc, seq)
 
+
+def test_an_array_of_the_wrong_shape_is_named_with_its_own_shape(seq, tmp_path):
+    np.save(tmp_path / "flat.npy", np.zeros((T, 17, 2)))
+    with pytest.raises(InputError) as exc:
+        import_keypoints(seq, [tmp_path / "flat.npy"], write=False)
+    assert f"got shape {(T, 17, 2)}" in one_line(exc, tmp_path / "flat.npy")

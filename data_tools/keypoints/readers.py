@@ -272,11 +272,11 @@ def read_keypoint_array(path: str | Path, layout: str | None = None) -> list[Vie
         points = _load_npy(path)
     if points.dtype.kind not in "iuf":
         raise InputError(f"the keypoints must be numbers, got an array of {points.dtype}", path)
-    if points.ndim == 3:
-        points = points[:, None]
-    if points.ndim != 4 or points.shape[-1] != 3:
+    if points.ndim not in (3, 4) or points.shape[-1] != 3:
         raise InputError(f"the keypoints must be T x V x J x 3 (or T x J x 3 for one camera): x, y, confidence; "
                          f"got shape {points.shape}", path)
+    if points.ndim == 3:
+        points = points[:, None]
     layout = layout_for_count(points.shape[2], layout, path)
     if names is not None and len(names) != points.shape[1]:
         raise InputError(f"the file names {len(names)} cameras but its points have {points.shape[1]} views", path)
