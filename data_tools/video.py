@@ -215,8 +215,9 @@ class ImportResult:
 @contextmanager
 def staged_folder(out: Path) -> Iterator[Path]:
     """A temporary folder beside ``out`` to write an imported sequence into; when the block succeeds its entries
-    replace ``out``'s (an earlier import's ``images/`` and ``masks/`` go, so frames are never mixed; other files
-    stay), and when it fails or is interrupted it is removed and ``out`` is left as it was."""
+    replace ``out``'s (an earlier import's ``images/``, ``masks/`` and ``keypoints/`` go, so frames are never
+    mixed with another import's; other files stay), and when it fails or is interrupted it is removed and ``out``
+    is left as it was."""
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         staged = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
@@ -225,7 +226,7 @@ def staged_folder(out: Path) -> Iterator[Path]:
     try:
         yield staged
         out.mkdir(exist_ok=True)
-        for stale in ("images", "masks"):
+        for stale in ("images", "masks", "keypoints"):  # per frame and camera: of the earlier import
             if (out / stale).is_dir():
                 shutil.rmtree(out / stale)
         for entry in staged.iterdir():  # made by plain open and mkdir: their modes follow the umask already

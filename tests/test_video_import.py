@@ -135,6 +135,21 @@ def test_an_import_stopped_halfway_leaves_the_earlier_sequence_as_it_was(tmp_pat
     assert read_sequence(tmp_path / "seq").n_frames == 3
 
 
+
+def test_an_import_over_a_sequence_drops_its_keypoints(tmp_path):
+    """Keypoints are per frame and camera like images and masks: another import's frames must not keep them."""
+    from data_tools.keypoint_file import SequenceKeypoints, keypoints_path, write_keypoints
+    from tracker.core.keypoints import KEYPOINTS
+
+    cams = rig()
+    write_rig(cams, tmp_path / "rig.toml")
+    videos, _ = write_videos(tmp_path, cams)
+    import_videos(tmp_path / "rig.toml", videos, tmp_path / "seq", frames="0:3")
+    write_keypoints(tmp_path / "seq", SequenceKeypoints(np.zeros((3, 2, len(KEYPOINTS), 3)), cams.names))
+    import_videos(tmp_path / "rig.toml", videos, tmp_path / "seq", frames="3:6")  # as many frames, others
+    assert not keypoints_path(tmp_path / "seq").exists()
+    assert read_sequence(tmp_path / "seq").keypoints is None
+
 def test_example_imports_with_both_calibrations_alike(tmp_path):
     videos = sorted(need_shared(EXAMPLE).glob("cam0*.mp4"))
     a = import_videos(EXAMPLE / "Calib_qualisys.toml", videos, tmp_path / "a", downscale=8, frames="0:2")
