@@ -68,3 +68,16 @@ def test_capture_refuses_an_unknown_prior_before_any_work(rendered_walk, tmp_pat
                  str(tmp_path / "c"), "--prior", "nonsense"]) == 2
     assert "nonsense" in capsys.readouterr().err
     assert not (tmp_path / "c").exists()
+
+
+def test_capture_refuses_a_file_as_out_and_a_refused_start_does_not_block_the_next(rendered_walk, tmp_path):
+    folder, rendered, videos = rendered_walk
+    write_rig(rendered.rig, tmp_path / "rig.toml")
+    (tmp_path / "file").write_text("")
+    with pytest.raises(InputError, match="not a folder"):
+        capture(videos, tmp_path / "rig.toml", tmp_path / "file", downscale=1)
+    out = tmp_path / "refused"
+    with pytest.raises(InputError, match="frame range 3:2"):
+        capture(videos, tmp_path / "rig.toml", out, downscale=1, frames="3:2")
+    with pytest.raises(InputError, match="frame range 9:99"):  # not "give --overwrite": nothing was done there
+        capture(videos, tmp_path / "rig.toml", out, downscale=1, frames="9:99")

@@ -88,7 +88,10 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
     source = {"videos": [str(p.resolve()) for p in paired], "calibration": str(Path(calibration).resolve()),
               "views": chosen, "downscale": float(downscale), "frames": frames}
     record = out / "capture_source.json"
-    if out.exists() and any(out.iterdir()) and not _same(record, source):
+    if out.exists() and not out.is_dir():
+        raise InputError("not a folder: give another --out", out)
+    # (a folder holding only the record is a capture stopped or refused before its import: nothing to keep)
+    if out.exists() and set(out.iterdir()) - {record} and not _same(record, source):
         if not overwrite:
             raise InputError("the folder holds other files or a capture of other videos, views or import "
                              "settings: give --overwrite to start it again, or another --out", out)
