@@ -45,6 +45,9 @@ def test_capture_tracks_the_videos_and_skips_what_is_done(rendered_walk, simulat
     assert json.loads((out / "result.json").read_text())["settings"]["prior"] == "zero-velocity"
     again = capture(videos, tmp_path / "rig.toml", out, prior="zero-velocity", particles=200, downscale=1)
     assert again.skipped == [s for s in STEPS if s != "export"]
+    (out / "sequence" / "keypoints" / "keypoints.npz").unlink()  # detected again: the start and track follow
+    redone = capture(videos, tmp_path / "rig.toml", out, prior="zero-velocity", particles=50, downscale=1)
+    assert redone.skipped == ["import", "silhouettes"]
     with pytest.raises(InputError, match="--overwrite"):
         capture(videos, tmp_path / "rig.toml", out, views=[0], prior="zero-velocity", downscale=1)
     assert result.seconds["track"] > 0

@@ -1,6 +1,7 @@
 """Calibrated videos in, tracked poses out, in one call: ``capture(videos, calibration, out)``.
 
-The steps, each with its defaults, each skipped when a rerun finds it done (with the same settings):
+The steps, each with its defaults, each skipped when a rerun finds it done (with the same settings) and no
+step it follows from had to run again:
 
 1. **import** the videos (:func:`data_tools.video.import_videos`, shrunk by ``downscale``) into ``out/sequence``;
    with ``views``, only those cameras (indices into the calibration's cameras, in its order);
@@ -103,12 +104,16 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
     result = CaptureResult(out, {})
     say = on_step or (lambda step, line: None)
 
-    def step(name: str, done: bool, work: Callable[[], str]) -> None:
-        if done:
+    ran: list[str] = []
+
+    def step(name: str, done: bool, work: Callable[[], str], needs: tuple[str, ...] = ()) -> None:
+        """Run ``work`` unless ``done`` and none of the steps it ``needs`` ran now (its files follow from theirs)."""
+        if done and not set(needs) & set(ran):
             result.skipped.append(name)
             result.seconds[name] = 0.0
             say(name, "done before: kept")
             return
+        ran.append(name)
         started = time.perf_counter()
         line = work()
         result.seconds[name] = time.perf_counter() - started
@@ -137,7 +142,7 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
         fractions = write_sequence_masks(seq, method)
         return f"{method} masks, the person {100 * float(np.mean(fractions)):.1f}% of each image"
 
-    step("silhouettes", (seq_dir / "masks").is_dir(), do_masks)
+    step("silhouettes", (seq_dir / "masks").is_dir(), do_masks, needs=("import",))
 
     def do_keypoints() -> str:
         from data_tools.keypoint_file import write_keypoints
@@ -148,7 +153,7 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
         share = float(np.mean(found.confidence > 0))
         return f"{found.source.get('detector')}: {100 * share:.0f}% of keypoints found"
 
-    step("keypoints", (seq_dir / "keypoints" / "keypoints.npz").is_file(), do_keypoints)
+    step("keypoints", (seq_dir / "keypoints" / "keypoints.npz").is_file(), do_keypoints, needs=("import",))
     seq = read_sequence(seq_dir)
     init_path = out / "init.npz"
 
@@ -166,7 +171,7 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
                 np.savez(f, poses=start.poses)
         return f"standing height {start.height:.0f} mm, first pose fitted (cost {start.cost:.1f})"
 
-    step("start", init_path.is_file(), do_start)
+    step("start", init_path.is_file(), do_start, needs=("keypoints",))
     seq = read_sequence(seq_dir)
     run_dir = out / "run"
     track_settings = {"prior": prior, "seed": seed, "particles": particles}
@@ -185,7 +190,8 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
         write_text_atomic(track_record, json.dumps(track_settings, sort_keys=True))
         return f"{prior}, {particles} particles, {run.seconds_per_frame:.3f} s per frame -> {run_dir}"
 
-    step("track", (run_dir / "result.json").is_file() and _same(track_record, track_settings), do_track)
+    step("track", (run_dir / "result.json").is_file() and _same(track_record, track_settings), do_track,
+         needs=("silhouettes", "keypoints", "start"))
 
     def do_export() -> str:
         from data_tools.bvh_export import write_bvh
