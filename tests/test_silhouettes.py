@@ -60,11 +60,18 @@ def sequence(tmp_path, move: bool):
     return root
 
 
-def test_command_writes_masks_that_track_reads(tmp_path, capsys):
+def test_command_writes_masks_that_track_reads(tmp_path, capsys, monkeypatch):
+    import tracker.app.silhouettes as silhouettes
+
     root = sequence(tmp_path, move=True)
     assert main(["silhouettes", str(root)]) == 0
     seq = read_sequence(root)
     assert seq.mask_paths is not None and seq.mask(3, 0).sum() > 0.8 * 14 * 30
+
+    def no_model(seq):
+        raise AssertionError("the default method was looked for (the person model run) before the refusal")
+
+    monkeypatch.setattr(silhouettes, "default_method", no_model)
     assert main(["silhouettes", str(root)]) == 2
     assert "already has masks" in capsys.readouterr().err
 

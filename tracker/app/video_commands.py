@@ -200,12 +200,12 @@ def cmd_silhouettes(args: argparse.Namespace) -> int:
     from tracker.app.silhouettes import default_method, write_sequence_masks
 
     seq = read_sequence(args.sequence)
-    method = args.method or default_method(seq)
     if seq.layout != OWN:
         raise InputError("silhouettes are written into sequence folders of this toolkit's layout only",
                          args.sequence)
     if seq.mask_paths is not None and not args.overwrite:
         raise InputError("the sequence already has masks/ (pass --overwrite to replace them)", args.sequence)
+    method = args.method or default_method(seq)  # (runs the person model: after the refusals)
     fractions = write_sequence_masks(seq, method)
     for cam, f in zip(seq.rig.names, fractions):
         log.info(f"{cam}: the person covers {100 * f:.1f}% of the image on average")
