@@ -147,10 +147,11 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
     def do_keypoints() -> str:
         from data_tools.keypoint_file import write_keypoints
         from data_tools.keypoints.detect import detect_sequence_keypoints
+        from data_tools.keypoints.readers import found_share
 
-        found = detect_sequence_keypoints(read_sequence(seq_dir))
+        found = detect_sequence_keypoints(read_sequence(seq_dir, keypoints=False))  # (replaced, whatever it was)
         write_keypoints(seq_dir, found)
-        share = float(np.mean(found.confidence > 0))
+        share = found_share(found)  # of the keypoints the detector's layout has, as the keypoints command says
         return f"{found.source.get('detector')}: {100 * share:.0f}% of keypoints found"
 
     step("keypoints", (seq_dir / "keypoints" / "keypoints.npz").is_file(), do_keypoints, needs=("import",))
