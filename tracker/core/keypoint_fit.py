@@ -7,9 +7,10 @@ keypoints (:data:`tracker.core.keypoints.KEYPOINTS`) in every view::
 
 a Cauchy (Lorentzian) loss weighted by the detector's confidence ``c``, so that a wrong detection pulls little;
 ``s`` is the keypoint's spread (:data:`tracker.core.keypoints.KEYPOINT_SPREAD_MM`) seen at its depth in
-pixels. Each view's left and right arms, legs and ears are scored both as labelled and swapped, the cheaper
-counting (a detector's swap does not twist the fit). The small ``prior`` on the joint angles (radians, not the
-root) keeps the numbers no keypoint constrains (a forearm's twist) near rest. The optimiser is torch's Adam
+pixels. Each view's left and right arms, legs and ears are scored both as labelled and swapped (plus
+:data:`SWAP_COST`), the cheaper counting: a detector's swap does not twist the fit, and a body turned round,
+every group swapped, costs more than the person facing the way they do. The small ``prior`` on the joint angles
+(radians, not the root) keeps the numbers no keypoint constrains (a forearm's twist) near rest. The optimiser is torch's Adam
 with the step shrinking over the iterations; after every step the angles are put back within the joint limits,
 so the result always respects them.
 
@@ -30,6 +31,10 @@ from tracker.core.torch_kinematics import torch_kinematics
 
 #: Confidence below which a detection takes no part in a fit.
 MIN_CONFIDENCE = 0.3
+#: What reading one view's left/right group the other way round costs (the keypoint likelihood's log odds of a
+#: swap, log(0.95 / 0.05)): a swap in one view is absorbed, a body turned round (every group swapped in every
+#: view) is not mistaken for the person.
+SWAP_COST = 3.0
 
 
 @dataclass
@@ -107,7 +112,7 @@ class KeypointCost:
             members = torch.as_tensor(np.flatnonzero(self.group_of == g))
             a = straight[..., members].sum(-1)
             b = crossed[..., members].sum(-1)
-            total = total + torch.minimum(a, b).sum(-1)
+            total = total + torch.minimum(a, b + SWAP_COST).sum(-1)
         return total + self.prior * (poses[:, self.angles] ** 2).sum(-1)
 
 
