@@ -84,3 +84,22 @@ def test_capture_refuses_a_file_as_out_and_a_refused_start_does_not_block_the_ne
         capture(videos, tmp_path / "rig.toml", out, downscale=1, frames="3:2")
     with pytest.raises(InputError, match="frame range 9:99"):  # not "give --overwrite": nothing was done there
         capture(videos, tmp_path / "rig.toml", out, downscale=1, frames="9:99")
+
+
+def test_overwrite_replaces_only_a_capture_and_never_its_inputs(rendered_walk, tmp_path):
+    """--overwrite starts a capture again; a folder no capture wrote, or one holding the inputs, is kept."""
+    import shutil
+
+    folder, rendered, videos = rendered_walk
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("keep me")
+    shutil.copy(videos[0], mine / videos[0].name)
+    write_rig(rendered.rig, mine / "rig.toml")
+    inputs = [mine / videos[0].name, *videos[1:]]
+    with pytest.raises(InputError, match="no capture wrote"):
+        capture(inputs, mine / "rig.toml", mine, downscale=1, overwrite=True)
+    (mine / "capture_source.json").write_text("{}")  # a capture's folder, now holding an input
+    with pytest.raises(InputError, match="lies inside the folder"):
+        capture(inputs, mine / "rig.toml", mine, downscale=1, overwrite=True)
+    assert (mine / "notes.txt").read_text() == "keep me" and (mine / videos[0].name).is_file()

@@ -96,6 +96,13 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
         if not overwrite:
             raise InputError("the folder holds other files or a capture of other videos, views or import "
                              "settings: give --overwrite to start it again, or another --out", out)
+        if not record.is_file():  # --overwrite replaces a capture, never a folder this program did not write
+            raise InputError("the folder holds files that no capture wrote: refusing to replace it, give another "
+                             "--out", out)
+        inside = [p for p in (*paired, Path(calibration)) if p.resolve().is_relative_to(out.resolve())]
+        if inside:
+            raise InputError(f"the input {inside[0]} lies inside the folder --overwrite would replace: give "
+                             "another --out", out)
         import shutil
 
         shutil.rmtree(out)
