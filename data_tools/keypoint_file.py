@@ -40,7 +40,7 @@ class SequenceKeypoints:
     source: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        self.points = np.asarray(self.points, dtype=float)
+        self.points = np.array(self.points, dtype=float)  # a copy: points not found are set below
         self.cameras = tuple(str(c) for c in self.cameras)
         if self.points.ndim != 4 or self.points.shape[2:] != (len(KEYPOINTS), 3):
             raise InputError(f"keypoints must be T x V x {len(KEYPOINTS)} x 3, got {self.points.shape}")

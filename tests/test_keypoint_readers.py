@@ -342,3 +342,15 @@ def test_an_array_of_the_wrong_shape_is_named_with_its_own_shape(seq, tmp_path):
     with pytest.raises(InputError) as exc:
         import_keypoints(seq, [tmp_path / "flat.npy"], write=False)
     assert f"got shape {(T, 17, 2)}" in one_line(exc, tmp_path / "flat.npy")
+
+
+
+def test_keypoints_leave_the_caller_s_array_as_it_was():
+    from data_tools.keypoint_file import SequenceKeypoints
+
+    points = np.ones((2, 1, len(KEYPOINTS), 3))
+    points[0, 0, 0, 2] = 0.0  # not found: its pixels become NaN in the keypoints, not in the array given
+    kept = points.copy()
+    found = SequenceKeypoints(points, ("c0",))
+    assert np.isnan(found.points[0, 0, 0, :2]).all()
+    np.testing.assert_array_equal(points, kept)
