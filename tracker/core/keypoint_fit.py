@@ -10,9 +10,9 @@ a Cauchy (Lorentzian) loss weighted by the detector's confidence ``c``, so that 
 pixels. Each view's left and right arms, legs and ears are scored both as labelled and swapped (plus
 :data:`SWAP_COST`), the cheaper counting: a detector's swap does not twist the fit, and a body turned round,
 every group swapped, costs more than the person facing the way they do. The small ``prior`` on the joint angles
-(radians, not the root) keeps the numbers no keypoint constrains (a forearm's twist) near rest. The optimiser is torch's Adam
-with the step shrinking over the iterations; after every step the angles are put back within the joint limits,
-so the result always respects them.
+(radians, not the root) keeps the numbers no keypoint constrains (a forearm's twist) near rest. The optimiser is
+torch's Adam with the step shrinking over the iterations; after every step the angles are put back within the
+joint limits, so the result always respects them.
 
 With two or more views the keypoints fix the pose; with one, the body's size fixes its depth (the start must
 say roughly where the person is). Shapes: detections ``V x K x 3`` (pixels, confidence), poses ``B x D``.
