@@ -25,8 +25,9 @@ ears' (half the head's length, on the head's axis, at its width radius), once th
 these placements take that in (the only real footage they were measured on: the first frames of a person
 standing still). A detector's joints are not joint centres either: on the same example, with these placements,
 its hips lay 8 to 16 mm ahead of and 11 to 18 mm outside the tracked hip joints, its toes 33 mm ahead of the
-foot cones' ends, its other joints within 19 mm (means over the frames). The keypoint likelihood allows for such offsets with a spread per keypoint
-(:data:`KEYPOINT_SPREAD_MM`) rather than shifting the joints. Only the 15-cone model has these points.
+foot cones' ends, its other joints within 19 mm (means over the frames). The keypoint likelihood allows for such
+offsets with a spread per keypoint (:data:`KEYPOINT_SPREAD_MM`) rather than shifting the joints. Only the 15-cone
+model has these points.
 
 Left/right pairs (:data:`SWAP_GROUPS`) are what a detector mixes up: a view may label a whole arm, leg or
 the ears the wrong way round.
