@@ -65,6 +65,8 @@ class KeypointLikelihood(Likelihood):
     """Log-likelihood of body poses given one frame's 2-D keypoints in the cameras of ``rig`` (see the module)."""
 
     name = "keypoints"
+    #: The refinement's Marquardt damping: the step solves ``(H + DAMPING diag(H)) step = g``.
+    DAMPING = 0.5
 
     def __init__(self, model: BodyModel, rig: CameraRig, config: KeypointConfig = KeypointConfig()):
         self.model = model
@@ -85,6 +87,10 @@ class KeypointLikelihood(Likelihood):
         names = [p.name for p in model.points]
         self.named = np.array([KEYPOINT_INDEX[k] for k in KEYPOINTS if named.get(k) in names])  # keypoints
         self.named_points = np.array([names.index(named[KEYPOINTS[k]]) for k in self.named])  # model points
+        where = {int(k): i for i, k in enumerate(self.named)}  # a keypoint's place among the refined ones
+        self.refine_groups = [(np.array([where[i] for i in left if i in where]),
+                               np.array([where[i] for i in right if i in where]))
+                              for left, right in grouped if all(i in where for i in np.r_[left, right])]
 
     def settings(self) -> dict:
         c = self.config
@@ -155,13 +161,15 @@ class KeypointLikelihood(Likelihood):
         out = self.config.weight * self.view_terms(poses, detections).sum(axis=-1)
         return np.where(valid, out, -np.inf)
 
-
     def refine(self, poses: np.ndarray, detections: np.ndarray, steps: int = 1) -> np.ndarray:
         """Poses ``P x D`` moved towards the detections ``V x K x 3``: ``steps`` Levenberg-Marquardt steps on the
         keypoints that are named points of the model (the joints, the head's top, the toes), each a
         Gauss-Newton step on the confidence-weighted reprojection error with the robust (Cauchy) weights of the
-        current residuals, damped by one unit of the normalised cost per pose number; the result clipped to the
-        joint limits. Batched over particles: one ``D x D`` solve each."""
+        current residuals, damped as Marquardt does (each number's own curvature times :attr:`DAMPING`, so that
+        millimetres and radians alike take a part of the full step); the result clipped to the
+        joint limits. Batched over particles: one ``D x D`` solve each. In each view a left/right group is read as
+        labelled or swapped, whichever its points fit better (a swap costs the likelihood's log odds of one), as
+        the likelihood reads it."""
         from tracker.core.kinematics import forward_kinematics, point_jacobians
 
         c = self.config
@@ -182,11 +190,11 @@ class KeypointLikelihood(Likelihood):
             z = np.maximum(Xc[..., 2], 1.0)
             JXc = (np.swapaxes(J, -1, -2).reshape(-1, 3) @ rows.T).reshape(P, k, D, V, 3).transpose(3, 4, 0, 1, 2)
             pixels, _ = self.rig.project(X)  # P x V x k x 2 (with the lens distortion)
-            r = observed[None] - pixels  # P x V x k x 2
             zv = z.transpose(2, 0, 1)  # V x P x k
             s2 = np.maximum(self.focal[:, None, None] * self.spread_mm[self.named][None, None, :] / zv,
                             c.min_spread_px) ** 2
-            w = conf[:, None, :] / (s2 + np.sum(r ** 2, axis=-1).transpose(1, 0, 2))  # Cauchy weights / s^2
+            r, weight = self._labelled(pixels, observed, conf, s2.transpose(1, 0, 2))  # P x V x k (x 2)
+            w = weight.transpose(1, 0, 2) / (s2 + np.sum(r ** 2, axis=-1).transpose(1, 0, 2))  # Cauchy weights / s^2
             root = np.sqrt(np.where(Xc[..., 2].transpose(2, 0, 1) > 0, w, 0.0)) / zv  # V x P x k
             A = np.empty((P, D, V, k, 2))
             b = np.empty((P, V, k, 2))
@@ -196,10 +204,32 @@ class KeypointLikelihood(Likelihood):
                 A[..., a] = d.transpose(1, 3, 0, 2)
                 b[..., a] = r[..., a] * (root * zv).transpose(1, 0, 2)
             A = A.reshape(P, D, -1)
-            H = A @ A.transpose(0, 2, 1) + np.eye(D)
+            H = A @ A.transpose(0, 2, 1)
+            H[:, np.arange(D), np.arange(D)] *= 1.0 + self.DAMPING  # Marquardt: each number damped in its own units
+            H[:, np.arange(D), np.arange(D)] += 1e-9
             g = (A @ b.reshape(P, -1, 1))[..., 0]
             out = self.model.clip_to_limits(out + np.linalg.solve(H, g[..., None])[..., 0])
         return out
+
+
+    def _labelled(self, pixels: np.ndarray, observed: np.ndarray, conf: np.ndarray, s2: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """Residuals ``P x V x k x 2`` and confidences ``P x V x k`` of the refined keypoints (the model's projected
+        ``pixels`` ``P x V x k x 2`` against ``observed`` ``V x k x 2`` of confidence ``conf`` ``V x k``; squared
+        spreads ``s2`` ``P x V x k``), each view's left/right groups read as labelled or swapped, whichever costs
+        less (a swap costing the likelihood's log odds of one)."""
+        r = observed[None] - pixels
+        weight = np.broadcast_to(conf[None], r.shape[:-1]).copy()
+        penalty = np.log((1.0 - self.config.swap) / self.config.swap) if self.config.swap > 0 else np.inf
+        for left, right in self.refine_groups:
+            both, crossed = np.r_[left, right], np.r_[right, left]
+            swapped_r = observed[None][:, :, crossed] - pixels[:, :, both]
+            cost_as_labelled = (conf[None, :, both] * np.log1p(np.sum(r[:, :, both] ** 2, -1) / s2[:, :, both])).sum(-1)
+            cost_swapped = (conf[None, :, crossed] * np.log1p(np.sum(swapped_r ** 2, -1) / s2[:, :, both])).sum(-1)
+            swap = (cost_swapped + penalty < cost_as_labelled)[..., None]  # P x V x 1
+            r[:, :, both] = np.where(swap[..., None], swapped_r, r[:, :, both])
+            weight[:, :, both] = np.where(swap, conf[None, :, crossed], weight[:, :, both])
+        return r, weight
 
 
 class PreparedKeypoints(FrameLikelihood):

@@ -53,7 +53,11 @@ class RefiningFrameLikelihood(FrameLikelihood):
     samples with :meth:`refine` before weighing them (Bray, Koller-Meier & Van Gool's *smart particle filter*,
     2007: a few steps of local optimisation per particle, so that in a space of 40 pose numbers the particles
     land where the evidence is rather than where a random step happens to put them). What it does is the
-    likelihood's own setting, recorded with its options."""
+    likelihood's own setting, recorded with its options.
+
+    The refined poses are weighed by the likelihood as if the prior had proposed them, with no correction for
+    the move (as Bray et al. do): the estimate leans further towards the evidence than an exact posterior would,
+    and a prior's own per-particle state (the GPDM's latent coordinates) is kept as the prior left it."""
 
     @abstractmethod
     def refine(self, poses: np.ndarray) -> np.ndarray:
