@@ -8,8 +8,8 @@ import numpy as np
 from data_tools.sequence import read_sequence
 from data_tools.synth import SynthConfig, synthesize
 from tracker.app.cli import main
-from tracker.app.initialise import scaled_shape, stance_pose
-from tracker.core.body import default_shape, fifteen_cone_model
+from tracker.app.initialise import scaled_shape
+from tracker.core.body import default_shape, fifteen_cone_model, stance_pose
 from tracker.core.kinematics import markers, standing_height
 
 

@@ -26,7 +26,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from tracker.core.body import BodyModel, BodyShape, default_shape, fifteen_cone_model, scaled_shape
+from tracker.core.body import (BodyModel, BodyShape, default_shape, fifteen_cone_model, scaled_shape,
+                               stance_pose)
 from tracker.core.cameras import CameraRig
 from tracker.core.errors import InputError
 from tracker.core.kinematics import markers, standing_height
@@ -58,14 +59,6 @@ class Initialisation:
     scale: float
     score: float
     height: float
-
-
-def stance_pose(model: BodyModel, abduction: float) -> np.ndarray:
-    """The rest pose with both arms raised sideways by ``abduction`` (rad)."""
-    pose = model.rest_pose()
-    pose[model.dof_index("left_shoulder_x")] = abduction
-    pose[model.dof_index("right_shoulder_x")] = -abduction
-    return pose
 
 
 def silhouette_centre(rig: CameraRig, masks: list[np.ndarray]) -> np.ndarray:

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tracker.core.body import BodyModel, BodyShape, fifteen_cone_model
+from tracker.core.body import BodyModel, BodyShape, fifteen_cone_model, stance_pose
 from tracker.core.cameras import CameraRig
 from tracker.core.errors import InputError
 from tracker.core.keypoint_fit import MIN_CONFIDENCE, Fitted, fit_pose
@@ -80,13 +80,6 @@ def keypoint_lengths(points: np.ndarray, source=None) -> dict[str, float]:
     return out
 
 
-def _stance(model: BodyModel, abduction: float) -> np.ndarray:
-    pose = model.rest_pose()
-    pose[model.dof_index("left_shoulder_x")] = abduction
-    pose[model.dof_index("right_shoulder_x")] = -abduction
-    return pose
-
-
 def _heading(points: np.ndarray) -> float | None:
     """The heading (rad about +z, 0 facing +x) of triangulated keypoints ``K x 3``, or None when neither the
     hips nor the shoulders are both triangulated."""
@@ -114,7 +107,7 @@ def _multiview_starts(model: BodyModel, points: np.ndarray) -> np.ndarray:
     starts = []
     for abduction in STANCES.values():
         for h in headings:
-            pose = _stance(model, abduction)
+            pose = stance_pose(model, abduction)
             pose[:2] = anchor[:2]
             pose[2] = anchor[2] + hip_drop if np.isfinite(hips).all() else model.rest_root_height
             pose[3:6] = (0.0, 0.0, h)
@@ -139,7 +132,7 @@ def _monocular_starts(model: BodyModel, rig: CameraRig, detections: np.ndarray) 
     starts = []
     for abduction in STANCES.values():
         for h in np.radians(np.arange(0.0, 360.0, MONOCULAR_HEADINGS)):
-            pose = _stance(model, abduction)
+            pose = stance_pose(model, abduction)
             pose[:2] = world[:2]
             pose[2] = model.rest_root_height
             pose[3:6] = (0.0, 0.0, h)

@@ -498,3 +498,11 @@ def fifteen_cone_model(shape: BodyShape | None = None) -> BodyModel:
         name="15-cone", links=links, segments=segments, points=points, dof_names=list(DOF_NAMES),
         lower=lower, upper=upper, marker_names=list(MARKER_NAMES), shape=shape, rest_root_height=rest_height,
     )
+
+
+def stance_pose(model: BodyModel, abduction: float) -> np.ndarray:
+    """The rest pose of the 15-cone ``model`` with both arms raised sideways by ``abduction`` (rad)."""
+    pose = model.rest_pose()
+    pose[model.dof_index("left_shoulder_x")] = abduction
+    pose[model.dof_index("right_shoulder_x")] = -abduction
+    return pose
