@@ -13,6 +13,8 @@ from tracker.core.keypoints import KEYPOINT_INDEX, keypoint_positions, swap_perm
 from tracker.engine.likelihood import SumOfLikelihoods
 from tracker.testing import LikelihoodContract
 
+import test_likelihood_contract as edge_silhouette_contract
+
 FRAME = 12
 
 
@@ -38,12 +40,7 @@ class TestKeypoints(LikelihoodContract):
         frame = self.seq.frame(FRAME, range(self.seq.n_views))
         return type(frame)(frame.index, frame.images, frame.masks, frame.backgrounds, self.detections)
 
-    def make_poses(self, rng, n):
-        model, truth = self.seq.model, self.seq.groundtruth.poses[FRAME]
-        near = truth + rng.standard_normal((n - n // 2, truth.size)) * np.r_[[50.0] * 3, [0.05] * (truth.size - 3)]
-        anywhere = rng.uniform(np.maximum(model.lower, -3.0), np.minimum(model.upper, 3.0), (n // 2, truth.size))
-        anywhere[:, :3] = truth[:3] + rng.normal(0.0, 1500.0, (n // 2, 3))
-        return np.clip(np.concatenate([near, anywhere]), model.lower, model.upper)
+    make_poses = edge_silhouette_contract.TestEdgeSilhouette.make_poses  # the same poses, frame 12
 
 
 class TestKeypointsWithSilhouettes(TestKeypoints):
