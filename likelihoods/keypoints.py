@@ -104,10 +104,11 @@ class KeypointLikelihood(Likelihood):
                              "sequence's keypoints (pose-tracker keypoints SEQ)")
         if frame.n_views != len(self.rig):
             raise InputError(f"frame {frame.index} has {frame.n_views} views but the rig has {len(self.rig)} cameras")
-        detections = np.asarray(frame.keypoints, float)
+        detections = np.array(frame.keypoints, float)
         if detections.shape != (len(self.rig), len(KEYPOINTS), 3):
             raise InputError(f"frame {frame.index}'s keypoints are {detections.shape}, expected "
                              f"{(len(self.rig), len(KEYPOINTS), 3)}")
+        detections[~np.isfinite(detections[..., :2]).all(axis=-1), 2] = 0.0  # no pixels: not found
         return (RefiningKeypoints if self.config.refine_steps else PreparedKeypoints)(self, detections)
 
     def view_terms(self, poses: np.ndarray, detections: np.ndarray) -> np.ndarray:

@@ -35,7 +35,9 @@ def test_shipped_scale_is_a_fresh_derivation_bit_for_bit(fps):
     shipped = shipped_walk_scale(fps)
     assert shipped is not None and shipped.dtype == np.float64 and shipped.shape == fresh.shape == (40,)
     worst = float(np.max(np.abs(shipped - fresh) / np.abs(fresh)))
-    assert np.array_equal(shipped, fresh), (f"the shipped scale at {fps:g} Hz differs from the walks' (worst "
+    # within rounding: another CPU's maths library may differ in the last bits; a change to retargeting moves
+    # these numbers by far more
+    assert worst < 1e-12, (f"the shipped scale at {fps:g} Hz differs from the walks' (worst "
                                             f"relative difference {worst:.3g}): python -m tracker.app.walk_scale")
 
 

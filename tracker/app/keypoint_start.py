@@ -95,12 +95,12 @@ def _heading(points: np.ndarray) -> float | None:
     return float(np.arctan2(forward[1], forward[0]))
 
 
-def _multiview_starts(model: BodyModel, points: np.ndarray) -> np.ndarray:
+def _multiview_starts(model: BodyModel, points: np.ndarray, source=None) -> np.ndarray:
     """Start poses ``B x D`` from one frame's triangulated keypoints ``K x 3``."""
     hips = np.stack([_point(points, "left_hip"), _point(points, "right_hip")])
     anchor = np.nanmean(hips, axis=0) if np.isfinite(hips).any() else np.nanmean(points, axis=0)
     if not np.all(np.isfinite(anchor)):
-        raise InputError("no keypoint of the first frame is seen by two views: cannot place the body")
+        raise InputError("no keypoint of the first frame is seen by two views: cannot place the body", source)
     heading = _heading(points)
     headings = [0.0, np.pi / 2, np.pi, 1.5 * np.pi] if heading is None else [heading, heading + np.pi]
     hip_drop = -0.5 * (model.shape.left_hip_offset[2] + model.shape.right_hip_offset[2])
@@ -115,13 +115,13 @@ def _multiview_starts(model: BodyModel, points: np.ndarray) -> np.ndarray:
     return np.array(starts)
 
 
-def _monocular_starts(model: BodyModel, rig: CameraRig, detections: np.ndarray) -> np.ndarray:
+def _monocular_starts(model: BodyModel, rig: CameraRig, detections: np.ndarray, source=None) -> np.ndarray:
     """Start poses ``B x D`` from one view's detections ``K x 3``: on the ray through the hips (or all
     keypoints') centre, at the depth where the default stature spans the keypoints' height in pixels."""
     cam = rig[0]
     seen = detections[:, 2] >= MIN_CONFIDENCE
     if seen.sum() < 4:
-        raise InputError("the first frame has fewer than 4 confident keypoints: cannot place the body")
+        raise InputError("the first frame has fewer than 4 confident keypoints: cannot place the body", source)
     xy = detections[seen, :2]
     hips = [KEYPOINT_INDEX["left_hip"], KEYPOINT_INDEX["right_hip"]]
     centre = detections[hips, :2].mean(axis=0) if seen[hips].all() else xy.mean(axis=0)
@@ -165,8 +165,8 @@ def initialise_from_keypoints(seq, views=None, known_frames: int = 2, shape: Bod
             lengths = keypoint_lengths(points, seq.root)
             shape = shape_from_landmarks(lengths, seq.root)
     model = fifteen_cone_model(shape if shape is not None else seq.model.shape)
-    starts = (_multiview_starts(model, points[0]) if points is not None
-              else _monocular_starts(model, rig, detections[0, 0]))
+    starts = (_multiview_starts(model, points[0], seq.root) if points is not None
+              else _monocular_starts(model, rig, detections[0, 0], seq.root))
     # Every start is fitted through: after a fifth of the steps the turned start can still look the cheaper one.
     first: Fitted = fit_pose(model, rig, detections[0], starts, iterations=FIT_ITERATIONS)
     poses = [first.pose]

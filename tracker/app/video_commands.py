@@ -265,6 +265,17 @@ def cmd_keypoints(args: argparse.Namespace) -> int:
     return 0
 
 
+def _write_poses(path: str, poses) -> None:
+    """``poses`` ``F x D`` written to ``path`` (.npz, ``poses``) whole, or ``path`` left as it was."""
+    import numpy as np
+
+    from data_tools.files import atomic_path
+
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:
+            np.savez(f, poses=poses)
+
+
 def cmd_initialise(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -290,7 +301,7 @@ def cmd_initialise(args: argparse.Namespace) -> int:
         meta = dict(seq.meta)
         meta["body_shape"] = start.shape.to_dict()
         write_meta(seq.root, meta)
-        np.savez(args.out, poses=start.poses)
+        _write_poses(args.out, start.poses)
         lengths = ", ".join(f"{k} {v:.0f}" for k, v in start.lengths.items())
         log.info(f"standing height {start.height:.0f} mm" + (f"; measured {lengths} mm" if lengths else ""))
         print(f"first poses fitted to the keypoints (cost {start.cost:.1f}) -> {args.out}; body shape -> "
@@ -309,7 +320,7 @@ def cmd_initialise(args: argparse.Namespace) -> int:
     meta = dict(seq.meta)
     meta["body_shape"] = found.shape.to_dict()
     write_meta(seq.root, meta)
-    np.savez(args.out, poses=np.tile(found.pose, (args.frames, 1)))
+    _write_poses(args.out, np.tile(found.pose, (args.frames, 1)))
     lengths = ", ".join(f"{k} {v:.0f}" for k, v in limb_lengths(found.model, found.pose).items())
     log.info(f"stance {found.stance}, scale {found.scale:g}: standing height {found.height:.0f} mm; {lengths} mm")
     print(f"first pose (log-likelihood {found.score:.1f}) -> {args.out}; body shape -> {seq.root / 'meta.json'}")
