@@ -24,8 +24,8 @@ above the nose's first placement (half the head's length) and 70 mm above, 32 mm
 ears' (half the head's length, on the head's axis, at its width radius), once the body was tracked to them;
 these placements take that in (the only real footage they were measured on: the first frames of a person
 standing still). A detector's joints are not joint centres either: on the same example, with these placements,
-its hips lay 8 to 16 mm ahead of and 11 to 18 mm outside the tracked hip joints, its toes 33 mm ahead of the
-foot cones' ends, its other joints within 19 mm (means over the frames). The keypoint likelihood allows for such
+its hips lay 5 to 13 mm ahead of and 10 to 20 mm outside the tracked hip joints, its toes 27 to 30 mm ahead of
+the foot cones' ends, its other joints within 18 mm (means over the frames). The keypoint likelihood allows for such
 offsets with a spread per keypoint (:data:`KEYPOINT_SPREAD_MM`) rather than shifting the joints. Only the 15-cone
 model has these points.
 
