@@ -30,7 +30,8 @@ import numpy as np
 from tracker.core.body import BodyModel
 from tracker.core.cameras import CameraRig
 from tracker.core.errors import InputError
-from tracker.core.keypoints import KEYPOINT_INDEX, KEYPOINT_SPREAD_MM, KEYPOINTS, SWAP_GROUPS, keypoints_from_frames
+from tracker.core.keypoints import (KEYPOINT_INDEX, KEYPOINT_SPREAD_MM, KEYPOINTS, keypoints_from_frames,
+                                    swap_group_indices)
 from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood, RefiningFrameLikelihood, SumOfLikelihoods
 from tracker.engine.registry import LIKELIHOODS, LikelihoodContext, Option, register_likelihood
 
@@ -76,9 +77,7 @@ class KeypointLikelihood(Likelihood):
         self.spread_mm = spread  # (K,)
         self.focal = rig.focal.mean(axis=1)  # (V,) pixels per unit of normalised image
         self.log_uniform = -np.log(np.array([c.width * c.height for c in rig.cameras], float))  # (V,)
-        grouped = [(np.array([KEYPOINT_INDEX[n] for n in left]), np.array([KEYPOINT_INDEX[n] for n in right]))
-                   for left, right in SWAP_GROUPS]
-        self.groups = grouped
+        grouped = self.groups = swap_group_indices()
         in_group = np.zeros(len(KEYPOINTS), bool)
         for left, right in grouped:
             in_group[left] = in_group[right] = True

@@ -26,7 +26,7 @@ import torch
 
 from tracker.core.body import BodyModel
 from tracker.core.cameras import CameraRig
-from tracker.core.keypoints import KEYPOINT_INDEX, KEYPOINT_SPREAD_MM, KEYPOINTS, SWAP_GROUPS, keypoint_table
+from tracker.core.keypoints import KEYPOINT_SPREAD_MM, KEYPOINTS, keypoint_table, swap_group_indices, swap_permutation
 from tracker.core.torch_kinematics import torch_kinematics
 
 #: Confidence below which a detection takes no part in a fit.
@@ -73,15 +73,10 @@ class KeypointCost:
         self.t = torch.as_tensor(rig.t)
         self.focal = torch.as_tensor(rig.focal.mean(axis=1))  # V
         self.spread = torch.as_tensor([KEYPOINT_SPREAD_MM[k] for k in KEYPOINTS])  # K
-        swapped = np.arange(len(KEYPOINTS))
-        group_of = np.full(len(KEYPOINTS), -1)
-        for g, (left, right) in enumerate(SWAP_GROUPS):
-            for a, b in zip(left, right):
-                i, j = KEYPOINT_INDEX[a], KEYPOINT_INDEX[b]
-                swapped[i], swapped[j] = j, i
-                group_of[i] = group_of[j] = g
-        self.swapped = torch.as_tensor(swapped)
-        self.group_of = group_of
+        self.swapped = torch.as_tensor(swap_permutation())
+        self.groups = [torch.as_tensor(np.sort(np.r_[left, right])) for left, right in swap_group_indices()]
+        grouped = np.concatenate([g.numpy() for g in self.groups])
+        self.single = torch.as_tensor(np.setdiff1d(np.arange(len(KEYPOINTS)), grouped))
         self.angles = torch.as_tensor(np.r_[np.zeros(6, bool), np.ones(model.n_dofs - 6, bool)])
 
     def keypoints(self, poses: torch.Tensor) -> torch.Tensor:
@@ -107,9 +102,8 @@ class KeypointCost:
     def __call__(self, poses: torch.Tensor) -> torch.Tensor:
         """Costs ``(B,)`` of poses ``B x D``."""
         straight, crossed = self.per_keypoint(poses)
-        total = straight[..., self.group_of < 0].sum(dim=(-1, -2))
-        for g in range(len(SWAP_GROUPS)):
-            members = torch.as_tensor(np.flatnonzero(self.group_of == g))
+        total = straight[..., self.single].sum(dim=(-1, -2))
+        for members in self.groups:
             a = straight[..., members].sum(-1)
             b = crossed[..., members].sum(-1)
             total = total + torch.minimum(a, b + SWAP_COST).sum(-1)

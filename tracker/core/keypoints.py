@@ -73,14 +73,19 @@ SWAP_GROUPS = (
 _NAMED = {"head_top": "head", **{name: name for name in KEYPOINTS[5:]}}
 
 
+def swap_group_indices() -> list[tuple[np.ndarray, np.ndarray]]:
+    """Each of :data:`SWAP_GROUPS` as keypoint indices: ``(left (n,), right (n,))``, pairs in order."""
+    return [(np.array([KEYPOINT_INDEX[n] for n in left]), np.array([KEYPOINT_INDEX[n] for n in right]))
+            for left, right in SWAP_GROUPS]
+
+
 def swap_permutation(groups: tuple[int, ...] = (0, 1, 2)) -> np.ndarray:
     """The keypoint order ``(K,)`` with the left and right sides of the :data:`SWAP_GROUPS` ``groups`` exchanged."""
     order = np.arange(len(KEYPOINTS))
+    indices = swap_group_indices()
     for g in groups:
-        left, right = SWAP_GROUPS[g]
-        for a, b in zip(left, right):
-            i, j = KEYPOINT_INDEX[a], KEYPOINT_INDEX[b]
-            order[i], order[j] = j, i
+        left, right = indices[g]
+        order[left], order[right] = right, left
     return order
 
 
