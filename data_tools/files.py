@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import errno
 import os
+import secrets
 import shutil
 import tempfile
 from contextlib import contextmanager
@@ -78,28 +79,45 @@ def follow_umask(path: str | Path, directory: bool = False) -> None:
 
 
 @contextmanager
+def fresh_beside(path: str | Path, suffix: str, directory: bool = False, kept: str = "") -> Iterator[Path]:
+    """A new, empty file (or folder, with ``directory``) beside ``path``, ``.<name>.<random><suffix>``, for the
+    block to fill and rename into place; removed when the block fails or is interrupted. Its name is chosen before
+    it is made, so an exception at any moment (a failed write, Ctrl-C, SIGTERM) finds it and removes it: nothing
+    stays behind. Creating it can fail as :func:`atomic_path` says."""
+    path = Path(path)
+    stem = path.name if directory else path.stem
+    fresh = path.with_name(f".{stem}.{secrets.token_hex(6)}{suffix}")
+    try:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            if directory:
+                fresh.mkdir(mode=0o700)
+            else:
+                os.close(os.open(fresh, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))
+        except OSError as exc:
+            raise write_failure(path, exc, kept) from None
+        yield fresh
+    except BaseException:
+        if directory:
+            shutil.rmtree(fresh, ignore_errors=True)
+        else:
+            fresh.unlink(missing_ok=True)
+        raise
+
+
+@contextmanager
 def atomic_path(path: str | Path, kept: str = "") -> Iterator[Path]:
     """A temporary path beside ``path`` to write to; renamed onto ``path`` when the block succeeds, removed
-    when it fails (or is interrupted), so the file ``path`` held before stays as it was. The suffix is kept, so
-    writers that choose a format by it still do; the file gets the mode the umask gives new files. A failed
-    write (no space left, a read-only file system, no permission) is a one-line :class:`InputError` naming
-    ``path`` and the cause (:func:`write_failure`; ``kept`` adds what stays usable)."""
+    when it fails (or is interrupted, at any moment: :func:`fresh_beside`), so the file ``path`` held before
+    stays as it was. The suffix is kept, so writers that choose a format by it still do; the file gets the mode
+    the umask gives new files. A failed write (no space left, a read-only file system, no permission) is a
+    one-line :class:`InputError` naming ``path`` and the cause (:func:`write_failure`; ``kept`` adds what stays
+    usable)."""
     path = Path(path)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
-    except OSError as exc:
-        raise write_failure(path, exc, kept) from None
-    os.close(fd)
-    tmp_path = Path(tmp)
-    try:
-        with writing(path, kept):
-            yield tmp_path
-            follow_umask(tmp_path)
-            os.replace(tmp_path, path)
-    except BaseException:
-        tmp_path.unlink(missing_ok=True)
-        raise
+    with fresh_beside(path, path.suffix, kept=kept) as tmp_path, writing(path, kept):
+        yield tmp_path
+        follow_umask(tmp_path)
+        os.replace(tmp_path, path)
 
 
 def write_bytes_atomic(path: str | Path, data: bytes, kept: str = "") -> None:
@@ -155,15 +173,17 @@ def check_output_file(path: str | Path, what: str = "the output file", suffixes:
 def check_output_folder(path: str | Path, what: str = "the output folder", empty: bool = False,
                         replaceable: tuple[str, ...] = (), overwrite_flag: str = "--overwrite") -> Path:
     """``path`` as a folder to write into: not a file, under a writable folder, and (``empty``) without
-    contents (the refusal names ``overwrite_flag``, how the user says to replace it). With ``replaceable``
+    contents (the refusal names ``overwrite_flag``, how the user says to replace it, and says when the folder
+    holds a finished run). With ``replaceable``
     (file names), a non-empty folder may be replaced only if it holds one of them (it is one of ours, e.g. a
     sequence with its ``cameras.json``), never any other folder."""
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise InputError(f"{what} is a file, not a folder", path)
     if path.is_dir() and any(path.iterdir()):
-        if empty:
-            raise InputError(f"{what} is not empty (pass {overwrite_flag} to replace it)", path)
+        if empty:  # a finished run's folder says so: its result.json is the last thing a run writes
+            held = "holds a finished run (result.json)" if (path / "result.json").is_file() else "is not empty"
+            raise InputError(f"{what} {held} (pass {overwrite_flag} to replace it)", path)
         if replaceable and not any((path / name).exists() for name in replaceable):
             raise InputError(f"{what} is not empty and holds no {' or '.join(replaceable)}: refusing to replace "
                              "a folder this program did not write", path)

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import os
 import shutil
-import tempfile
 
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -22,7 +21,7 @@ import numpy as np
 from data_tools.checks import MAX_IMAGE_SIDE, real_number
 from data_tools.render import compose, make_room, person_mesh, render_background, render_person
 from data_tools.retarget import RetargetResult
-from data_tools.files import check_output_folder, follow_umask, write_failure, writing
+from data_tools.files import check_output_folder, follow_umask, fresh_beside, writing
 from data_tools.sequence import frame_path, write_groundtruth, write_image, write_sequence_header
 from tracker.core.kinematics import standing_height
 from tracker.core.cameras import CameraRig, default_rig
@@ -169,21 +168,13 @@ def synthesize(result: RetargetResult, out: str | Path, settings: SynthConfig, s
     the observation pipeline.
     """
     final = check_output_folder(out, empty=not overwrite, replaceable=("cameras.json", "meta.json"))
-    try:
-        final.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".tmp", dir=final.parent))
-    except OSError as exc:
-        raise write_failure(final, exc) from None
-    try:
-        with writing(final, "an earlier sequence there is kept" if final.exists() else ""):
-            output = _render(result, tmp, settings, source, rig, keep_masks, progress)
-            follow_umask(tmp, directory=True)
-            if final.exists():
-                shutil.rmtree(final)
-            os.replace(tmp, final)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+    with fresh_beside(final, ".tmp", directory=True) as tmp, \
+            writing(final, "an earlier sequence there is kept" if final.exists() else ""):
+        output = _render(result, tmp, settings, source, rig, keep_masks, progress)
+        follow_umask(tmp, directory=True)
+        if final.exists():
+            shutil.rmtree(final)
+        os.replace(tmp, final)
     output.root = final
     return output
 

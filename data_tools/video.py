@@ -16,7 +16,6 @@ from __future__ import annotations
 import os
 import re
 import shutil
-import tempfile
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,7 +25,7 @@ import cv2
 import numpy as np
 
 from data_tools.calibration import checked_camera
-from data_tools.files import write_failure
+from data_tools.files import fresh_beside
 from data_tools.rig_formats import read_rig
 from data_tools.sequence import FRAME_NAME, _stderr_silenced, write_image, write_sequence_header
 from tracker.core.cameras import Camera, CameraRig
@@ -218,12 +217,7 @@ def staged_folder(out: Path) -> Iterator[Path]:
     replace ``out``'s (an earlier import's ``images/``, ``masks/`` and ``keypoints/`` go, so frames are never
     mixed with another import's; other files stay), and when it fails or is interrupted it is removed and ``out``
     is left as it was."""
-    try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        staged = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
-    except OSError as exc:
-        raise write_failure(out, exc) from None
-    try:
+    with fresh_beside(out, ".tmp", directory=True) as staged:
         yield staged
         out.mkdir(exist_ok=True)
         for stale in ("images", "masks", "keypoints"):  # per frame and camera: of the earlier import
@@ -232,9 +226,6 @@ def staged_folder(out: Path) -> Iterator[Path]:
         for entry in staged.iterdir():  # made by plain open and mkdir: their modes follow the umask already
             os.replace(entry, out / entry.name)
         staged.rmdir()
-    except BaseException:
-        shutil.rmtree(staged, ignore_errors=True)
-        raise
 
 
 def import_videos(calibration: str | Path | Sequence[str | Path], videos: Sequence[str | Path], out: str | Path, *,

@@ -373,3 +373,47 @@ def test_a_run_whose_mixture_component_names_its_model_resumes_from_another_fold
     assert code == 0, err
     model = str(tmp_path / "models" / "c.pt")
     assert json.loads((out / "result.json").read_text())["prior_models"] == [model]
+
+
+@pytest.mark.parametrize("directory", [False, True])
+@pytest.mark.parametrize("moment", ["making it", "just made", "writing it", "renaming it"])
+def test_a_stop_at_any_moment_of_a_temporary_files_life_leaves_nothing_behind(moment, directory, tmp_path,
+                                                                                monkeypatch):
+    """Ctrl-C or SIGTERM (a KeyboardInterrupt in the main thread) while a file or folder is written beside its
+    destination, at each step of the temporary's life: the destination keeps what it held and no temporary
+    stays beside it."""
+    from data_tools import files
+
+    target = tmp_path / ("seq" if directory else "result.json")
+    if directory:
+        target.mkdir()
+        (target / "meta.json").write_text("earlier")
+    else:
+        target.write_text("earlier")
+    real_open, real_mkdir = os.open, Path.mkdir
+
+    def stop_after(real):
+        def call(*args, **kwargs):
+            out = real(*args, **kwargs)
+            if str(args[0]).startswith(str(tmp_path / ".")):
+                raise KeyboardInterrupt  # the moment after the temporary was made
+            return out
+        return call
+
+    if moment == "making it":
+        monkeypatch.setattr(files.secrets, "token_hex", lambda n: (_ for _ in ()).throw(KeyboardInterrupt))
+    elif moment == "just made":
+        monkeypatch.setattr(files.os, "open", stop_after(real_open))
+        monkeypatch.setattr(Path, "mkdir", stop_after(real_mkdir))
+    elif moment == "renaming it":
+        monkeypatch.setattr(files.os, "replace", lambda *a: (_ for _ in ()).throw(KeyboardInterrupt))
+    with pytest.raises(KeyboardInterrupt):
+        with files.fresh_beside(target, ".tmp", directory=directory) as fresh:
+            assert fresh.parent == tmp_path and fresh.name.startswith(".")
+            if moment == "writing it":
+                (fresh / "meta.json" if directory else fresh).write_text("new, half")
+                raise KeyboardInterrupt
+            files.os.replace(fresh, target)  # only "renaming it" gets here
+    monkeypatch.undo()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [target.name]
+    assert (target / "meta.json" if directory else target).read_text() == "earlier"
