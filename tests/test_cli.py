@@ -47,12 +47,15 @@ def test_convert_bad_inputs_exit_2(mocap_dir, tmp_path):
 def test_demo(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path), "--frames", "8"]) == 0
     printed = capsys.readouterr()
-    assert "02_01" in printed.err and "mocap.cs.cmu.edu" in printed.out  # what it does on stderr, results on stdout
+    assert "07_01" in printed.err and "mocap.cs.cmu.edu" in printed.out  # what it does on stderr, results on stdout
     (shows,) = [line for line in printed.out.splitlines() if line.startswith("What this shows: ")]
-    assert "on CMU subject 2, a person the CRBM never saw (it learned from subject 7's walks 07_01 and 07_02)" in shows
-    for name in ("zero-velocity", "crbm", "mixture"):
-        assert f"{name}, 6 frames tracked: mpjpe_abs " in printed.out
-        res = json.loads((tmp_path / f"track_{name}" / "result.json").read_text())
-        assert res["frames"] == 8 and res["frames_tracked"] == 6 and res["prior"] == name
-        assert res["metrics"]["mpjpe_abs"]["mean"] < 100
+    assert "on CMU subject 7's walk 07_01, a person the pretrained model never saw" in shows
+    assert "over 3 seeds" in shows
+    for name in ("zero-velocity", "mixture"):
+        for seed in (0, 1, 2):
+            assert f"{name}, seed {seed}, 6 frames tracked: mpjpe_abs " in printed.out
+            res = json.loads((tmp_path / f"track_{name}_seed{seed}" / "result.json").read_text())
+            assert res["frames"] == 8 and res["frames_tracked"] == 6 and res["prior"] == name
+            assert res["seed"] == seed and res["metrics"]["mpjpe_abs"]["mean"] < 100
+    assert "Training" not in printed.err and "(no training)" in printed.err  # the default needs none
     assert (tmp_path / "overlay.mp4").stat().st_size > 1000 and (tmp_path / "error_per_frame.png").exists()

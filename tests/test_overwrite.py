@@ -1,10 +1,12 @@
-"""Outputs are safe: an existing non-empty output (track's and compare's folders, train's and convert's files, the
-API's ``result.save`` and ``model.save``) is refused unless the user says ``--overwrite`` (``overwrite=True``), an
-input is never written into even then, and the commands that continue their own earlier output (``track --resume``,
-``compare``, the demo) still do."""
+"""Outputs are safe, one policy for every command that writes: an existing non-empty output (track's, compare's and
+the demo's folders, train's, convert's, show's, initialise's and export's files, the API's ``result.save`` and
+``model.save``) is refused unless the user says ``--overwrite`` (``overwrite=True``), a finished run's folder is
+called one, an input is never written into even then, and the commands that continue their own earlier output
+(``track --resume``, ``compare``) still do."""
 from __future__ import annotations
 
 import shutil
+from pathlib import Path
 
 import pytest
 
@@ -40,6 +42,35 @@ def test_track_refuses_a_non_empty_output_folder_unless_overwrite(seq, tmp_path,
     assert run_cli(track_args(seq, out, "--overwrite"), capsys)[0] == 0
     assert (out / "result.json").exists() and (out / "notes.txt").read_text() == "mine"
     assert not (out / "prior_summary.png").exists()  # zero-velocity has no per-frame summary
+
+
+def test_a_finished_runs_folder_is_called_one(seq, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert run_cli(track_args(seq, out), capsys)[0] == 0
+    one_line_refusal(*run_cli(track_args(seq, out), capsys), str(out),
+                     "holds a finished run (result.json) (pass --overwrite to replace it)")
+
+
+def test_show_initialise_and_export_refuse_existing_files_unless_overwrite(seq, tmp_path, capsys):
+    run = tmp_path / "run"
+    assert run_cli(track_args(seq, run), capsys)[0] == 0
+    commands = {
+        "png": ["show", str(seq), "--out", str(tmp_path / "f.png")],
+        "mp4": ["show", str(seq), "--video", str(tmp_path / "f.mp4")],
+        "npz": ["initialise", str(seq), "--out", str(tmp_path / "init.npz")],
+        "bvh": ["export", str(run), "--bvh", str(tmp_path / "p.bvh")],
+        "trc": ["export", str(run), "--trc", str(tmp_path / "p.trc")],
+    }
+    for ext, argv in commands.items():
+        earlier = tmp_path / Path(argv[-1]).name
+        earlier.write_bytes(b"earlier")
+        one_line_refusal(*run_cli(argv, capsys), earlier.name, "exists (pass --overwrite to replace it)")
+        assert earlier.read_bytes() == b"earlier", ext
+        status, err = run_cli([*argv, "--overwrite"], capsys)
+        if ext == "npz":  # this tiny sequence cannot be initialised: what matters is that the file was no obstacle
+            assert status == 2 and "exists" not in err and "cannot place the body" in err, err
+            continue
+        assert status == 0 and earlier.read_bytes() != b"earlier", ext
 
 
 @pytest.mark.parametrize("where", ["seq", "seq/results"])
@@ -111,7 +142,7 @@ def test_compare_never_writes_into_a_sequence_folder_of_the_experiment(seq, tmp_
 def test_api_saves_refuse_existing_outputs_unless_overwrite(seq, tmp_path):
     result = tracker.track(seq, "zero-velocity", particles=10, annealing_layers=1)
     result.save(tmp_path / "run")
-    with pytest.raises(InputError, match=r"not empty \(pass overwrite=True to replace it\)"):
+    with pytest.raises(InputError, match=r"holds a finished run \(result.json\) \(pass overwrite=True to replace it\)"):
         result.save(tmp_path / "run")
     result.save(tmp_path / "run", overwrite=True)
     with pytest.raises(InputError, match="would be written into the sequence folder"):
@@ -127,16 +158,20 @@ def test_the_demo_refuses_a_folder_that_holds_no_demo_output(tmp_path):
     from tracker.app.demo import run_demo
 
     (tmp_path / "notes.txt").write_text("mine")
-    with pytest.raises(InputError, match="holds no sequence or crbm1.pt"):
+    with pytest.raises(InputError, match="holds no sequence"):
         run_demo(tmp_path, frames=8)
     assert [p.name for p in tmp_path.iterdir()] == ["notes.txt"]
 
 
-def test_the_demo_runs_twice_into_its_own_folder(tmp_path, capsys):
+def test_the_demo_runs_again_into_its_own_folder_with_overwrite(tmp_path, capsys):
     from tracker.app import cli
 
-    for _ in range(2):
-        assert cli.main(["demo", "--out", str(tmp_path / "demo"), "--frames", "6"]) == 0
+    demo = ["demo", "--out", str(tmp_path / "demo"), "--frames", "6"]
+    assert cli.main(demo) == 0
+    before = (tmp_path / "demo" / "error_per_frame.png").read_bytes()
+    one_line_refusal(*run_cli(demo, capsys), "demo", "is not empty (pass --overwrite to replace it)")
+    assert (tmp_path / "demo" / "error_per_frame.png").read_bytes() == before
+    assert cli.main([*demo, "--overwrite"]) == 0
     assert sorted(p.name for p in (tmp_path / "demo").iterdir()) == [
-        "crbm1.pt", "error_per_frame.png", "overlay.mp4", "sequence", "track_crbm", "track_mixture",
-        "track_zero-velocity"]
+        "error_per_frame.png", "overlay.mp4", "sequence", *(f"track_{prior}_seed{seed}" for prior in
+                                                             ("mixture", "zero-velocity") for seed in (0, 1, 2))]

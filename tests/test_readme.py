@@ -134,7 +134,7 @@ def test_the_readme_shell_blocks_run(tmp_path, mocap_dir):
         argv = [sys.executable, "-m", "tracker", "--threads", "1"] + shlex.split(part)[1:]
         done = subprocess.run(argv, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
         assert done.returncode == 0, f"{part}\n{done.stderr[-2000:]}"
-    for produced in ("runs/crbm/result.json", "frame40.png", "runs/zv/result.json", "walk16/cameras.json",
+    for produced in ("runs/pretrained/result.json", "frame40.png", "runs/zv/result.json", "walk16/cameras.json",
                      "crbm.pt", "runs/mixture/result.json"):
         assert (tmp_path / produced).exists(), produced
 

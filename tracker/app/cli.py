@@ -156,9 +156,9 @@ def cmd_show(args: argparse.Namespace) -> int:
     if not args.out and not args.video:
         raise InputError("nothing to write: give --out FILE.png and/or --video FILE.mp4")
     if args.out:
-        check_output_file(args.out, "--out", (".png",))
+        check_output_file(args.out, "--out", (".png",), new=not args.overwrite)
     if args.video:
-        check_output_file(args.video, "--video", (".mp4",))
+        check_output_file(args.video, "--video", (".mp4",), new=not args.overwrite)
     written = show(args.sequence, frame=args.frame, poses=args.poses, out=args.out, video=args.video,
                    progress=lambda it: progress_bar(it, desc="video", unit="frame"))
     for line in written:
@@ -209,7 +209,7 @@ def cmd_fetch(args: argparse.Namespace) -> int:
 def cmd_demo(args: argparse.Namespace) -> int:
     from tracker.app.demo import run_demo
 
-    return run_demo(Path(args.out), args.frames)
+    return run_demo(Path(args.out), args.frames, overwrite=args.overwrite)
 
 
 def _progress_bar(desc: str, on_start=None):

@@ -190,6 +190,7 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     w.add_argument("--poses", help="estimates.npz (poses T x D) to draw instead of the ground truth")
     w.add_argument("--out", help="output image (.png)")
     w.add_argument("--video", help="also write every frame to this video (.mp4)")
+    w.add_argument("--overwrite", action="store_true", help="replace existing files at --out and --video")
 
     r = sub.add_parser("train", parents=[plugin_flag], help="train a learned motion prior on mocap clips",
                        description="Retarget the clips (any subjects, each with its own skeleton) to the 15-cone "
@@ -318,14 +319,16 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                    help="seconds to wait for the server (default 30)")
 
     d = sub.add_parser("demo", parents=[plugin_flag], help="render, track and score a shipped walk: a first run that needs no data of your own",
-                       description="Render 1.5 s of the shipped CMU walk 02_01 (subject 2) into 4 cameras, "
-                                   "train a CRBM on another person's shipped walks (subject 7's 07_01 and 07_02), "
-                                   "track with the zero-velocity prior, the CRBM and the mixture of the two (1000 "
-                                   "particles each), print the three errors and one line saying what they show, "
-                                   "and write the error-per-frame plot and an overlay video.")
+                       description="Render 1.5 s of the shipped CMU walk 07_01 (subject 7) into 4 cameras, "
+                                   "track it with the zero-velocity prior and with the recommended default, the "
+                                   "mixture of the pretrained neural prior (which never saw subject 7) and "
+                                   "zero-velocity, 1000 particles, tracking seeds 0, 1 and 2 each (nothing is "
+                                   "trained), print every run's errors and one line saying what they show, and "
+                                   "write the error-per-frame plot and an overlay video.")
     d.add_argument("--out", default="demo_output",
-                   help="output folder (default ./demo_output); a second demo replaces the files an earlier one "
-                        "wrote there, and a non-empty folder that holds no demo output is refused")
+                   help="output folder (default ./demo_output); a folder holding an earlier demo's output is "
+                        "replaced only with --overwrite, and a non-empty folder that holds no demo output never")
+    d.add_argument("--overwrite", action="store_true", help="replace an earlier demo's output at --out")
     d.add_argument("--frames", type=_number(int, 4, strict=False), default=90,
                    help="frames to render and track (default 90: 1.5 s)")
     from tracker.app.video_commands import add_parsers as add_video_parsers

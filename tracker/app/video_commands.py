@@ -115,6 +115,7 @@ def add_parsers(sub, parents) -> None:
                                    "frames' views and keeps that body instead of searching the scale.")
     i.add_argument("sequence", metavar="DIR", help="sequence folder with silhouettes (masks/) or plates")
     i.add_argument("--out", required=True, metavar="FILE", help="poses file to write (.npz, for track --init)")
+    i.add_argument("--overwrite", action="store_true", help="replace an existing poses file at --out")
     i.add_argument("--near", metavar="POSES.npz", help="an approximate first pose to search around")
     i.add_argument("--frames", type=int, default=2, metavar="N",
                    help="how many first frames the pose is written for (track's --known-frames; default 2)")
@@ -162,6 +163,7 @@ def add_parsers(sub, parents) -> None:
     x.add_argument("--bvh", metavar="FILE", help="write the poses as BVH here (.bvh)")
     x.add_argument("--trc", metavar="FILE", help="write the markers as TRC here (.trc)")
     x.add_argument("--unit", choices=("m", "cm", "mm"), default="m", help="BVH length unit (default m)")
+    x.add_argument("--overwrite", action="store_true", help="replace existing files at --bvh and --trc")
     x.add_argument("--sequence", metavar="DIR",
                    help="the tracked sequence (default: the one result.json names; its body shape is used)")
 
@@ -284,7 +286,7 @@ def cmd_initialise(args: argparse.Namespace) -> int:
     from data_tools.sequence import OWN, read_sequence, write_meta
     from tracker.app.initialise import initialise, limb_lengths
 
-    check_output_file(args.out, "--out", (".npz",))
+    check_output_file(args.out, "--out", (".npz",), new=not args.overwrite)
     if args.frames < 1:
         raise InputError(f"--frames must be at least 1, got {args.frames}")
     seq = read_sequence(args.sequence)
@@ -358,7 +360,7 @@ def cmd_export(args: argparse.Namespace) -> int:
         raise InputError("nothing to write: give --bvh FILE.bvh and/or --trc FILE.trc")
     for path, flag, ext in ((args.bvh, "--bvh", ".bvh"), (args.trc, "--trc", ".trc")):
         if path:
-            check_output_file(path, flag, (ext,))
+            check_output_file(path, flag, (ext,), new=not args.overwrite)
     estimates, result = _run_files(args.run)
     seq = _run_sequence(result, args.sequence, args.run)
     poses = read_poses_file(estimates, "estimates", seq.model)

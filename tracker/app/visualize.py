@@ -260,7 +260,8 @@ def write_video(path, frames, fps: float, crf: int = 20) -> None:
 
 
 def error_plot(path, curves: dict[str, tuple[np.ndarray, np.ndarray]], title: str) -> None:
-    """Marker error per frame (mm), one line per run: ``{label: (frames, errors)}``; PNG via matplotlib.
+    """Marker error per frame (mm), one line per run: ``{label: (frames, errors)}``; PNG via matplotlib. More than
+    three runs get their legend beside the axes, where it hides no line.
 
     Draws on a bare :class:`matplotlib.figure.Figure`, never through pyplot, so the process's matplotlib
     backend (a notebook's inline plots) is left alone."""
@@ -269,7 +270,8 @@ def error_plot(path, curves: dict[str, tuple[np.ndarray, np.ndarray]], title: st
 
     from data_tools.files import atomic_path
 
-    fig = Figure(figsize=(7, 3.5), dpi=120)
+    beside = len(curves) > 3
+    fig = Figure(figsize=(9.5 if beside else 7, 3.5), dpi=120)
     ax = fig.subplots()
     for name, (frames, errs) in curves.items():
         ax.plot(frames, errs, label=f"{name} (mean {np.mean(errs):.0f} mm)")
@@ -279,7 +281,7 @@ def error_plot(path, curves: dict[str, tuple[np.ndarray, np.ndarray]], title: st
     ax.set_title("\n".join(textwrap.wrap(title, 72)))  # a long title on two lines, not cut at the edges
     ax.set_ylim(bottom=0)
     ax.grid(alpha=0.3)
-    ax.legend()
+    ax.legend(**({"loc": "upper left", "bbox_to_anchor": (1.01, 1.0), "fontsize": "small"} if beside else {}))
     fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp)
