@@ -28,7 +28,7 @@ outcome:
 
 It prints a table of counts per class and lists every failure (anything but a
 clean refusal of bad input and a success on good input). The small valid files
-come from the builders of ``tests/test_bad_input_readers.py``.
+come from the builders of ``tests/faults/test_bad_input_readers.py``.
 """
 from __future__ import annotations
 
@@ -110,7 +110,7 @@ def build_fixtures(root: Path) -> Fixtures:
 
     import tracker
     from data_tools.samples import sample_walks
-    from tests.test_bad_input_readers import tiny_bodytrack
+    from tests.faults.test_bad_input_readers import tiny_bodytrack
 
     asf, walks = sample_walks()
     clip = tracker.load_clip(walks[1], asf, fps=60.0)
@@ -185,7 +185,7 @@ def train_args(fx: Fixtures, out: Path, *extra: str, prior: str = "crbm") -> lis
 # ---------------------------------------------------------------------------
 
 def asf_hierarchy(fx: Fixtures) -> list[Case]:
-    from tests.test_bad_input_readers import _hierarchy_case, write_lines
+    from tests.faults.test_bad_input_readers import _hierarchy_case, write_lines
 
     cases = []
     for label in ("cycle", "root as child", "two parents", "self loop"):
@@ -511,7 +511,7 @@ def absurd_values(fx: Fixtures) -> list[Case]:
 
 
 def _tiny_bvh(d: Path) -> Path:
-    from tests.test_bad_input_readers import TINY_BVH
+    from tests.faults.test_bad_input_readers import TINY_BVH
 
     path = d / "tiny.bvh"
     path.write_text(TINY_BVH)
@@ -542,7 +542,7 @@ def huge_noise(fx: Fixtures) -> list[Case]:
 
 
 def huge_header_images(fx: Fixtures) -> list[Case]:
-    from tests.test_bad_input_readers import _bmp_claiming, _png_claiming
+    from tests.faults.test_bad_input_readers import _bmp_claiming, _png_claiming
 
     cases = []
     for label, where in (("frame", ("images", "cam0", "000000.png")), ("plate", ("background", "cam0.png"))):
@@ -590,7 +590,7 @@ def seeds(fx: Fixtures) -> list[Case]:
 
 
 def mocap_values(fx: Fixtures) -> list[Case]:
-    from tests.test_bad_input_readers import TINY_BVH, amc_lines, asf_lines, write_lines
+    from tests.faults.test_bad_input_readers import TINY_BVH, amc_lines, asf_lines, write_lines
 
     cases = []
     for label, line in (("root 1e300", "root 1e300 1e300 1e300 0 0 0"), ("root NaN", "root nan 0 0 0 0 0"),
@@ -752,7 +752,7 @@ def synth_existing(fx: Fixtures) -> list[Case]:
 def harmless(fx: Fixtures) -> list[Case]:
     import cv2
 
-    from tests.test_bad_input_readers import amc_lines, write_lines
+    from tests.faults.test_bad_input_readers import amc_lines, write_lines
 
     cases = []
     d = fx.case_dir()

@@ -9,8 +9,8 @@ affine combinations of the corners and reads the nearest pixel of the cost maps 
 them as whole-array operations on a GPU. Here they run in float64 inside one loop that releases the
 interpreter lock for its whole duration, so that threads scoring blocks of particles run in parallel (array
 steps between compiled ones would hold the lock: two threads then reach 1.4 times one thread's speed, not 2).
-A test (``tests/test_compiled_costs.py``) pins the two paths to the same costs on random poses and on real
-frames.
+A test (``tests/likelihoods/test_compiled_costs.py``) pins the two paths to the same costs on random poses and on
+real frames.
 
 Shapes: link rotations ``p x L x 3 x 3`` (world from link), link origins ``p x L x 3`` (mm), outputs
 ``p x V``; cameras ``V``; cones ``S``; sample points per cone ``N`` (the first ``n_contour`` on the contours).

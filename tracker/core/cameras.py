@@ -237,7 +237,7 @@ def default_rig(views: int = 4, width: int = 640, height: int = 480, radius: flo
     Cameras stand ``radius`` mm from the centre (on the diagonals when
     ``views = 4``), ``camera_height`` mm up, each looking at the point
     ``target_height`` mm above the centre. At the defaults (measured, see
-    tests/test_cameras.py) every point of the central 3 m x 3 m from the floor
+    tests/core/test_cameras.py) every point of the central 3 m x 3 m from the floor
     to 1.9 m is in every view, 99.9% of the full 4 m x 4 m area is, and a
     1.75 m person at the centre is about 170 pixels tall.
     """

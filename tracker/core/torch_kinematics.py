@@ -6,7 +6,7 @@ joint rotations for every link at once (one Rodrigues formula over all exp-map j
 fixed-axis factors), then the tree composed one depth level at a time (the 15-cone model has 5 levels), the
 3 x 3 products as broadcast multiply-adds (:func:`small_matmul`, five elementwise kernels each): a fixed
 number of kernels whatever the batch. Both read the same index tables (``kinematics._tables``), and
-``tests/test_torch_path.py`` checks that they agree to float precision.
+``tests/likelihoods/test_torch_path.py`` checks that they agree to float precision.
 
 Shapes: poses ``B x D`` (mm, radians); results ``B x S x 3 x 3`` (segment rotations, world from segment)
 and ``B x S x 3`` (segment origins, mm) in the poses' dtype and device.
