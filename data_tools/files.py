@@ -83,25 +83,33 @@ def fresh_beside(path: str | Path, suffix: str, directory: bool = False, kept: s
     """A new, empty file (or folder, with ``directory``) beside ``path``, ``.<name>.<random><suffix>``, for the
     block to fill and rename into place; removed when the block fails or is interrupted. Its name is chosen before
     it is made, so an exception at any moment (a failed write, Ctrl-C, SIGTERM) finds it and removes it: nothing
-    stays behind. Creating it can fail as :func:`atomic_path` says."""
-    path = Path(path)
+    stays behind. A name already taken is never touched: another is drawn. Creating it can fail as
+    :func:`atomic_path` says."""
+    path = Path(path).absolute()
     stem = path.name if directory else path.stem
-    fresh = path.with_name(f".{stem}.{secrets.token_hex(6)}{suffix}")
+    made: Path | None = None
     try:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            if directory:
-                fresh.mkdir(mode=0o700)
-            else:
-                os.close(os.open(fresh, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))
+            while made is None:
+                fresh = path.with_name(f".{stem}.{secrets.token_hex(6)}{suffix}")
+                made = fresh  # named before it exists: an interrupt from here on finds it
+                try:
+                    if directory:
+                        fresh.mkdir(mode=0o700)
+                    else:
+                        os.close(os.open(fresh, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))
+                except FileExistsError:  # another's: left alone, another name drawn
+                    made = None
         except OSError as exc:
             raise write_failure(path, exc, kept) from None
-        yield fresh
+        yield made
     except BaseException:
-        if directory:
-            shutil.rmtree(fresh, ignore_errors=True)
-        else:
-            fresh.unlink(missing_ok=True)
+        if made is not None:
+            if directory:
+                shutil.rmtree(made, ignore_errors=True)
+            else:
+                made.unlink(missing_ok=True)
         raise
 
 
@@ -181,7 +189,7 @@ def check_output_folder(path: str | Path, what: str = "the output folder", empty
     if path.exists() and not path.is_dir():
         raise InputError(f"{what} is a file, not a folder", path)
     if path.is_dir() and any(path.iterdir()):
-        if empty:  # a finished run's folder says so: its result.json is the last thing a run writes
+        if empty:  # a finished run's folder says so: result.json is written once a run has finished
             held = "holds a finished run (result.json)" if (path / "result.json").is_file() else "is not empty"
             raise InputError(f"{what} {held} (pass {overwrite_flag} to replace it)", path)
         if replaceable and not any((path / name).exists() for name in replaceable):
