@@ -1,4 +1,5 @@
-"""Small sample data shipped with the package for the built-in demo (see ATTRIBUTION.md in each folder)."""
+"""Small sample data shipped with the package, for the built-in demo and first experiments (see ATTRIBUTION.md in
+each folder)."""
 from __future__ import annotations
 
 from pathlib import Path

@@ -8,15 +8,18 @@ as a user's script would. Nothing is trained.
 Zero-velocity's step size is the package's default, derived from subject 7's shipped walks (07_01 among them):
 the baseline knows this person's pace, the learned prior does not, so the comparison leans toward the baseline.
 
-The output folder is the demo's own: a folder holding an earlier demo's output is replaced only when asked
-(``overwrite``), as every command that writes does, and a non-empty folder that holds no demo output never is.
+The output folder is the demo's own, marked by the ``demo.json`` it writes first: a folder holding an earlier
+demo's output is replaced whole only when asked (``overwrite``), as every command that writes does, and a
+non-empty folder without that mark never is.
 
 What it does and how long it took are log lines (:mod:`logging`, shown by the command line unless ``--quiet``);
 the errors of each run, the line saying what they show and the data's attribution are its results, printed to
 stdout."""
 from __future__ import annotations
 
+import json
 import logging
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -25,12 +28,13 @@ from data_tools.samples import CMU_ATTRIBUTION, sample_walks
 from tracker.app.api import TRACK_ANNEALING_LAYERS, load_clip, synthesize, track
 from tracker.app.console import progress_bar
 from tracker.app.tracking import metrics_line
+from tracker.core.errors import InputError
 
 log = logging.getLogger(__name__)
 
 
 #: What marks a folder as an earlier demo's output (the first thing the demo writes).
-DEMO_FILES = ("sequence",)
+DEMO_MARK = "demo.json"
 #: The shipped CMU subject whose walk the demo tracks (the pretrained model never saw this person).
 TRACK_SUBJECT = 7
 #: The tracking seeds of every prior.
@@ -62,20 +66,29 @@ def comparison_line(errors_mm: dict[str, list[float]], tracked: str) -> str:
     mixture's mean against zero-velocity's, on ``tracked``, a person the pretrained model never saw."""
     means = {name: float(np.mean(e)) for name, e in errors_mm.items()}
     baseline, mixture = means["zero-velocity"], means["mixture"]
-    best = min(means, key=means.get)
-    return (f"What this shows: on {tracked}, a person the pretrained model never saw, {PRIOR_LABELS[best]} "
-            f"tracked best over {len(errors_mm['mixture'])} seeds: the mixture {_spread(errors_mm['mixture'])}, "
-            f"{_against(mixture, baseline)} than zero-velocity's {_spread(errors_mm['zero-velocity'])}; "
+    relation = _against(mixture, baseline)
+    if relation == "the same":
+        who = "the mixture and zero-velocity tracked alike"
+    else:
+        who = f"{PRIOR_LABELS[min(means, key=means.get)]} tracked best"
+    return (f"What this shows: on {tracked}, a person the pretrained model never saw, {who} over "
+            f"{len(errors_mm['mixture'])} seeds: the mixture {_spread(errors_mm['mixture'])}, {relation} "
+            f"{'as' if relation == 'the same' else 'than'} zero-velocity's {_spread(errors_mm['zero-velocity'])}; "
             "one short clip: a sketch, not a benchmark.")
 
 
 def run_demo(out: Path, frames: int = 90, overwrite: bool = False) -> int:
-    from data_tools.files import check_output_folder
+    from data_tools.files import check_output_folder, write_text_atomic
     from tracker.app.visualize import error_plot, overlay_frames, write_video
 
-    out = check_output_folder(out, replaceable=DEMO_FILES)
-    if not overwrite:
-        out = check_output_folder(out, "the demo's output folder", empty=True)
+    out = check_output_folder(out, replaceable=(DEMO_MARK,))
+    if any(out.iterdir()) if out.is_dir() else False:
+        if not overwrite:
+            raise InputError("the folder holds an earlier demo's output (pass --overwrite to replace it)", out)
+        for entry in out.iterdir():  # the demo's own folder (its mark checked above), replaced whole
+            shutil.rmtree(entry) if entry.is_dir() and not entry.is_symlink() else entry.unlink()
+    write_text_atomic(out / DEMO_MARK, json.dumps({"demo": "pose-tracker demo", "frames": frames,
+                                                   "seeds": list(SEEDS)}, indent=1))
 
     asf, walks = sample_walks(TRACK_SUBJECT)
     walk = walks[0]

@@ -326,8 +326,8 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                                    "trained), print every run's errors and one line saying what they show, and "
                                    "write the error-per-frame plot and an overlay video.")
     d.add_argument("--out", default="demo_output",
-                   help="output folder (default ./demo_output); a folder holding an earlier demo's output is "
-                        "replaced only with --overwrite, and a non-empty folder that holds no demo output never")
+                   help="output folder (default ./demo_output); a folder holding an earlier demo's output (its "
+                        "demo.json) is replaced whole only with --overwrite, and a non-empty folder without it never")
     d.add_argument("--overwrite", action="store_true", help="replace an earlier demo's output at --out")
     d.add_argument("--frames", type=_number(int, 4, strict=False), default=90,
                    help="frames to render and track (default 90: 1.5 s)")
