@@ -29,6 +29,25 @@ def need_shared(path: Path) -> Path:
     return path
 
 
+#: Fixtures that read ../shared. A test whose fixtures include one of them, or a fixture built on one (pytest's
+#: ``fixturenames`` is the whole closure), is marked ``shared``; a test that calls ``need_shared`` itself carries
+#: the mark beside it.
+SHARED_FIXTURES = frozenset({"mocap_dir", "bodytrack_dir"})
+
+
+#: The example plugin registers its prior, likelihood and reader when its test module is imported (at collection)
+#: and takes them out after that module's tests; run first, as it did when every test module lay in tests/, it
+#: leaves the registries as the package fills them for every other test.
+PLUGIN_EXAMPLE = Path(__file__).resolve().parent / "plugin_example"
+
+
+def pytest_collection_modifyitems(config, items):
+    items.sort(key=lambda item: PLUGIN_EXAMPLE not in Path(item.path).resolve().parents)
+    for item in items:
+        if SHARED_FIXTURES.intersection(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.shared)
+
+
 @pytest.fixture(scope="session")
 def mocap_dir() -> Path:
     return need_shared(MOCAP)

@@ -63,6 +63,7 @@ def test_prior_defined_outside_the_package_tracks_through_api_and_cli(walk_32_fr
     assert {k for k in api if k != "seconds_per_frame"} == {k for k in cli if k != "seconds_per_frame"}
 
 
+@pytest.mark.slow
 def test_plugin_file_through_the_command_line(walk_32_frames, tmp_path):
     plugin = tmp_path / "my_prior.py"
     plugin.write_text(textwrap.dedent('''
@@ -168,6 +169,7 @@ def test_new_observations_are_never_scored_against_old_cost_maps(walk_32_frames)
     assert scores[0] == scores[2] == 0.0 and scores[1] < -100.0
 
 
+@pytest.mark.slow
 def test_drawing_leaves_the_matplotlib_backend_alone(tmp_path):
     code = ("import matplotlib; matplotlib.use('svg'); from tracker.app.visualize import error_plot; "
             "import numpy as np; error_plot(r'%s', {'a': (np.arange(3), np.ones(3))}, 't'); "
@@ -177,6 +179,7 @@ def test_drawing_leaves_the_matplotlib_backend_alone(tmp_path):
     assert (tmp_path / "p.png").stat().st_size > 1000
 
 
+@pytest.mark.slow
 def test_quick_start_runs(tmp_path):
     r = subprocess.run([sys.executable, str(REPO / "examples" / "quickstart.py"), "--out", str(tmp_path),
                         "--frames", "6", "--particles", "60", "--seeds", "2", "--epochs", "10"],
@@ -187,6 +190,7 @@ def test_quick_start_runs(tmp_path):
     assert (tmp_path / "crbm" / "result.json").exists()
 
 
+@pytest.mark.slow
 def test_plugins_do_not_pull_in_the_application_layer():
     code = ("import sys, importlib, pkgutil\n"
             "for pkg in ('priors', 'likelihoods', 'data_tools'):\n"
@@ -223,6 +227,7 @@ def test_seconds_per_frame_is_measured_whatever_is_recorded(synthetic_walk, rand
         assert result.seconds_per_frame > 0 and result.to_dict()["seconds_per_frame"] > 0
 
 
+@pytest.mark.slow
 def test_track_takes_the_model_train_returns_and_the_options_of_prior_and_likelihood(synthetic_walk, tmp_path):
     """The model object and its file track to the same numbers; options go to the plugin that declares them."""
     skeleton, walks = tracker.sample_walks()

@@ -32,6 +32,7 @@ def simulated_detector(rendered_walk, monkeypatch):
     monkeypatch.setattr(detect, "detect_sequence_keypoints", detect_from_truth)
 
 
+@pytest.mark.slow
 def test_capture_tracks_the_videos_and_skips_what_is_done(rendered_walk, simulated_detector, tmp_path):
     folder, rendered, videos = rendered_walk
     write_rig(rendered.rig, tmp_path / "rig.toml")
@@ -53,6 +54,7 @@ def test_capture_tracks_the_videos_and_skips_what_is_done(rendered_walk, simulat
     assert result.seconds["track"] > 0
 
 
+@pytest.mark.slow
 def test_capture_with_one_camera_from_the_command_line(rendered_walk, simulated_detector, tmp_path, capsys):
     folder, rendered, videos = rendered_walk
     write_rig(rendered.rig, tmp_path / "rig.toml")

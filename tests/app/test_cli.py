@@ -3,6 +3,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from tracker.app.cli import main
 
@@ -25,6 +26,7 @@ def test_convert_writes_clip(mocap_dir, tmp_path, capsys):
         assert d["model_markers"].shape == (83, 15, 3) and float(d["fps"]) == 30 and "lengths" in str(d["shape"])
 
 
+@pytest.mark.slow
 def test_convert_bad_inputs_exit_2(mocap_dir, tmp_path):
     amc = (mocap_dir / "07" / "07_01.amc").read_text().splitlines()
     broken = tmp_path / "07_01.amc"
@@ -44,6 +46,7 @@ def test_convert_bad_inputs_exit_2(mocap_dir, tmp_path):
         assert err and "\n" not in err and "Traceback" not in err, err
 
 
+@pytest.mark.slow
 def test_demo(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path), "--frames", "8"]) == 0
     printed = capsys.readouterr()

@@ -62,6 +62,7 @@ def test_help_and_usage_name_the_program_pose_tracker():
     assert "python -m tracker" not in parser.format_help()
 
 
+@pytest.mark.slow
 def test_python_dash_m_tracker_is_the_same_program(capsys):
     r = subprocess.run([sys.executable, "-m", "tracker", "--version"], capture_output=True, text=True, cwd=REPO)
     assert r.returncode == 0 and r.stdout.strip() == f"pose-tracker {tracker.__version__}"
@@ -104,6 +105,7 @@ def test_a_file_that_is_no_model_is_named_with_its_problem_and_leaves_nothing(ti
                                   "v1', a CRBM model file has format 'pose-tracker crbm v1'")
 
 
+@pytest.mark.slow
 def test_train_reads_its_clips_before_it_announces_the_training(tmp_path, capsys):
     bad = tmp_path / "07_09.amc"
     bad.write_text(":FULLY-SPECIFIED\n:DEGREES\n1\nroot 1 2\n")
@@ -149,6 +151,7 @@ def test_verbose_shows_debug_lines(capsys):
     assert not logging.getLogger("tracker").isEnabledFor(logging.DEBUG)
 
 
+@pytest.mark.slow
 def test_the_packages_never_configure_logging():
     """Library rule: only the command line adds a handler; importing and using the API adds none, and no module
     calls basicConfig."""
@@ -164,6 +167,7 @@ def test_the_packages_never_configure_logging():
 
 # -- cameras: a count; views: camera indices ------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_synth_counts_cameras_and_warns_on_the_old_spelling(tmp_path, capsys):
     base = ["synth", "--mocap", AMC, "--skeleton", str(ASF), "--frames", "2", "--width", "64", "--height", "48"]
     code, _, err = run_cli([*base, "--cameras", "1", "--out", str(tmp_path / "a")], capsys)

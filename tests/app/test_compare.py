@@ -90,6 +90,7 @@ def test_rendering_settings_are_checked_with_the_file(tmp_path, setting, expecte
     assert load_experiment(path).sequences[0].synth["turn"] == 90  # the turn itself is a rendering setting
 
 
+@pytest.mark.slow
 def test_views_out_of_range_and_unfit_model_refused_before_any_run(tmp_path):
     path = write_experiment(tmp_path, tracking="particles = 40\nframes = 5\nviews = [0, 7]")
     with pytest.raises(InputError, match=r"views \[0, 7\] out of range for sequence 'walk'"):
@@ -106,6 +107,7 @@ def test_views_out_of_range_and_unfit_model_refused_before_any_run(tmp_path):
         compare(path, tmp_path / "out", say=lambda s: None, progress=False)
 
 
+@pytest.mark.slow
 def test_numbers_do_not_depend_on_workers_and_finished_runs_are_skipped(tmp_path):
     path = write_experiment(tmp_path)
     said = []
@@ -129,6 +131,7 @@ def test_numbers_do_not_depend_on_workers_and_finished_runs_are_skipped(tmp_path
     assert "zv-scaled" in rows and rows.count("mpjpe_abs") == 3
 
 
+@pytest.mark.slow
 def test_unset_annealing_layers_are_tracks_default_for_every_prior(tmp_path):
     def layers(out):
         return {json.loads((d / "result.json").read_text())["annealing_layers"] for d in (out / "runs").iterdir()}
@@ -157,6 +160,7 @@ def test_a_train_seeds_group_is_no_baseline_but_its_rows_are(tmp_path):
     assert load_experiment(path).baseline == "C, training seed 1"
 
 
+@pytest.mark.slow
 def test_train_seeds_repeat_a_training_and_the_report_averages_over_the_models(tmp_path):
     path = write_experiment(tmp_path, priors=("zero-velocity",))
     train = f'{{ mocap = ["{CLIP}"], options = {{ order = 1, epochs = 2, hidden = 10 }} }}'
@@ -178,6 +182,7 @@ def test_train_seeds_repeat_a_training_and_the_report_averages_over_the_models(t
     assert "## Over training seeds" in (tmp_path / "out" / "table.md").read_text()
 
 
+@pytest.mark.slow
 def test_killed_experiment_resumes_without_redoing_finished_runs(tmp_path):
     path = write_experiment(tmp_path, seeds=4, tracking="particles = 40\nframes = 6")
     out = tmp_path / "out"
@@ -200,6 +205,7 @@ def test_killed_experiment_resumes_without_redoing_finished_runs(tmp_path):
     assert finished <= after and len(after) == 8  # nothing half-written left, nothing redone
 
 
+@pytest.mark.slow
 def test_bad_command_line_values_exit_2(tmp_path):
     path = write_experiment(tmp_path)
     for args, expected in [(["--jobs", "0"], "must be at least 1"), (["--backend", "spark"], "invalid choice")]:
@@ -215,6 +221,8 @@ def test_bootstrap_interval_covers_the_mean():
     assert bootstrap_interval(d) == bootstrap_interval(d)  # seeded
 
 
+@pytest.mark.slow
+@pytest.mark.optional
 @pytest.mark.parametrize("backend", ["dask", "ray"])
 def test_cluster_backends_with_two_workers(tmp_path, backend):
     pytest.importorskip("distributed" if backend == "dask" else "ray")

@@ -29,6 +29,7 @@ def generated_reference() -> str:
     return done.stdout
 
 
+@pytest.mark.slow
 def test_the_command_reference_is_the_parsers_help():
     written = (DOCS / "reference" / "cli.md").read_text()
     assert written == generated_reference(), ("docs/reference/cli.md is out of date: "

@@ -63,6 +63,7 @@ def test_data_paths_are_relative_to_the_declared_root(tmp_path):
     assert exp.priors[0].train_mocap[0].path == (tmp_path / "data" / "cmu07" / "07_01.amc").resolve()
 
 
+@pytest.mark.slow
 def test_a_copied_file_runs_with_data_root_and_its_runs_keep_their_hashes(tmp_path, monkeypatch):
     monkeypatch.delenv(DATA_ROOT_ENV, raising=False)
     first = write_experiment(tmp_path / "a", "../data")

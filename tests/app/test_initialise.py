@@ -4,6 +4,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from data_tools.sequence import read_sequence
 from data_tools.synth import SynthConfig, synthesize
@@ -23,6 +24,7 @@ def test_scaled_shape_scales_the_standing_height():
     assert abs(t_pose[wrist, 2] - t_pose[shoulder, 2]) < 1.0 and t_pose[wrist, 1] > t_pose[shoulder, 1] + 500
 
 
+@pytest.mark.slow
 def test_initialise_places_the_body_on_the_person(tmp_path, walk_07_11, capsys):
     synthesize(walk_07_11, tmp_path / "seq", SynthConfig(views=4, frames=2, width=320, height=240, seed=1))
     truth = read_sequence(tmp_path / "seq").groundtruth

@@ -37,6 +37,7 @@ def heading_error(found: np.ndarray, truth: np.ndarray) -> float:
     return float(np.degrees(abs(np.angle(np.exp(1j * (angles[0] - angles[1]))))))
 
 
+@pytest.mark.slow
 def test_four_views_measure_the_body_and_start_on_the_person(walk_with_keypoints):
     seq = walk_with_keypoints
     start = initialise_from_keypoints(seq, known_frames=2)
@@ -51,6 +52,7 @@ def test_four_views_measure_the_body_and_start_on_the_person(walk_with_keypoints
         assert start.lengths[name] == pytest.approx(value, rel=0.1), name
 
 
+@pytest.mark.slow
 def test_one_view_starts_facing_the_right_way(walk_with_keypoints):
     seq = walk_with_keypoints
     start = initialise_from_keypoints(seq, views=[1], known_frames=2)
@@ -63,6 +65,7 @@ def test_one_view_starts_facing_the_right_way(walk_with_keypoints):
     assert np.linalg.norm(found - truth, axis=-1).mean() < 80.0  # mm, the depth left out
 
 
+@pytest.mark.slow
 def test_the_fit_keeps_joint_limits_and_finds_a_known_pose(walk_with_keypoints):
     seq = walk_with_keypoints
     truth = seq.groundtruth.poses[5]

@@ -89,6 +89,7 @@ def test_track_refuses_an_existing_video_unless_overwrite(seq, tmp_path, capsys)
                      "v.mp4", "exists (pass --overwrite")
 
 
+@pytest.mark.slow
 def test_train_refuses_an_existing_model_file_and_never_overwrites_its_clips(tmp_path, capsys):
     model = tmp_path / "m.pt"
     model.write_bytes(b"an earlier model")
@@ -105,6 +106,7 @@ def test_train_refuses_an_existing_model_file_and_never_overwrites_its_clips(tmp
     assert model.stat().st_size > 1000
 
 
+@pytest.mark.slow
 def test_convert_refuses_an_existing_output_unless_overwrite(tmp_path, capsys):
     out = tmp_path / "c.npz"
     out.write_bytes(b"earlier")
@@ -115,6 +117,7 @@ def test_convert_refuses_an_existing_output_unless_overwrite(tmp_path, capsys):
     assert out.stat().st_size > 1000
 
 
+@pytest.mark.slow
 def test_compare_refuses_a_folder_that_is_not_a_compare_output_unless_overwrite(tmp_path, capsys):
     path = write_experiment(tmp_path, priors=("zero-velocity",), seeds=1, tracking="particles = 10\nframes = 3")
     out = tmp_path / "out"
@@ -139,6 +142,7 @@ def test_compare_never_writes_into_a_sequence_folder_of_the_experiment(seq, tmp_
     assert not (seq / "results").exists()
 
 
+@pytest.mark.slow
 def test_api_saves_refuse_existing_outputs_unless_overwrite(seq, tmp_path):
     result = tracker.track(seq, "zero-velocity", particles=10, annealing_layers=1)
     result.save(tmp_path / "run")
@@ -163,6 +167,7 @@ def test_the_demo_refuses_a_folder_that_holds_no_demo_output(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["notes.txt"]
 
 
+@pytest.mark.slow
 def test_the_demo_runs_again_into_its_own_folder_with_overwrite(tmp_path, capsys):
     from tracker.app import cli
 

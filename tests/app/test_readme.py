@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 import torch
 
 from data_tools.fetch import CMU_FOLDER, parse_trial
@@ -61,6 +62,7 @@ def commands(block: str) -> list[str]:
     return [line.split("  #")[0].strip() for line in text.splitlines() if line.strip()]
 
 
+@pytest.mark.slow
 def test_the_readme_python_block_runs(tmp_path, monkeypatch, capsys):
     (code,) = blocks("python")
     for big, small in TINY_PYTHON.items():
@@ -108,6 +110,7 @@ def test_the_fetch_for_line_says_where_the_files_go(monkeypatch):
     assert where.startswith("..") and f"into {where}, outside the checkout" in comment, (where, comment)
 
 
+@pytest.mark.slow
 def test_the_readme_shell_blocks_run(tmp_path, mocap_dir):
     """The demo, then the first tracking runs on what it left, then the own-mocap block on shared clips placed
     where the README's fetch puts them."""

@@ -63,6 +63,7 @@ def videos_of(page: str) -> list[bytes]:
                                                    page)]
 
 
+@pytest.mark.slow
 def test_the_page_is_one_file_with_every_table_and_a_video_per_sequence(finished):
     import av
 
@@ -108,6 +109,7 @@ def test_the_page_is_one_file_with_every_table_and_a_video_per_sequence(finished
     assert any(s.startswith("report.html: 2 video(s)") for s in said)
 
 
+@pytest.mark.slow
 def test_a_rerun_over_the_finished_folder_writes_the_same_page(finished):
     path, out, _ = finished
     before = (out / "report.html").read_text(encoding="utf-8")
@@ -120,6 +122,7 @@ def test_a_rerun_over_the_finished_folder_writes_the_same_page(finished):
     assert DATE.search(after) and DATE.sub("", after) == DATE.sub("", before)
 
 
+@pytest.mark.slow
 def test_no_videos_leaves_them_out_and_a_moved_sequence_is_a_note(finished, tmp_path):
     path, out, _ = finished
     copy = tmp_path / "out"

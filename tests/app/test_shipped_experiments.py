@@ -6,6 +6,8 @@ import pytest
 
 from tracker.app.experiment import load_experiment
 
+pytestmark = pytest.mark.shared
+
 REPO = Path(__file__).resolve().parents[2]
 EXPERIMENTS = REPO / "benchmarks" / "experiments"
 #: Protocols whose sequences and models a script makes first (their folders hold a prepare.sh).

@@ -45,6 +45,7 @@ def test_help_loads_no_model_tracking_or_rendering_library(args, tmp_path):
     assert loaded_by(args, NOT_FOR_HELP, tmp_path) == []
 
 
+@pytest.mark.slow
 def test_zero_velocity_track_loads_no_renderer_and_no_torch(bodytrack_dir, tmp_path):
     out = tmp_path / "run"
     args = ["track", str(bodytrack_dir), "--prior", "zero-velocity", "--frames", "1", "--particles", "50",
@@ -72,6 +73,7 @@ def test_builtin_modules_are_exactly_the_registering_ones(package):
 
 
 
+@pytest.mark.slow
 def test_a_learned_prior_built_after_set_threads_gets_the_run_threads(walk_32_frames, tmp_path):
     """Torch is imported only when a learned prior is built, after the command line gave the run its threads:
     building the prior gives torch that count (torch's own default is one thread per core)."""

@@ -29,6 +29,7 @@ def refuse_to_derive(fps: float) -> np.ndarray:
     raise AssertionError(f"retargeted the walks at {fps} Hz, whose scale is shipped")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fps", SHIPPED_RATES)
 def test_shipped_scale_is_a_fresh_derivation_bit_for_bit(fps):
     fresh = derive_walk_scale(fps)
@@ -71,6 +72,7 @@ def test_another_rate_is_derived_from_the_walks(monkeypatch):
     assert asked == [29.97]
 
 
+@pytest.mark.slow
 def test_given_training_clips_are_retargeted_not_looked_up(monkeypatch):
     """train_mocap derives the scale from those clips at the sequence's rate; given the shipped walks themselves
     it is the shipped scale."""

@@ -389,6 +389,7 @@ BANDAI_CLIPS = {("walk", "normal"): (0.9, 1.4), ("run", "normal"): (2.0, 4.5),
                 ("walk-turn-left", "active"): (0.8, 1.6), ("wave-right-hand", "elderly"): (0.0, 0.1)}
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("content, style", sorted(BANDAI_CLIPS))
 def test_bandai2_clips_convert_with_no_flags(content, style):
     folder = need_shared(SHARED / "mocap" / "bandai2")

@@ -197,6 +197,8 @@ def test_corpus_command_refuses_a_missing_path_in_one_line(tmp_path, capsys):
     assert len(err) == 1 and "no such file or folder" in err[0]
 
 
+@pytest.mark.shared
+@pytest.mark.slow
 def test_shared_corpus_lists_with_no_refusals(capsys):
     cmu, bandai = need_shared(SHARED / "mocap" / "cmu"), need_shared(SHARED / "mocap" / "bandai2")
     assert main(["corpus", str(cmu), str(bandai), "--json"]) == 0
@@ -337,6 +339,7 @@ def test_experiment_labels_are_read_from_names_or_a_sidecar_as_the_file_loads(co
         load_experiment(experiment("styles.csv#style"))
 
 
+@pytest.mark.slow
 def test_the_retarget_version_covers_every_module_a_conversion_runs(corpus):
     """Reading and retargeting an AMC and a BVH (the cache off) import no module of the package that the cache
     key's digest leaves out: a new one would convert differently without making new entries."""

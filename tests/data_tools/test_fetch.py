@@ -147,6 +147,7 @@ def test_a_wrong_file_is_refused_in_one_line_naming_the_url_and_nothing_is_left(
     assert not (folder / file).exists() and not list(folder.glob("*.part"))
 
 
+@pytest.mark.slow
 def test_the_command_line_fetches_and_refuses_in_one_line(server, tmp_path):
     url, _ = server
     done = cli("fetch", "cmu", "07_01", "--data-root", str(tmp_path / "data"), "--mirror", url)
@@ -186,6 +187,7 @@ def test_a_failed_file_leaves_no_folder_made_for_it(server, tmp_path):
     assert existing.is_dir() and not list(existing.iterdir())  # the root was there before: it stays, empty
 
 
+@pytest.mark.slow
 def test_a_data_root_under_a_file_is_one_line_naming_the_file(server, tmp_path):
     url, _ = server
     afile = tmp_path / "afile"
@@ -197,6 +199,7 @@ def test_a_data_root_under_a_file_is_one_line_naming_the_file(server, tmp_path):
     assert afile.read_text() == "not a folder"
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs /proc, where no folder can be made")
 def test_a_data_root_that_cannot_be_made_is_one_line_naming_it(server, tmp_path):
     url, _ = server
@@ -207,6 +210,7 @@ def test_a_data_root_that_cannot_be_made_is_one_line_naming_it(server, tmp_path)
                                                    "folder ("), done.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("in_the_way, problem", [
     ("07.asf.part", "cannot write the download"),  # the download's temporary file cannot be written
     ("07.asf", "cannot put the download in place"),  # the checked download cannot be renamed
@@ -223,6 +227,7 @@ def test_a_file_that_cannot_be_written_is_one_line_naming_it(server, tmp_path, i
     assert sorted(p.name for p in folder.iterdir()) == [in_the_way]  # nothing else left
 
 
+@pytest.mark.slow
 def test_the_database_may_be_left_out(server, tmp_path):
     url, _ = server
     done = cli("fetch", "07_01", "7_2", "--data-root", str(tmp_path / "data"), "--mirror", url)
@@ -265,6 +270,7 @@ def test_the_record_matches_the_shipped_sample():
         assert len(read_amc(SAMPLES / f"{trial}.amc", read_asf(SAMPLES / "07.asf"))["root"]) == TRIAL_FRAMES[trial]
 
 
+@pytest.mark.slow
 def test_the_record_matches_the_shared_copies(mocap_dir):
     from data_tools.asf_amc import read_amc, read_asf
 
@@ -293,6 +299,7 @@ def test_an_experiment_naming_shared_only_files_fetches_the_rest_then_says_so(se
     assert (tmp_path / "data" / "mocap" / "cmu" / "07" / "07_02.amc").is_file()
 
 
+@pytest.mark.slow
 def test_without_its_data_compare_names_the_command_that_fetches_it(tmp_path):
     exp = tmp_path / "clone" / "benchmarks" / "experiments" / "walk_unseen_subject.toml"
     exp.parent.mkdir(parents=True)
@@ -315,6 +322,7 @@ def named_fetch(stderr: str) -> list[str]:
     return shlex.split(command)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("how", ["--data-root", DATA_ROOT_ENV])
 def test_the_command_compare_names_fetches_where_compare_looks(tmp_path, monkeypatch, how):
     """With the data root given (``--data-root``, or the environment variable), the named command puts the files
@@ -342,6 +350,7 @@ TINY_EXPERIMENT = {"seeds = 3": "seeds = 1", "particles = 500": "particles = 30"
                    "options = { order = 1 }": "options = { order = 1, epochs = 2 }"}
 
 
+@pytest.mark.slow
 def test_the_readme_compare_example_runs_after_the_documented_fetch(tmp_path, mocap_dir):
     """The README's comparison block, as written, on a fresh data root: the fetch from a local copy of the CMU
     site (made from the shared files), then compare on a copy of the experiment cut to a few frames."""

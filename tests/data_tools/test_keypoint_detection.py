@@ -92,6 +92,9 @@ def test_without_mediapipe_it_refuses_in_one_line_naming_the_install_before_read
     assert "pip install absl-py attrs flatbuffers 'protobuf>=4.25.3,<5'" in message
 
 
+@pytest.mark.optional
+@pytest.mark.shared
+@pytest.mark.slow
 @pytest.mark.skipif(importlib.util.find_spec("mediapipe") is None, reason="mediapipe is not installed")
 def test_the_example_person_is_found_in_two_views_and_the_source_recorded(tmp_path):
     need_shared(EXAMPLE)

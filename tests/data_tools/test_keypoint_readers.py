@@ -112,6 +112,7 @@ def test_openpose_json_of_each_layout_comes_back_in_body_keypoint_order(seq, tmp
     assert back.source == kp.source
 
 
+@pytest.mark.shared
 def test_real_pose2sim_files_are_body_25b(tmp_path):
     """Pose2Sim's BODY_25B files of the example (another take than its videos: pixels only, no image check)."""
     from data_tools.rig_formats import read_rig

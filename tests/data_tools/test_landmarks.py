@@ -101,6 +101,7 @@ def test_landmark_proportions_without_the_package_are_refused_in_one_line(tmp_pa
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_initialise_builds_the_body_with_the_measured_limbs(tmp_path, walk_07_11, monkeypatch, capsys):
     import data_tools.landmarks as landmarks
 
@@ -128,6 +129,9 @@ def test_initialise_builds_the_body_with_the_measured_limbs(tmp_path, walk_07_11
         assert fitted[f"right_{segment}"] == fitted[f"left_{segment}"]
 
 
+@pytest.mark.optional
+@pytest.mark.shared
+@pytest.mark.slow
 @pytest.mark.skipif(importlib.util.find_spec("mediapipe") is None, reason="mediapipe is not installed")
 def test_the_example_person_is_measured_from_blazepose_landmarks(tmp_path):
     need_shared(EXAMPLE)

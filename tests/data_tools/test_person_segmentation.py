@@ -39,6 +39,9 @@ def test_a_package_that_cannot_build_its_model_is_refused_in_one_line(tmp_path, 
     assert len(err.splitlines()) == 1 and "cannot build its pose model (AttributeError; protobuf" in err
 
 
+@pytest.mark.optional
+@pytest.mark.shared
+@pytest.mark.slow
 @pytest.mark.skipif(importlib.util.find_spec("mediapipe") is None, reason="mediapipe is not installed")
 def test_the_still_person_is_segmented_in_every_view(tmp_path):
     need_shared(EXAMPLE)

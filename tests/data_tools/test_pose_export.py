@@ -98,6 +98,7 @@ def test_comparison_undoes_one_rigid_motion_and_reports_per_joint():
     assert np.allclose(R2, R) and np.allclose(t2, t)
 
 
+@pytest.mark.shared
 def test_example_reference_reads_in_the_calibrations_world():
     ref = read_trc(need_shared(EXAMPLE / "static_0-12.trc"))
     assert len(ref.points) == 12 and len(ref.names) == 21 and ref.fps == 60.0

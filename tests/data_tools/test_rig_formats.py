@@ -46,6 +46,7 @@ def test_formats_are_recognised_by_name(tmp_path):
     assert set(FORMATS) == {"toml", "qca", "opencv", "json"}
 
 
+@pytest.mark.shared
 def test_example_toml_and_qualisys_describe_the_same_rig():
     toml = read_rig(need_shared(EXAMPLE / "Calib_qualisys.toml"))
     qca = read_rig(EXAMPLE / "Calib.qca.txt")

@@ -119,6 +119,7 @@ def copy_sequence(src, dst):
     return dst
 
 
+@pytest.mark.slow
 def test_show_and_synth_cli(mocap_dir, tmp_path):
     out = tmp_path / "s"
     assert main(["synth", "--mocap", str(mocap_dir / "07" / "07_10.amc"), "--out", str(out), "--frames", "2",
@@ -138,6 +139,7 @@ def test_show_bodytrack(bodytrack_dir, tmp_path):
     assert cv2.imread(str(png)).shape == (960 + 32, 1280, 3)  # the views and the legend strip
 
 
+@pytest.mark.slow
 def test_bad_sequences_exit_2(synthetic_walk, bodytrack_dir, tmp_path):
     root = synthetic_walk.root
     cases = {}
@@ -165,6 +167,7 @@ def test_bad_sequences_exit_2(synthetic_walk, bodytrack_dir, tmp_path):
     assert code == 2 and "frame 6 out of range" in err
 
 
+@pytest.mark.slow
 def test_synth_frames_past_end_exit_2(mocap_dir, tmp_path):
     amc = str(mocap_dir / "07" / "07_11.amc")
     for args, expected in [(["--start", "150", "--frames", "20"], "runs past the end of the clip (158 frames"),

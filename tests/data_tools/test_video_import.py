@@ -150,6 +150,7 @@ def test_an_import_over_a_sequence_drops_its_keypoints(tmp_path):
     assert not keypoints_path(tmp_path / "seq").exists()
     assert read_sequence(tmp_path / "seq").keypoints is None
 
+@pytest.mark.shared
 def test_example_imports_with_both_calibrations_alike(tmp_path):
     videos = sorted(need_shared(EXAMPLE).glob("cam0*.mp4"))
     a = import_videos(EXAMPLE / "Calib_qualisys.toml", videos, tmp_path / "a", downscale=8, frames="0:2")

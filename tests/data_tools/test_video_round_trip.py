@@ -24,6 +24,7 @@ def test_every_calibration_format_imports_the_rendered_rig(rendered_walk, name):
     assert seq.n_frames == FRAMES and np.abs(seq.image(3, 2).astype(int) - rendered.image(3, 2)).mean() < 4
 
 
+@pytest.mark.slow
 def test_the_imported_walk_is_tracked_back_to_the_known_poses(rendered_walk, tmp_path, capsys):
     folder, rendered, videos = rendered_walk
     write_rig(rendered.rig, tmp_path / "rig.toml")

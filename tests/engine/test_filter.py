@@ -305,6 +305,7 @@ def test_numpy_blas_runs_on_one_thread_while_the_filter_runs_and_is_restored_aft
             assert blas_threads() == {2}
 
 
+@pytest.mark.slow
 def test_a_run_keeps_no_frame_s_particles_once_it_has_moved_on(walk_32_frames, random_walk_std):
     """What a run records of each frame (the estimates, timings, ...) holds none of that frame's particle
     arrays: memory grows with the frames by the recorded numbers only."""

@@ -122,6 +122,7 @@ prior = "zero-velocity"
 '''
 
 
+@pytest.mark.slow
 def test_an_experiment_mixes_a_crbm_trained_inline_with_zero_velocity(tmp_path):
     path = write_experiment(tmp_path, MIXTURE)
     said: list[str] = []

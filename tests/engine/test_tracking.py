@@ -51,6 +51,7 @@ def test_likelihood_terms_and_limits(walk_32_frames):
     assert t.log_likelihood[2] == -np.inf
 
 
+@pytest.mark.slow
 def test_thirty_frame_walk_tracked_within_bound(walk_32_frames, random_walk_std):
     # Measured before setting the bound (500 particles, 4 views, seeds 0-5): 44.5-54.6 mm mean, 65-81 mm worst
     # frame. A filter that ignores the images drifts to about 417 mm on the same frames.
@@ -105,6 +106,7 @@ def torch_has_cuda() -> bool:
     return torch.cuda.is_available()
 
 
+@pytest.mark.slow
 def test_track_bad_inputs_exit_2(walk_32_frames, tmp_path):
     root = str(walk_32_frames.root)
     np.savez(tmp_path / "bad_init.npz", poses=np.zeros((2, 31)))
@@ -127,6 +129,7 @@ def test_track_bad_inputs_exit_2(walk_32_frames, tmp_path):
         assert r.returncode == 2 and expected in err and "Traceback" not in r.stderr, (extra, r.stderr[-300:])
 
 
+@pytest.mark.slow
 def test_ctrl_c_saves_a_checkpoint_and_resume_gives_the_uninterrupted_result(walk_32_frames, tmp_path):
     import signal
     import time

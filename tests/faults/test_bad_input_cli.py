@@ -138,6 +138,7 @@ def test_running_out_of_memory_is_one_line(failure, monkeypatch, capsys, tmp_pat
         cli.main(["convert", "--mocap", AMC, "--out", "x.npz"])
 
 
+@pytest.mark.slow
 def test_ctrl_c_in_training_says_how_to_resume(monkeypatch, tmp_path, capsys):
     def interrupted(*args, **kwargs):
         (tmp_path / "m.pt.checkpoint").write_bytes(b"state")

@@ -599,6 +599,7 @@ def test_skeleton_of_another_subject_is_refused(tmp_path):
 
 # -- output paths (checked before any work) and nothing half-written -------------------------------------------
 
+@pytest.mark.slow
 def test_output_paths_are_refused_before_any_work(tmp_path):
     import subprocess
     import sys
@@ -626,6 +627,7 @@ def test_output_paths_are_refused_before_any_work(tmp_path):
     assert sorted(p.name for p in full.iterdir()) == ["something"] and a_file.read_text() == "x"
 
 
+@pytest.mark.slow
 def test_synth_replaces_a_folder_only_with_overwrite_and_whole(tmp_path):
     from data_tools.retarget import retarget
     from data_tools.load import load_mocap

@@ -93,6 +93,7 @@ def _no_temporary_files(folder: Path) -> None:
     assert not left, left
 
 
+@pytest.mark.slow
 def test_track_on_a_full_disk_is_one_line_and_leaves_no_half_written_file(seq, full_disk):
     argv = track_args(seq, full_disk / "out", "--checkpoint-every", "1")
     r = subprocess.run([sys.executable, "-m", "tracker", *argv], capture_output=True, text=True)
@@ -100,6 +101,7 @@ def test_track_on_a_full_disk_is_one_line_and_leaves_no_half_written_file(seq, f
     _no_temporary_files(full_disk)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("command", ["synth", "convert", "train", "compare"])
 def test_every_command_on_a_full_disk_is_one_line(command, full_disk, tmp_path):
     from tests.app.test_compare import write_experiment
@@ -163,6 +165,7 @@ def test_an_overlay_video_that_cannot_be_written_is_one_line(seq, tmp_path, caps
     assert (tmp_path / "out" / "result.json").exists() and not (tmp_path / "v.mp4").exists()
 
 
+@pytest.mark.slow
 def test_synth_images_that_cannot_be_written_are_one_line_and_keep_the_earlier_sequence(tmp_path, capsys,
                                                                                          monkeypatch):
     assert run_cli(["synth", "--mocap", AMC, "--frames", "2", "--views", "1", "--width", "64", "--height", "48",
@@ -176,6 +179,7 @@ def test_synth_images_that_cannot_be_written_are_one_line_and_keep_the_earlier_s
     assert [p.name for p in tmp_path.iterdir()] == ["s"]  # no temporary folder left
 
 
+@pytest.mark.slow
 def test_convert_on_a_read_only_file_system_is_one_line(tmp_path, capsys, monkeypatch):
     import data_tools.files as files
 
@@ -192,6 +196,7 @@ def test_a_model_file_that_cannot_be_written_is_one_line(tmp_path, capsys, monke
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_a_training_checkpoint_that_cannot_be_written_keeps_the_earlier_one(tmp_path, monkeypatch):
     settings = dict(skeletons=[ASF], order=1, epochs=6, hidden=8, seed=0, checkpoint_every=2)
     checkpoint = tmp_path / "m.pt.checkpoint"
@@ -204,6 +209,7 @@ def test_a_training_checkpoint_that_cannot_be_written_keeps_the_earlier_one(tmp_
     assert resumed.reconstruction_errors == whole.reconstruction_errors
 
 
+@pytest.mark.slow
 def test_compare_runs_that_cannot_be_written_are_one_line_and_finished_runs_stay(tmp_path, monkeypatch):
     import tracker.app.tracking as tracking
     from tests.app.test_compare import run_numbers, write_experiment
@@ -222,6 +228,7 @@ def test_compare_runs_that_cannot_be_written_are_one_line_and_finished_runs_stay
     assert run_numbers(tmp_path / "out").items() >= finished.items()
 
 
+@pytest.mark.slow
 def test_compare_tables_that_cannot_be_written_are_one_line(tmp_path, monkeypatch):
     from tests.app.test_compare import write_experiment
     from tracker.app.compare import compare

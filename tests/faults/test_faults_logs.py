@@ -26,6 +26,7 @@ def seq(tmp_path):
     return tiny_sequence(tmp_path / "seq", frames=8)
 
 
+@pytest.mark.slow
 def test_train_into_a_log_writes_a_few_progress_lines_not_bars(tmp_path):
     """A default-sized training reports 1,000 updates; its log holds a line at most every tenth of the work."""
     log = tmp_path / "train.log"

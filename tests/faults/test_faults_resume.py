@@ -94,6 +94,7 @@ def crbm_files(tmp_path_factory):
     return folder
 
 
+@pytest.mark.slow
 def test_a_resume_after_the_model_file_was_replaced_is_refused(seq, crbm_files, tmp_path):
     model = tmp_path / "crbm.pt"
     shutil.copy(crbm_files / "c0.pt", model)
@@ -130,6 +131,7 @@ def test_a_resume_by_another_version_is_refused(seq, tmp_path, monkeypatch):
         tracker.track(seq, "zero-velocity", particles=10, annealing_layers=1, checkpoint=checkpoint, resume=True)
 
 
+@pytest.mark.slow
 def test_train_resume_after_a_training_clip_changed_is_refused(tmp_path):
     clips = tmp_path / "clips"
     clips.mkdir()
@@ -156,6 +158,7 @@ def test_train_resume_after_a_training_clip_changed_is_refused(tmp_path):
     assert not checkpoint.exists() and not Path(f"{checkpoint}.inputs.json").exists()
 
 
+@pytest.mark.slow
 def test_train_resume_on_the_command_line_names_the_changed_skeleton(tmp_path, capsys):
     clips = tmp_path / "clips"
     clips.mkdir()

@@ -105,6 +105,7 @@ def test_a_frame_rate_mismatch_says_which_commands_fix_it():
             "--fps 60)") in str(refusal.value)
 
 
+@pytest.mark.slow
 def test_a_borderline_retarget_residual_warns_and_points_to_the_advice(tmp_path, capsys, monkeypatch):
     import data_tools.retarget as retargeting
 

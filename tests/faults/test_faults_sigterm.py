@@ -163,6 +163,7 @@ def test_another_command_into_an_unfinished_run_is_refused_in_one_line(seq, tmp_
     assert run_cli(track_args(seq, out, "--seed", "5", "--overwrite"), capsys)[0] == 0
 
 
+@pytest.mark.slow
 def test_a_real_sigterm_to_track_keeps_a_checkpoint_and_exits_143(seq, tmp_path):
     """The signal from outside, as ``kill`` sends it, while the filter runs."""
     out = tmp_path / "cut"
@@ -234,6 +235,7 @@ def whole_models(tmp_path_factory):
     return get
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("prior, every, at, kept", [
     ("crbm", "3", 0, None),  # before the first epoch: nothing to keep
     ("crbm", "3", 2, 1),     # before the first periodic checkpoint: the state after epoch 1

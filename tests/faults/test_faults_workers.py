@@ -17,6 +17,8 @@ from tests.app.test_compare import write_experiment
 from tracker.app.compare import compare
 from tracker.core.errors import InputError
 
+pytestmark = [pytest.mark.slow, pytest.mark.optional]
+
 
 def finished_numbers(out: Path) -> dict:
     """The estimated poses of each finished run (a killed worker's temporary folder is not a run)."""

@@ -193,6 +193,7 @@ def finite(*arrays) -> None:
 # One test per family
 # ---------------------------------------------------------------------------
 
+@pytest.mark.slow
 @FUZZ
 @given(st.data())
 def test_fuzz_asf(seeds, capfd, data):
@@ -203,6 +204,7 @@ def test_fuzz_asf(seeds, capfd, data):
     quiet(capfd, lambda: reads_or_refuses(lambda: asf_amc_clip(path, amc), lambda c: finite(c.positions)))
 
 
+@pytest.mark.slow
 @FUZZ
 @given(st.data())
 def test_fuzz_amc(seeds, capfd, data):
@@ -231,6 +233,7 @@ def test_fuzz_cameras_json(seeds, capfd, data):
     quiet(capfd, lambda: reads_or_refuses(lambda: read_cameras_json(path), check))
 
 
+@pytest.mark.slow
 @FUZZ
 @given(st.data())
 def test_fuzz_meta_json(seeds, capfd, data):
@@ -255,6 +258,7 @@ def test_fuzz_cal(seeds, capfd, data):
     quiet(capfd, lambda: reads_or_refuses(lambda: read_bodytrack_calibration(path), check))
 
 
+@pytest.mark.slow
 @FUZZ
 @given(st.data())
 def test_fuzz_bodytrack_text(seeds, capfd, data):
@@ -326,6 +330,7 @@ def test_fuzz_groundtruth_npz(seeds, capfd, data):
     quiet(capfd, lambda: reads_or_refuses(lambda: read_groundtruth(path, 40), check))
 
 
+@pytest.mark.slow
 @FUZZ
 @given(st.data())
 def test_fuzz_converted_clip(seeds, capfd, data):

@@ -104,12 +104,14 @@ def test_squared_threshold_compares_squares_as_the_square_roots_compare():
         assert np.array_equal(near > s, np.sqrt(near) > t32)
 
 
+@pytest.mark.slow
 def test_background_subtraction_clean_frames(walk_07_11, tmp_path):
     out = synthesize(walk_07_11, tmp_path / "clean", SynthConfig(start=80, frames=3, noise=0.0, seed=1),
                      keep_masks=True)
     assert min(silhouette_ious(out)) > 0.9
 
 
+@pytest.mark.slow
 def test_lighting_change_is_compensated(walk_07_11, tmp_path):
     out = synthesize(walk_07_11, tmp_path / "light", SynthConfig(start=80, frames=2, lighting_change=0.3, seed=2),
                      keep_masks=True)
@@ -120,6 +122,7 @@ def test_lighting_change_is_compensated(walk_07_11, tmp_path):
     assert iou(raw, out.masks[1][0]) < 0.5  # without compensation the whole scene differs from the plate
 
 
+@pytest.mark.slow
 def test_occluder_hides_the_person_in_camera_0(walk_07_11, tmp_path):
     # In 07_11 the walk passes behind the pillar around frames 20-60 (fully hidden near frame 36).
     free = synthesize(walk_07_11, tmp_path / "a", SynthConfig(start=20, frames=3, seed=4), keep_masks=True)
@@ -131,6 +134,7 @@ def test_occluder_hides_the_person_in_camera_0(walk_07_11, tmp_path):
         assert np.array_equal(free.masks[k][1], occl.masks[k][1])  # other views unaffected
 
 
+@pytest.mark.slow
 def test_missing_camera_is_black(walk_07_11, tmp_path):
     out = synthesize(walk_07_11, tmp_path / "m", SynthConfig(start=0, frames=2, missing_camera=2))
     seq = read_sequence(out.root)
@@ -157,6 +161,7 @@ def test_turn_moves_the_walk_in_another_direction_with_the_same_body(walk_07_11)
             turned(walk_07_11, bad)
 
 
+@pytest.mark.slow
 def test_a_turned_sequence_renders_with_its_ground_truth_on_the_person(walk_07_11, tmp_path):
     out = synthesize(walk_07_11, tmp_path / "t", SynthConfig(start=40, frames=2, seed=3, turn=90.0),
                      keep_masks=True)

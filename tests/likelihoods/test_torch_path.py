@@ -109,6 +109,7 @@ def test_device_likelihood_equals_the_cpu_path(walk_32_frames, rng, device, bidi
         assert (difference < 1e-4).mean() > 0.98 and difference.max() < 0.02, name
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("device", DEVICES)
 def test_tracking_on_the_device_path_gives_the_cpu_errors(walk_32_frames, random_walk_std, device):
     """The first frame's estimate is the same to 0.01 mm; after a resampling step a weight that differs in the

@@ -86,6 +86,7 @@ class TestToyPoints(MocapReaderContract):
         return write_toy_points(folder / "walk.toypts", clip.point_names, clip.positions[:160:4], 30.0)
 
 
+@pytest.mark.slow
 def test_the_command_line_converts_a_file_of_the_plugins_format(tmp_path):
     """``pose-tracker --plugin toy_plugin.py convert``: the plugin's reader, found by the suffix, feeds the
     retargeting (in a process of its own: this one registered the plugin under its package's name)."""

@@ -107,6 +107,7 @@ def test_free_energy_descent_finds_a_minimum(crbm3, walks):
     assert float(v.grad.abs().max()) < 1e-2
 
 
+@pytest.mark.slow
 def test_generated_walk_stays_in_range_and_keeps_walking(crbm3, walks):
     prior = CRBMPrior([crbm3], gibbs_steps=30, ground=GroundDiffusion(0.0))  # pure generation
     start = walks[0][:4]
@@ -156,6 +157,7 @@ def test_model_and_sequence_mismatch_is_refused(crbm3, tmp_path):
         load_crbm(tmp_path / "junk.pt")
 
 
+@pytest.mark.slow
 def test_train_and_track_cli(mocap_dir, walk_32_frames, tmp_path):
     model = tmp_path / "c1.pt"
     amc = str(mocap_dir / "07" / "07_01.amc")
@@ -177,6 +179,7 @@ def test_train_and_track_cli(mocap_dir, walk_32_frames, tmp_path):
         assert r.returncode == 2 and expected in last and "Traceback" not in r.stderr, (args, r.stderr[-300:])
 
 
+@pytest.mark.slow
 def test_a_higher_order_model_file_grows_from_its_own_lower_order(walk_32_frames, tmp_path):
     import tracker
     from data_tools.samples import sample_walks
@@ -216,6 +219,7 @@ def test_broken_model_files_are_refused(crbm3, tmp_path, damage, expected):
         load_crbm(tmp_path / "bad.pt")
 
 
+@pytest.mark.slow
 def test_interrupted_training_resumes_to_the_same_model(tmp_path):
     import tracker
     from data_tools.samples import sample_walks
@@ -253,6 +257,7 @@ def test_split_validation_holds_out_the_end_of_each_clip():
         split_validation(torch.tensor([0, 1]), [4], 1, 0.1)
 
 
+@pytest.mark.slow
 def test_validation_keeps_the_weights_of_the_best_held_out_check(walks):
     """With 30% of a short clip held out and a fast learning rate, the held-out error is least before the last
     epoch; the model keeps those weights: the same training stopped at that epoch ends with the same weights."""

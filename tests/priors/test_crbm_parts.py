@@ -135,6 +135,7 @@ def test_paced_and_unpaced_models_do_not_mix(paced, plain):
     assert plain.to_document()["pace_label"] is None
 
 
+@pytest.mark.slow
 def test_train_and_track_a_paced_model_from_the_command_line(mocap_dir, walk_32_frames, tmp_path):
     """``train --pace-input`` writes a paced model file; ``track`` with it records the posterior mean
     pace per frame in result.json and draws it."""

@@ -125,6 +125,7 @@ def test_model_file_round_trip_and_broken_files(deep, walks, tmp_path):
     assert CRBM.PARAMS == ("W", "A", "B", "a", "b")
 
 
+@pytest.mark.slow
 def test_train_and_track_through_the_api_and_the_cli(walk_32_frames, tmp_path, capsys):
     import tracker
     from data_tools.samples import sample_walks

@@ -77,6 +77,7 @@ def test_an_ensemble_of_mixed_priors_is_refused():
         EnsemblePrior([Step([1.0, 0.0]), Step([1.0, 0.0], order=2)])
 
 
+@pytest.mark.slow
 def test_crbm_files_of_one_order_track_as_an_ensemble(mocap_dir, walk_32_frames, tmp_path):
     import tracker
 

@@ -242,6 +242,7 @@ def test_bad_label_sets_are_refused(clips):
                     sources=["02_01.amc", "02_03.amc"], rng=np.random.default_rng(0))
 
 
+@pytest.mark.slow
 def test_train_and_track_through_the_api(s2, walk_32_frames, tmp_path):
     import tracker
 
@@ -266,6 +267,7 @@ def test_train_and_track_through_the_api(s2, walk_32_frames, tmp_path):
         tracker.train("fcrbm", files, epochs=1)
 
 
+@pytest.mark.slow
 def test_mixture_inference_is_annealed_by_default_and_plain_when_asked(s2, walk_32_frames, tmp_path):
     import tracker
 
@@ -283,6 +285,7 @@ def test_mixture_inference_is_annealed_by_default_and_plain_when_asked(s2, walk_
         assert rows.shape == (2, 2) and np.allclose(rows.sum(1), 1, atol=1e-3)
 
 
+@pytest.mark.slow
 def test_train_and_track_through_the_cli(s2, walk_32_frames, tmp_path, capsys):
     from tracker.app.cli import main
 
@@ -308,6 +311,7 @@ def test_train_and_track_through_the_cli(s2, walk_32_frames, tmp_path, capsys):
         assert expected in err and "\n" not in err and "Traceback" not in err, (args, err)
 
 
+@pytest.mark.slow
 def test_cross_faded_sequence_changes_activity(s2, tmp_path):
     import tracker
     from data_tools.transition import cross_fade

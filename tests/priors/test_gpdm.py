@@ -152,6 +152,7 @@ def test_gpdm_prior_file_round_trip_and_mismatch(gpdm_prior_model, tmp_path):
         loaded.check_compatible("15-cone", loaded.dof_names, 30.0)
 
 
+@pytest.mark.slow
 def test_train_and_track_gpdm_cli(mocap_dir, walk_32_frames, tmp_path):
     import subprocess
     import sys
@@ -328,6 +329,7 @@ def test_inducing_is_a_training_option(walk_07_01):
 
 # --- training resume and model-file checks ---------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_interrupted_training_resumes_to_the_same_model(tmp_path):
     """The checkpoint holds the L-BFGS optimiser's whole state (its step history, last direction and step
     length), so the resumed run continues bit for bit (restarting L-BFGS at iteration 20 without it ended

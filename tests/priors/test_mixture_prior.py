@@ -115,6 +115,7 @@ def test_mixture_settings_are_checked_and_reported():
     assert list(state["component"]) == [0, 0, 0, 1, 1]
 
 
+@pytest.mark.slow
 def test_a_particle_that_switches_component_is_drawn_from_its_own_history(mocap_dir, walk_07_01):
     """A CRBM component takes a particle from another component with the step out of that particle's own newest
     pose (MotionPrior.adopt), not the step its position held."""
@@ -207,6 +208,7 @@ def test_a_model_with_components_of_its_own_takes_part_with_each_of_them():
     assert np.all(posterior[4:, 2] > 0.85), posterior  # the fast label of the styled model explains the frames
 
 
+@pytest.mark.slow
 def test_a_gpdm_takes_an_arriving_particle_at_the_latent_point_of_its_own_poses(mocap_dir, walk_07_01):
     """What GPDMPrior.adopt gives each arriving particle is what starting from that particle's poses gives."""
     import tracker
@@ -254,6 +256,7 @@ def test_a_restart_after_a_lost_frame_reads_each_component_from_its_own_particle
     assert np.all(restarted["model_1"]["count"] == 102)
 
 
+@pytest.mark.slow
 def test_two_models_of_one_prior_given_as_objects_are_numbered(mocap_dir, walk_07_01):
     import tracker
     from tracker.app.api import build_prior
@@ -268,6 +271,7 @@ def test_two_models_of_one_prior_given_as_objects_are_numbered(mocap_dir, walk_0
     assert prior.summary_names == ("crbm", "crbm 2")
 
 
+@pytest.mark.slow
 def test_an_ensemble_component_adopts_arriving_particles_member_by_member(mocap_dir, walk_07_01):
     import tracker
     from priors.ensemble import EnsemblePrior

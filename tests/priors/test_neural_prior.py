@@ -102,6 +102,7 @@ def train_small(walks, rng_seed: int, **kw) -> NeuralModel:
     return train_neural_prior(data, {**SMALL, **kw.pop("options", {})}, np.random.default_rng(rng_seed), **kw)
 
 
+@pytest.mark.slow
 def test_training_is_seeded_and_resumes_to_the_same_weights(walks, tmp_path):
     whole = train_small(walks, 1)
     again = train_small(walks, 1)
@@ -151,6 +152,7 @@ def test_a_model_file_round_trips_and_a_bad_one_is_refused_in_one_line(walks, tm
         assert str(file) in str(err.value) and "\n" not in str(err.value), what
 
 
+@pytest.mark.slow
 def test_the_command_line_tracks_with_a_model_file_and_refuses_a_bad_one_in_one_line(walks, small_walk, tmp_path):
     model = train_small(walks, 3, options={"epochs": 1})
     path = tmp_path / "neural.pt"
@@ -167,6 +169,7 @@ def test_the_command_line_tracks_with_a_model_file_and_refuses_a_bad_one_in_one_
         assert r.returncode == 2 and expected in last and "Traceback" not in r.stderr, r.stderr[-300:]
 
 
+@pytest.mark.slow
 def test_the_mixture_without_a_model_file_tracks_with_the_shipped_neural_prior(small_walk, tmp_path):
     """The package ships a CMU-trained neural prior (package data) that ``--prior mixture`` uses beside
     zero-velocity when it is given no model file; a model file given still makes the default mixture a CRBM's."""

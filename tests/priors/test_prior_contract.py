@@ -76,6 +76,7 @@ LEARNED_PARTS = {"crbm": ("GroundDiffusion", "PaceInput", "HeightOffset", "Postu
                  "neural": ("GroundDiffusion", "PaceInput", "HeightOffset", "PostureOffset")}
 
 
+@pytest.mark.slow
 def test_every_learned_prior_is_checked_with_every_part_it_takes_switched_on(built):
     """The contract checks each part through the part protocol (:meth:`TestRegisteredPriors.parts`): some
     configuration of each learned prior has all its parts in use."""
@@ -85,6 +86,7 @@ def test_every_learned_prior_is_checked_with_every_part_it_takes_switched_on(bui
         assert sorted(expected) in found, f"no configuration of {name} uses all of {expected}: {found}"
 
 
+@pytest.mark.slow
 def test_every_learned_prior_names_its_parts_in_use_by_kind(built):
     """Each learned prior answers ``ground``, ``pace``, ``height`` and ``posture`` alike: the part in use of that
     kind, or None."""
@@ -134,6 +136,7 @@ def members(prior) -> list:
     return list(getattr(prior, "components", None) or [prior])
 
 
+@pytest.mark.slow
 class TestRegisteredPriors(PriorContract):
     """Every configuration of :data:`BUILT`, started from the realistic walk 07_01."""
 
