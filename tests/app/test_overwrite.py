@@ -162,9 +162,15 @@ def test_the_demo_refuses_a_folder_that_holds_no_demo_output(tmp_path):
     from tracker.app.demo import run_demo
 
     (tmp_path / "notes.txt").write_text("mine")
-    with pytest.raises(InputError, match="holds no sequence"):
+    with pytest.raises(InputError, match="holds no demo.json"):
         run_demo(tmp_path, frames=8)
     assert [p.name for p in tmp_path.iterdir()] == ["notes.txt"]
+    take = tmp_path / "take"  # a capture's folder holds a sequence/ too: never the demo's, even with overwrite
+    (take / "sequence").mkdir(parents=True)
+    (take / "sequence" / "cameras.json").write_text("{}")
+    with pytest.raises(InputError, match="holds no demo.json"):
+        run_demo(take, frames=8, overwrite=True)
+    assert (take / "sequence" / "cameras.json").read_text() == "{}"
 
 
 @pytest.mark.slow
@@ -174,9 +180,10 @@ def test_the_demo_runs_again_into_its_own_folder_with_overwrite(tmp_path, capsys
     demo = ["demo", "--out", str(tmp_path / "demo"), "--frames", "6"]
     assert cli.main(demo) == 0
     before = (tmp_path / "demo" / "error_per_frame.png").read_bytes()
-    one_line_refusal(*run_cli(demo, capsys), "demo", "is not empty (pass --overwrite to replace it)")
+    one_line_refusal(*run_cli(demo, capsys), "demo", "holds an earlier demo's output (pass --overwrite to replace it)")
     assert (tmp_path / "demo" / "error_per_frame.png").read_bytes() == before
-    assert cli.main([*demo, "--overwrite"]) == 0
+    (tmp_path / "demo" / "left_over.txt").write_text("an earlier version's file")
+    assert cli.main([*demo, "--overwrite"]) == 0  # replaced whole
     assert sorted(p.name for p in (tmp_path / "demo").iterdir()) == [
-        "error_per_frame.png", "overlay.mp4", "sequence", *(f"track_{prior}_seed{seed}" for prior in
-                                                             ("mixture", "zero-velocity") for seed in (0, 1, 2))]
+        "demo.json", "error_per_frame.png", "overlay.mp4", "sequence",
+        *(f"track_{prior}_seed{seed}" for prior in ("mixture", "zero-velocity") for seed in (0, 1, 2))]

@@ -130,7 +130,7 @@ def test_show_and_synth_cli(mocap_dir, tmp_path):
     assert main(["show", str(out), "--frame", "1", "--out", str(png), "--video", str(tmp_path / "v.mp4")]) == 0
     assert cv2.imread(str(png)).shape == (240 + 32, 640, 3) and (tmp_path / "v.mp4").stat().st_size > 1000
     np.savez(tmp_path / "est.npz", poses=seq.groundtruth.poses)
-    assert main(["show", str(out), "--poses", str(tmp_path / "est.npz"), "--out", str(png)]) == 0
+    assert main(["show", str(out), "--poses", str(tmp_path / "est.npz"), "--out", str(png), "--overwrite"]) == 0
 
 
 def test_show_bodytrack(bodytrack_dir, tmp_path):
