@@ -82,11 +82,14 @@ def run_demo(out: Path, frames: int = 90, overwrite: bool = False) -> int:
     from tracker.app.visualize import error_plot, overlay_frames, write_video
 
     out = check_output_folder(out, replaceable=(DEMO_MARK,))
-    if any(out.iterdir()) if out.is_dir() else False:
+    if out.is_dir() and any(out.iterdir()):
         if not overwrite:
             raise InputError("the folder holds an earlier demo's output (pass --overwrite to replace it)", out)
         for entry in out.iterdir():  # the demo's own folder (its mark checked above), replaced whole
-            shutil.rmtree(entry) if entry.is_dir() and not entry.is_symlink() else entry.unlink()
+            if entry.is_dir() and not entry.is_symlink():
+                shutil.rmtree(entry)
+            else:
+                entry.unlink()
     write_text_atomic(out / DEMO_MARK, json.dumps({"demo": "pose-tracker demo", "frames": frames,
                                                    "seeds": list(SEEDS)}, indent=1))
 
