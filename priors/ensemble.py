@@ -9,8 +9,8 @@ particles, so resampling reindexes everything together. Two priors use it:
   particles toward the members whose predictions the images support, and the filter weighs them as plain SIR;
 - the **mixture of priors** (:class:`priors.mixture.MixturePrior`): different motion models, each holding a
   fixed share of the particle positions, which the filter keeps apart and weighs by their evidence (mixture
-  tracking, :mod:`tracker.engine.mixture`); a model whose particles carry components of their own (an FCRBM's
-  style labels, :class:`~tracker.engine.mixture.ComponentPrior`) takes part with each of them.
+  tracking, :mod:`tracker.engine.multiple_models`); a model whose particles carry components of their own (an FCRBM's
+  style labels, :class:`~tracker.engine.multiple_models.ComponentPrior`) takes part with each of them.
 
 A learned prior's tracking error depends much on its training seed (the same CRBM trained with five
 seeds gave 0.46-0.77 of zero-velocity's error on the tuning folds with 4 views, 0.83-1.92 with one;

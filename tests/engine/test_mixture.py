@@ -1,12 +1,12 @@
-"""Mixture tracking (tracker.engine.mixture): weights within and across components, resampling that keeps every
-component's particles, switching between them, and the filter tracking a change of mode with it."""
+"""Mixture tracking (tracker.engine.multiple_models): weights within and across components, resampling that keeps
+every component's particles, switching between them, and the filter tracking a change of mode with it."""
 import numpy as np
 import pytest
 
 from tracker.core.errors import InputError
 from tracker.engine.filter import FilterConfig, ParticleFilter
 from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood
-from tracker.engine.mixture import Mixing, Mixture, mixture_weights, resample_components, switching
+from tracker.engine.multiple_models import Mixing, Mixture, mixture_weights, resample_components, switching
 from tracker.engine.prior import MotionPrior
 from tracker.engine.resampling import SCHEMES
 from tracker.engine.weights import LogWeights
@@ -160,7 +160,7 @@ def test_annealing_redraws_each_component_from_its_own_particles():
 
 
 def test_annealed_components_are_weighed_on_the_priors_own_samples(monkeypatch):
-    import tracker.engine.mixture as engine
+    import tracker.engine.multiple_models as engine
 
     seen = []
 
@@ -348,7 +348,7 @@ def test_the_filter_chooses_its_weighing_once_and_knows_nothing_of_components():
     import inspect
 
     import tracker.engine.filter as engine
-    from tracker.engine.mixture import MixtureTracking
+    from tracker.engine.multiple_models import MixtureTracking
     from tracker.engine.weighing import PlainSIR, Weighing
 
     tree = ast.parse(inspect.getsource(engine))
@@ -358,7 +358,7 @@ def test_the_filter_chooses_its_weighing_once_and_knows_nothing_of_components():
     modules = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
     component_api = {"Mixture", "Mixing", "MixtureTracking", "ComponentPrior", "mixing", "mixing_of", "mixture",
                      "component_of", "relabel", "mixture_weights", "resample_components"}
-    assert not used & component_api and "tracker.engine.mixture" not in modules
+    assert not used & component_api and "tracker.engine.multiple_models" not in modules
     rng = np.random.default_rng(0)
     plain = ParticleFilter(Walker(), Around([0.0]), FilterConfig(n_particles=4), rng).weighing
     mixed = ParticleFilter(ModePrior(), Around([0.0]), FilterConfig(n_particles=4), rng).weighing

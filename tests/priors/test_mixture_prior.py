@@ -181,7 +181,7 @@ class Styled(Drift):
         return history[:, -1] + speed + self.std * rng.standard_normal(history[:, -1].shape), state
 
     def mixing(self):
-        from tracker.engine.mixture import Mixing, switching
+        from tracker.engine.multiple_models import Mixing, switching
         return Mixing(("slow", "fast"), switching(2, 0.1), 10.0)
 
     def component_of(self, state):
