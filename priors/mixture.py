@@ -1,17 +1,19 @@
 """A mixture of motion models, weighed by their evidence: a learned prior that falls back on another.
 
-(This module is the prior; the filter's mechanism of components kept apart is :mod:`tracker.engine.mixture`, and
-the way the particles are split among the models is :class:`priors.ensemble.Composite`'s.)
+(This module is the prior and its registration; how its ``components`` option is written and checked is
+:mod:`priors.mixture_components`, the filter's mechanism of components kept apart is
+:mod:`tracker.engine.multiple_models`, and the way the particles are split among the models is
+:class:`priors.ensemble.Composite`'s.)
 
 A learned prior is only as good as its training motion: on motion it never saw it pulls every particle toward
 what it knows, and no single particle can escape. The mixture gives each of several priors (for example a
 learned prior and zero-velocity, or a walk-trained and an all-activity model) a fixed share of the particles.
 The filter keeps the shares apart and weighs each by its evidence, the mean likelihood of its own samples
-tempered by ``temperature`` (mixture tracking, :mod:`tracker.engine.mixture`); every frame each share is redrawn
+tempered by ``temperature`` (mixture tracking, :mod:`tracker.engine.multiple_models`); every frame each share is redrawn
 from all particles, a particle's component changing with probability ``switch`` in the transition of the IMM
 mixing step, so a component that loses its weight is refilled from the winner's particles and takes over again
 when its motion returns.
-A model that keeps components of its own (a :class:`~tracker.engine.mixture.ComponentPrior`, such as an FCRBM
+A model that keeps components of its own (a :class:`~tracker.engine.multiple_models.ComponentPrior`, such as an FCRBM
 inferring its style label) takes part with each of its components (they then switch among themselves as it
 says, but are weighed with the mixture's ``temperature``, not its own). The estimate is the mixture's posterior
 mean; the per-frame summary is the posterior over the components.
@@ -26,16 +28,17 @@ blocks of equal size), ``arrived`` ``(P,)`` and ``model_k`` the state of compone
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
 from priors.ensemble import Composite
 from tracker.core.errors import InputError
-from tracker.engine.components import Component, parse_components
-from tracker.engine.mixture import Mixing, mixing_of
+from priors.mixture_components import (check_components, component_files, component_options, default_model_files,
+                                       model_files_taken, parse_components, with_model_paths, written_components)
+from tracker.engine.multiple_models import Mixing, mixing_of
 from tracker.engine.prior import MotionPrior, PriorState, label_for, reindex_state, restart
-from tracker.engine.registry import PRIORS, Option, PriorContext, register_prior, resolve_options
+from tracker.engine.registry import PRIORS, GivenComponent, Option, PriorContext, ResolvedPrior, register_prior
 
 #: Probability per frame that a particle's component changes, in the IMM mixing step's transition.
 SWITCH = 0.05
@@ -56,7 +59,7 @@ class MixturePrior(Composite):
     one repeats); ``switch``: the probability per frame that a particle's component changes (the IMM
     transition); ``temperature``: the evidence's temperature; both within their options' bounds
     (:data:`SWITCH_OPTION`, :data:`TEMPERATURE_OPTION`). The filter keeps the components apart
-    (:class:`~tracker.engine.mixture.ComponentPrior`).
+    (:class:`~tracker.engine.multiple_models.ComponentPrior`).
     """
 
     summary_kind = "posterior"
@@ -111,7 +114,7 @@ class MixturePrior(Composite):
             new[f"model_{c}"] = prior.reindex(state[f"model_{c}"], rows)
         return new
 
-    # -- components kept apart (tracker.engine.mixture.ComponentPrior) ------------------------------------------
+    # -- components kept apart (tracker.engine.multiple_models.ComponentPrior) -------------------------------------
 
     def mixing(self) -> Mixing:
         """The filter's components: one per motion model, or, for a model that keeps components of its own (an
@@ -193,44 +196,6 @@ def numbered(names: Sequence[str]) -> tuple[str, ...]:
 # Registration
 # ---------------------------------------------------------------------------
 
-def component_options(component: Component, index: int, owner: str) -> dict:
-    """Every option of ``component``'s prior, from those it writes (checked) or the default."""
-    entry = PRIORS.get(component.prior)
-    written = dict(component.options)
-    if len(written) != len(component.options):
-        raise InputError(f"{owner}: component {index + 1} ({component.prior}) gives an option twice")
-    return resolve_options(f"{owner}: component {index + 1} ({component.prior})", entry.options, written)
-
-
-def model_files_taken(components: Sequence[Component], takes: Sequence[int]) -> str:
-    """How many of a mixture's model files its components take, and which (``takes 2 model files (crbm: 2)``;
-    ``takes no model files``): ``takes[k]`` is component ``k``'s count."""
-    total = sum(takes)
-    if not total:
-        return "takes no model files"
-    each = ", ".join(f"{c.prior}: {n}" for c, n in zip(components, takes) if n)
-    return f"takes {total} model file{'s' if total != 1 else ''} ({each})"
-
-
-def check_components(value: str, owner: str) -> None:
-    """The ``components`` option: its form, registered priors (no mixture), each component's options, and model
-    files only for learned priors."""
-    for k, c in enumerate(parse_components(value, owner)):
-        if c.prior == "mixture":
-            raise InputError(f"{owner}: a mixture cannot be a component of a mixture")
-        entry = PRIORS.get(c.prior)
-        if entry.model_files == "none" and (c.models or c.takes):
-            raise InputError(f"{owner}: component {k + 1} ({c.prior}) takes no model files")
-        if entry.model_files == "one" and (len(c.models) > 1 or (c.takes or 0) > 1):
-            raise InputError(f"{owner}: component {k + 1} ({c.prior}) takes one model file")
-        component_options(c, k, owner)
-
-
-def component_files(options: dict) -> list[Path]:
-    """The model files that the mixture's ``components`` option names (``model=FILE``), in order."""
-    return [Path(m) for c in parse_components(options["components"], "prior mixture") for m in c.models]
-
-
 #: The mixture's components by default; given no model file at all, the mixture is instead the package's
 #: pretrained learned prior and zero-velocity (:mod:`priors.pretrained`).
 DEFAULT_COMPONENTS = "crbm,zero-velocity"
@@ -260,10 +225,27 @@ def pretrained_default(options: dict, model_files: Sequence[Any]) -> tuple[dict,
     return {**options, "components": MIXTURE_COMPONENTS}, [mixture_model()]
 
 
+class MixtureComposition:
+    """The mixture's entry in the registry, as a prior made of other priors
+    (:class:`~tracker.engine.registry.Composition`): its ``components`` option
+    (:mod:`priors.mixture_components`), and the pretrained default when given no model file."""
+
+    option = "components"
+
+    def written(self, components: Sequence[GivenComponent]) -> str:
+        return written_components(components)
+
+    def located(self, value: str, path: Callable[[str], str], owner: str) -> str:
+        return with_model_paths(value, owner, path)
+
+    def resolve(self, options: dict, model_files: Sequence[Any]) -> ResolvedPrior:
+        options, model_files = pretrained_default(options, model_files)
+        return ResolvedPrior(options, tuple(model_files), tuple(component_files(options["components"])))
+
+
 @register_prior("mixture", summary="several motion models, each drawing a share of the particles, weighed by "
                                    "their evidence (a learned prior that falls back on zero-velocity)",
-                options=MIXTURE_OPTIONS, model_files="any", referenced_files=component_files,
-                given_defaults=pretrained_default)
+                options=MIXTURE_OPTIONS, model_files="any", composition=MixtureComposition())
 def build_mixture(context: PriorContext, model_files: Sequence[Path], options: dict) -> MixturePrior:
     """The mixture of ``options["components"]``, each built by its own prior's builder with its own options and
     model files: those it names (``model=FILE``), else the next of ``model_files`` in order (``models=N`` of
@@ -271,7 +253,7 @@ def build_mixture(context: PriorContext, model_files: Sequence[Path], options: d
     owner = "prior mixture"
     components = parse_components(options["components"], owner)
     entries = [PRIORS.get(c.prior) for c in components]
-    takes = [0 if c.models else (c.takes if c.takes is not None else int(e.model_files != "none"))
+    takes = [0 if c.models else (c.takes if c.takes is not None else default_model_files(e))
              for c, e in zip(components, entries)]
     if sum(takes) != len(model_files):
         names = ", ".join(c.prior for c in components)
@@ -280,9 +262,8 @@ def build_mixture(context: PriorContext, model_files: Sequence[Path], options: d
     built, given_files = [], []
     for k, (c, e, n) in enumerate(zip(components, entries, takes)):
         given = [Path(m) for m in c.models] or [next(files) for _ in range(n)]
-        if e.model_files in ("one", "several") and not given:
-            raise InputError(f"{owner}: component {k + 1} ({c.prior}) needs a model file (model=FILE, or one of "
-                             "the mixture's model files)")
+        e.check_model_files(len(given), f"{owner}: component {k + 1} ({c.prior})",
+                            needs="a model file (model=FILE, or one of the mixture's model files)")
         built.append(e.build(context, given, component_options(c, k, owner)))
         given_files.append(given)
     labels = [c.prior for c in components]

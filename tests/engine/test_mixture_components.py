@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import tracker
-from tracker.engine.components import Component, parse_components
+from priors.mixture_components import Component, parse_components
 from tracker.app.compare import compare
 from tracker.app.experiment import load_experiment
 from tracker.core.errors import InputError

@@ -87,23 +87,25 @@ Each run is identified by a hash of everything that determines its numbers (its 
 and the model files' content hashes, the package version), so a finished run is never redone and changing
 one setting reruns only the runs it affects. No path enters the hash, so moving the data root (or the file)
 leaves every finished run valid.
+
+This module reads the file into the experiment's spec (:mod:`tracker.app.experiment_spec`);
+:mod:`tracker.app.run_grid` expands that into runs, and :mod:`tracker.app.compare` prepares and runs them.
 """
 from __future__ import annotations
 
-import itertools
 import logging
 import os
 import shlex
 import sys
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from data_tools.fingerprints import config_hash, file_hash
+from tracker.app.experiment_spec import (ClipSpec, Experiment, LikelihoodSpec, PriorSpec,  # noqa: F401 (re-exported)
+                                         SequenceSpec, TrainSpec)
+from tracker.app.run_grid import RunSpec, expand_runs, row_label, run_seed  # noqa: F401 (re-exported)
 from tracker.core.errors import InputError
-from tracker.engine.registry import Option
+from tracker.engine.registry import GivenComponent, Option, PriorEntry
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -141,98 +143,6 @@ TRAIN_KEYS = {"mocap", "skeletons", "options", "seed"}
 #: The keys of a ``[[prior.components]]`` table: one motion model of a prior with components (a mixture).
 COMPONENT_KEYS = {"prior", "options", "model", "models", "train"}
 LIKELIHOOD_KEYS = {"label", "name", "options"}
-
-
-@dataclass(frozen=True)
-class SequenceSpec:
-    name: str
-    path: Path | None = None          # an existing folder
-    mocap: Path | None = None         # or a clip to render
-    skeleton: Path | None = None
-    synth: dict = field(default_factory=dict)
-    #: A folder's first poses (a poses .npz, as ``initialise`` writes it; ``track --init``).
-    init: Path | None = None
-    #: Another method's reconstruction of the folder (TRC), and its frame of the runs' frame 0 (None: the
-    #: sequence's ``first_video_frame``, else 0).
-    reference: Path | None = None
-    reference_offset: int | None = None
-
-
-@dataclass(frozen=True)
-class ClipSpec:
-    """A training clip: a mocap file, optionally only ``frames`` frames from ``start`` (at the experiment's
-    frame rate), and the joint map of a file whose joint names are not recognised (as read: body point -> the
-    file's joint name)."""
-
-    path: Path
-    start: int = 0
-    frames: int | None = None
-    joint_map: dict | None = None
-
-
-@dataclass(frozen=True)
-class TrainSpec:
-    """A model the runner trains: clips, skeletons, training options and seed, and the prior it trains (None:
-    the entry's own; a mixture's component names its prior)."""
-
-    mocap: tuple[ClipSpec, ...]
-    skeletons: tuple[Path, ...] | None
-    options: dict
-    seed: int
-    prior: str | None = None
-
-
-@dataclass(frozen=True)
-class PriorSpec:
-    label: str
-    name: str
-    options: dict
-    models: tuple[Path, ...]
-    train: tuple[TrainSpec, ...]
-    train_mocap: tuple[ClipSpec, ...] | None
-    #: For one of the rows a ``train_seeds`` entry expands into: the entry's own label (the group's) and this
-    #: row's training seed; None for an ordinary entry.
-    replicate_of: str | None = None
-    training_seed: int | None = None
-    #: The model files and trainings in the order the prior takes them, where it is not ``models`` then ``train``
-    #: (a mixture's ``[[prior.components]]``, each taking its own); empty otherwise.
-    sources: tuple[Path | TrainSpec, ...] = ()
-
-    def model_sources(self) -> tuple[Path | TrainSpec, ...]:
-        """The prior's model files (given, or trained by the runner) in the order its builder takes them."""
-        return self.sources or (*self.models, *self.train)
-
-
-@dataclass(frozen=True)
-class LikelihoodSpec:
-    label: str
-    name: str
-    options: dict
-
-
-@dataclass
-class Experiment:
-    """A validated experiment (see the module docstring for the file)."""
-
-    path: Path
-    description: str
-    seed: int
-    seeds: int
-    fps: float
-    baseline: str
-    paired: str
-    tracking: dict[str, list]
-    sequences: list[SequenceSpec]
-    priors: list[PriorSpec]
-    likelihoods: list[LikelihoodSpec]
-    #: The folder the data paths were resolved against (None: the file declares no data root).
-    data_root: Path | None = None
-
-
-def run_seed(master_seed: int, index: int) -> np.random.SeedSequence:
-    """The generator seed of seed index ``index``: the same for every prior and sequence (paired runs), and
-    independent of which worker runs it or when (it equals ``SeedSequence(master_seed).spawn(n)[index]``)."""
-    return np.random.SeedSequence(master_seed, spawn_key=(index,))
 
 
 class _Where:
@@ -336,7 +246,7 @@ def _trainings(w: "_Where", prior: str, value: Any, entry: str) -> list[TrainSpe
         te = f"{entry} train {j + 1}"
         w.keys(t, TRAIN_KEYS, te)
         if spec.train is None:
-            mixed = any(o.name == "components" for o in spec.options)
+            mixed = spec.composition is not None
             raise w.error(te, f"prior {prior} is not learned: it has nothing to train" + (
                 " (its learned components are trained in [[prior.components]] tables, each with its own train = "
                 "{ ... })" if mixed else ""))
@@ -370,41 +280,43 @@ def _read_labels(w: "_Where", options: dict, mocap: tuple[ClipSpec, ...], entry:
     return {**options, "labels": ",".join(labels)}
 
 
-def _components(w: "_Where", doc: dict, options: dict, entry: str) -> tuple[dict, tuple[Path | TrainSpec, ...]]:
-    """A prior's ``[[prior.components]]`` tables (``prior``, ``options``, ``model`` or ``models`` or ``train``):
-    the prior's options with ``components`` written from them (without paths: a component's model files are the
-    prior's, in order, so that no path enters a run's hash), and the model files and trainings in that order."""
-    from tracker.engine.components import Component, written_value
+def _components(w: "_Where", doc: dict, spec: PriorEntry, options: dict, entry: str
+                ) -> tuple[dict, tuple[Path | TrainSpec, ...]]:
+    """A prior's ``[[prior.components]]`` tables (``prior``, ``options``, ``model`` or ``models`` or ``train``),
+    for a prior made of other priors (its registry entry's :attr:`~tracker.engine.registry.PriorEntry.composition`
+    writes them into its option): the prior's options with that option written from them (without paths: a
+    component's model files are the prior's, in order, so that no path enters a run's hash), and the model files
+    and trainings in that order."""
     from tracker.app.plugins import prior_entry
     from tracker.engine.registry import resolve_options
 
-    if not any(o.name == "components" for o in prior_entry(doc["name"]).options):
+    composition = spec.composition
+    if composition is None:
         raise w.error(entry, f"prior {doc['name']} has no components (a mixture has)")
-    if "components" in options:
-        raise w.error(entry, "give the components either as options.components or as [[prior.components]] tables, "
-                             "not both")
+    if composition.option in options:
+        raise w.error(entry, f"give the components either as options.{composition.option} or as "
+                             "[[prior.components]] tables, not both")
     for key in ("models", "train"):
         if key in doc:
             raise w.error(entry, f"with [[prior.components]] each component gives its own {key}, not the prior")
     tables = doc["components"]
     if not isinstance(tables, list) or not all(isinstance(c, dict) for c in tables):
         raise w.error(entry, f"components are given as [[prior.components]] tables (each with prior = NAME) or as "
-                             f"text, options = {{ components = \"crbm,zero-velocity\" }}; got {tables!r}")
+                             f"text, options = {{ {composition.option} = \"crbm,zero-velocity\" }}; got {tables!r}")
     if len(tables) < 2:
         raise w.error(entry, "[[prior.components]] must give two or more components")
-    written, sources = [], []
+    given, sources = [], []
     for k, c in enumerate(tables):
         ce = f"{entry} component {k + 1}"
         w.keys(c, COMPONENT_KEYS, ce)
         if "prior" not in c:
             raise w.error(ce, "needs prior = NAME (a registered prior)")
         try:
-            spec = prior_entry(c["prior"])
-            given = c.get("options", {})
-            if not isinstance(given, dict):
-                raise InputError(f"options must be a table, got {given!r}")
-            resolve_options(f"prior {c['prior']}", spec.options, given)
-            values = tuple((key, written_value(v)) for key, v in given.items())
+            component = prior_entry(c["prior"])
+            values = c.get("options", {})
+            if not isinstance(values, dict):
+                raise InputError(f"options must be a table, got {values!r}")
+            resolve_options(f"prior {c['prior']}", component.options, values)
         except InputError as exc:
             raise w.error(ce, exc.reason) from None
         ce = f"{entry} component {k + 1} ({c['prior']})"
@@ -413,31 +325,18 @@ def _components(w: "_Where", doc: dict, options: dict, entry: str) -> tuple[dict
         named = [c["model"]] if "model" in c else _as_list(c.get("models", []))
         files = [w.file(m, ce, data=False) for m in named]
         trains = _trainings(w, c["prior"], c.get("train", []), ce)
-        n = len(files) + len(trains)
-        if spec.model_files == "none" and n:
-            raise w.error(ce, f"prior {c['prior']} takes no model files")
-        if spec.model_files in ("one", "several") and not n:
-            raise w.error(ce, f"prior {c['prior']} needs models = [...] or train = ...")
-        if spec.model_files == "one" and n != 1:
-            raise w.error(ce, f"prior {c['prior']} takes exactly one model")
+        try:
+            component.check_model_files(len(files) + len(trains), needs="models = [...] or train = ...")
+        except InputError as exc:
+            raise w.error(ce, exc.reason) from None
         sources += files + trains
-        default = int(spec.model_files != "none")
-        written.append(Component(c["prior"], (), None if n == default else n, values).written())
-    options = {**options, "components": ",".join(written)}
+        given.append(GivenComponent(c["prior"], values, len(files) + len(trains)))
     try:
-        resolve_options(f"prior {doc['name']}", prior_entry(doc["name"]).options, options)
+        options = {**options, composition.option: composition.written(given)}
+        resolve_options(f"prior {doc['name']}", spec.options, options)
     except InputError as exc:
         raise w.error(entry, exc.reason) from None
     return options, tuple(sources)
-
-
-def _component_files(w: "_Where", components: str, entry: str) -> str:
-    """``options.components`` written as text with each ``model=FILE`` made absolute: relative to the experiment
-    file, as its ``models`` are, and checked as the file is read."""
-    from tracker.engine.components import with_model_paths
-
-    return with_model_paths(components, f"prior {entry}",
-                            lambda m: str(w.file(m, f"{entry} components", data=False).resolve()))
 
 
 def _as_list(value: Any) -> list:
@@ -621,17 +520,16 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
         trains = _trainings(w, p["name"], p.get("train", []), entry)
         options, sources = dict(p.get("options", {})), ()
         if "components" in p:
-            options, sources = _components(w, p, options, entry)
+            options, sources = _components(w, p, spec, options, entry)
             models = tuple(s for s in sources if isinstance(s, Path))
             trains = [s for s in sources if isinstance(s, TrainSpec)]
-        elif isinstance(options.get("components"), str):
-            options["components"] = _component_files(w, options["components"], entry)
-        if spec.model_files == "none" and (models or trains):
-            raise w.error(entry, f"prior {p['name']} takes no model files")
-        if spec.model_files in ("one", "several") and not (models or trains):
-            raise w.error(entry, f"prior {p['name']} needs models = [...] or train = [...]")
-        if spec.model_files == "one" and len(models) + len(trains) != 1:
-            raise w.error(entry, f"prior {p['name']} takes exactly one model")
+        else:  # model files that the options name: relative to the file, as its models are, checked as it is read
+            options = spec.located(options, lambda m: str(w.file(m, f"{entry} components", data=False).resolve()),
+                                   f"prior {entry}")
+        try:
+            spec.check_model_files(len(models) + len(trains), needs="models = [...] or train = [...]")
+        except InputError as exc:
+            raise w.error(entry, exc.reason) from None
         train_mocap = (tuple(c for m in _as_list(p["train_mocap"]) for c in _clips(w, m, entry))
                        if "train_mocap" in p else None)
         prior = PriorSpec(label, p["name"], options, models, tuple(trains), train_mocap, sources=sources)
@@ -660,100 +558,3 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
                                   f"{group[0]!r}" if group else f"{baseline!r} is not a prior label")
     return Experiment(path, top["description"], seed, seeds, fps, baseline, top["paired"], grid, sequences, priors,
                       likelihoods, w.data_root)
-
-
-# -- runs ------------------------------------------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class RunSpec:
-    """One tracking run, self-contained so that any worker (process, Dask or Ray) can execute it."""
-
-    key: str                     # hash of everything that determines the numbers: the run folder's name
-    sequence: str                # sequence name (table column)
-    sequence_path: str
-    row: str                     # table row label
-    prior: str
-    prior_options: dict
-    models: tuple[str, ...]
-    step_std: tuple[float, ...] | None  # the random-walk scale (None: the default training clips)
-    likelihood: str
-    likelihood_options: dict
-    views: tuple[int, ...] | None
-    particles: int
-    annealing_layers: int
-    frames: int | None
-    known_frames: int
-    resampling: str
-    seed_index: int
-    seed_entropy: int
-    out: str                     # the experiment's runs/ folder
-    threads: int = 1
-    #: The filter's other settings (``ess_threshold``, ``survival_rate``, ``layer_diffusion_decay``).
-    filter_options: dict = field(default_factory=dict)
-    #: The sequence's first poses (a poses .npz), where the experiment gives them (``init``).
-    init: str | None = None
-
-    def as_dict(self) -> dict:
-        return asdict(self)
-
-    def settings(self) -> dict[str, Any]:
-        """The run's settings by their names in :mod:`tracker.app.schema` (the keywords of ``tracker.track``),
-        its seed aside (:func:`run_seed`)."""
-        return {"particles": self.particles, "annealing_layers": self.annealing_layers, "views": self.views,
-                "frames": self.frames, "known_frames": self.known_frames, "resampling": self.resampling,
-                **self.filter_options}
-
-
-def row_label(prior: PriorSpec, likelihood: LikelihoodSpec, views, particles: int, layers: int,
-              exp: Experiment) -> str:
-    """The table row of a configuration: the prior's label, plus each grid axis that has several values."""
-    parts = [prior.label]
-    if len(exp.likelihoods) > 1:
-        parts.append(likelihood.label)
-    if len(exp.tracking["views"]) > 1:
-        parts.append(f"views {','.join(map(str, views))}" if views else "all views")
-    if len(exp.tracking["particles"]) > 1:
-        parts.append(f"{particles} particle{'s' if particles != 1 else ''}")
-    if len(exp.tracking["annealing_layers"]) > 1:
-        parts.append(f"{layers} layer{'s' if layers != 1 else ''}")
-    return ", ".join(parts)
-
-
-def expand_runs(exp: Experiment, sequence_paths: dict[str, Path], sequence_hashes: dict[str, str],
-                model_paths: dict[str, tuple[Path, ...]], scales: dict[str, np.ndarray | None], out: Path,
-                version: str) -> list[RunSpec]:
-    """Every run of the grid, each with its content hash as key."""
-    runs = []
-    model_hashes = {label: [file_hash(m) for m in paths] for label, paths in model_paths.items()}
-    for seq, prior, lik, views, particles, layers in itertools.product(
-            exp.sequences, exp.priors, exp.likelihoods, exp.tracking["views"], exp.tracking["particles"],
-            exp.tracking["annealing_layers"]):
-        scale = scales.get(prior.label)
-        step_std = None if scale is None else tuple(float(x) for x in scale)
-        for i in range(exp.seeds):
-            identity = {
-                "sequence": sequence_hashes[seq.name], "prior": prior.name, "prior_options": prior.options,
-                "models": model_hashes[prior.label],
-                "step_std": None if step_std is None else [round(x, 12) for x in step_std],
-                "likelihood": lik.name, "likelihood_options": lik.options, "views": views,
-                "particles": particles, "annealing_layers": layers, "frames": exp.tracking["frames"],
-                "known_frames": exp.tracking["known_frames"], "resampling": exp.tracking["resampling"],
-                "seed": [exp.seed, i], "version": version, **_filter_options(exp),
-                **({} if seq.init is None else {"init": file_hash(seq.init)}),
-            }
-            runs.append(RunSpec(
-                key=config_hash(identity), sequence=seq.name, sequence_path=str(sequence_paths[seq.name]),
-                row=row_label(prior, lik, views, particles, layers, exp), prior=prior.name,
-                prior_options=prior.options, models=tuple(str(m) for m in model_paths[prior.label]),
-                step_std=step_std, likelihood=lik.name, likelihood_options=lik.options,
-                views=None if views is None else tuple(views), particles=particles, annealing_layers=layers,
-                frames=exp.tracking["frames"], known_frames=exp.tracking["known_frames"],
-                resampling=exp.tracking["resampling"], seed_index=i, seed_entropy=exp.seed, out=str(out),
-                filter_options=_filter_options(exp), init=None if seq.init is None else str(seq.init)))
-    return runs
-
-
-def _filter_options(exp: Experiment) -> dict[str, Any]:
-    """The ``[tracking]`` settings of the filter that are not grid axes or a run's frames (a run's
-    :attr:`RunSpec.filter_options`)."""
-    return {k: exp.tracking[k] for k in ("ess_threshold", "survival_rate", "layer_diffusion_decay")}

@@ -24,7 +24,7 @@ import math
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any, Callable, Generic, Mapping, Sequence, TypeVar
+from typing import Any, Callable, Generic, Mapping, Protocol, Sequence, TypeVar, runtime_checkable
 
 import numpy as np
 
@@ -225,6 +225,73 @@ class LikelihoodContext:
 
 
 @dataclass(frozen=True)
+class ResolvedPrior:
+    """What a prior is built from: its options (every declared one, checked or defaulted), the model files its
+    builder is handed (paths, or models :func:`tracker.train` returned), and the model files its options name
+    themselves (a mixture's ``crbm:model=crbm1.pt``), which a run records beside the others."""
+
+    options: dict
+    model_files: tuple[Any, ...] = ()
+    named_files: tuple[Path, ...] = ()
+
+
+@dataclass(frozen=True)
+class GivenComponent:
+    """One prior that a prior made of other priors is built from, as an experiment file's ``[[prior.components]]``
+    table gives it: its registered ``prior``, its ``options`` as written there (already checked against that
+    prior), and ``model_files``, how many of the composite prior's model files it takes, in order."""
+
+    prior: str
+    options: Mapping[str, Any]
+    model_files: int = 0
+
+
+@runtime_checkable
+class Composition(Protocol):
+    """How a prior made of other registered priors (its components; the mixture's) names them in one of its
+    options. A prior entry carries it (:attr:`PriorEntry.composition`), so that the application reads, records
+    and relocates such a prior without knowing how the option is written.
+
+    ``option`` is the option's name; :meth:`written` writes components given as tables into that option's value;
+    :meth:`located` replaces each model file that the value names by ``path(file)``; :meth:`resolve` completes
+    the options and model files (what the prior takes when given none) and lists the files the options name."""
+
+    option: str
+
+    def written(self, components: Sequence[GivenComponent]) -> str:
+        """The option's value naming ``components`` (each taking its count of the prior's model files)."""
+
+    def located(self, value: str, path: Callable[[str], str], owner: str) -> str:
+        """``value`` with each model file it names replaced by ``path(file)``; ``value`` itself when it names
+        none. A refusal begins with ``owner``."""
+
+    def resolve(self, options: dict, model_files: Sequence[Any]) -> ResolvedPrior:
+        """``options`` (every declared option, resolved) and ``model_files`` as the prior takes them."""
+
+
+@dataclass(frozen=True)
+class _Hooks:
+    """A :class:`Composition` made of the two functions :func:`register_prior` took before there was one
+    (``referenced_files`` and ``given_defaults``); it names no option and relocates nothing."""
+
+    referenced_files: Callable[[dict], Sequence[Path]] | None = None
+    given_defaults: Callable[[dict, Sequence[Any]], tuple[dict, Sequence[Any]]] | None = None
+    option: str = ""
+
+    def written(self, components: Sequence[GivenComponent]) -> str:
+        raise InputError("this prior takes no components as tables")
+
+    def located(self, value: str, path: Callable[[str], str], owner: str) -> str:
+        return value
+
+    def resolve(self, options: dict, model_files: Sequence[Any]) -> ResolvedPrior:
+        if self.given_defaults is not None:
+            options, model_files = self.given_defaults(options, model_files)
+        named = () if self.referenced_files is None else tuple(Path(f) for f in self.referenced_files(options))
+        return ResolvedPrior(options, tuple(model_files), named)
+
+
+@dataclass(frozen=True)
 class PriorEntry:
     name: str
     build: Callable[[PriorContext, Sequence[Path], dict], Any]
@@ -234,20 +301,61 @@ class PriorEntry:
     train: Callable[..., Any] | None = None
     train_options: tuple[Option, ...] = ()
     resumable: bool = False
-    #: The model files a prior's options name (a mixture's components, ``crbm:model=crbm1.pt``), beside the
-    #: model files it is given: ``referenced_files(options) -> [path, ...]``; they enter the run's fingerprint.
-    referenced_files: Callable[[dict], Sequence[Path]] | None = None
-    #: What a prior takes when it is given no model file where it has a default one (the mixture: the package's
-    #: pretrained model): ``given_defaults(options, model_files) -> (options, model_files)``, applied to the
-    #: resolved options before the prior is built and before a run records them, so that the record names what ran.
-    given_defaults: Callable[[dict, Sequence[Any]], tuple[dict, Sequence[Any]]] | None = None
+    #: For a prior made of other registered priors (a mixture): how its option names them, the model files
+    #: those name, and what it takes when given no model file (:class:`Composition`); None for any other prior.
+    composition: Composition | None = None
+
+    @property
+    def owner(self) -> str:
+        """How messages name the prior: ``prior crbm``."""
+        return f"prior {self.name}"
+
+    def check_model_files(self, count: int, owner: str | None = None, needs: str = "a model file") -> None:
+        """Refuse ``count`` model files where the prior takes another number (:attr:`model_files`: none, one,
+        at least one; ``"any"``: its builder checks). Each refusal is one line beginning with ``owner`` (default
+        ``prior NAME``); ``needs`` says how a missing model file is given (``models = [...] or train = [...]``)."""
+        owner = owner or self.owner
+        if self.model_files == "none" and count:
+            raise InputError(f"{owner} takes no model files")
+        if self.model_files in ("one", "several") and not count:
+            raise InputError(f"{owner} needs {needs}")
+        if self.model_files == "one" and count > 1:
+            raise InputError(f"{owner} takes one model file, got {count}")
+
+    def resolve(self, options: Mapping[str, Any], model_files: Sequence[Any] = ()) -> ResolvedPrior:
+        """The prior's declared options from ``options`` (checked) or their defaults, and its model files,
+        completed by its :attr:`composition` where it has one (what it takes when given none, the files its
+        options name): what its builder is called with and what a run records."""
+        resolved = resolve_options(self.owner, self.options, options)
+        if self.composition is None:
+            return ResolvedPrior(resolved, tuple(model_files))
+        return self.composition.resolve(resolved, model_files)
+
+    def located(self, options: dict, path: Callable[[str], str], owner: str | None = None) -> dict:
+        """``options`` with each model file that they name (a mixture's ``model=FILE``) replaced by
+        ``path(file)``, e.g. made absolute so that they mean the same files from any folder; ``options`` itself
+        when they name none."""
+        value = None if self.composition is None else options.get(self.composition.option)
+        if not isinstance(value, str):
+            return options
+        located = self.composition.located(value, path, owner or self.owner)
+        return options if located == value else {**options, self.composition.option: located}
 
     def complete(self, options: dict, model_files: Sequence[Any]) -> tuple[dict, list[Any]]:
-        """``(options, model_files)`` with this prior's :attr:`given_defaults` applied (unchanged without)."""
-        if self.given_defaults is None:
+        """``(options, model_files)`` as :meth:`resolve` completes them, for options already resolved."""
+        if self.composition is None:
             return options, list(model_files)
-        options, model_files = self.given_defaults(options, model_files)
-        return options, list(model_files)
+        resolved = self.composition.resolve(options, model_files)
+        return resolved.options, list(resolved.model_files)
+
+    @property
+    def referenced_files(self) -> Callable[[dict], list[Path]] | None:
+        """The model files that resolved options name (``referenced_files(options) -> [path, ...]``); None for a
+        prior whose options name none. :meth:`resolve` gives them as :attr:`ResolvedPrior.named_files`."""
+        if self.composition is None:
+            return None
+        # with a model file given, resolve adds no default: the files are those the options name as they are
+        return lambda options: list(self.composition.resolve(options, (None,)).named_files)
 
 
 @dataclass(frozen=True)
@@ -296,7 +404,8 @@ LIKELIHOODS: Registry[LikelihoodEntry] = Registry("likelihood")
 
 def register_prior(name: str, *, summary: str = "", options: Sequence[Option] = (), model_files: str = "none",
                    train: Callable[..., Any] | None = None, train_options: Sequence[Option] = (),
-                   resumable: bool = False, referenced_files: Callable[[dict], Sequence[Path]] | None = None,
+                   resumable: bool = False, composition: Composition | None = None,
+                   referenced_files: Callable[[dict], Sequence[Path]] | None = None,
                    given_defaults: Callable[[dict, Sequence[Any]], tuple[dict, Sequence[Any]]] | None = None):
     """Decorator registering ``build(context, model_files, options) -> MotionPrior`` under ``name``.
 
@@ -304,16 +413,26 @@ def register_prior(name: str, *, summary: str = "", options: Sequence[Option] = 
     number that its builder checks (a mixture: one per learned component); ``train``
     (learned priors) is ``train(data: TrainingData, options, rng, progress, checkpoint) -> model`` with
     ``model.save(path)`` and ``model.summary()``, configured by ``train_options``; a ``resumable`` one also
-    takes ``resume=True`` to continue from ``checkpoint``; ``referenced_files(options)`` lists the model files
-    that the options name (:attr:`PriorEntry.referenced_files`); ``given_defaults(options, model_files)`` gives
-    the options and model files it takes when given none (:attr:`PriorEntry.given_defaults`).
+    takes ``resume=True`` to continue from ``checkpoint``; ``composition`` is for a prior made of other
+    registered priors (:class:`Composition`). ``referenced_files(options)`` (the model files the options name)
+    and ``given_defaults(options, model_files)`` (what the prior takes when given none) are the former form of
+    a composition's :meth:`~Composition.resolve`, still taken, with a :class:`DeprecationWarning`.
     """
     if model_files not in ("none", "one", "several", "any"):
         raise ValueError(f"model_files must be 'none', 'one', 'several' or 'any', got {model_files!r}")
+    if referenced_files is not None or given_defaults is not None:
+        if composition is not None:
+            raise ValueError("give a composition, or referenced_files and given_defaults, not both")
+        import warnings
+
+        warnings.warn("register_prior's referenced_files and given_defaults are deprecated: give a composition "
+                      "(tracker.engine.registry.Composition) whose resolve() does both", DeprecationWarning,
+                      stacklevel=2)
+        composition = _Hooks(referenced_files, given_defaults)
 
     def decorate(build):
         PRIORS.add(PriorEntry(name, build, summary, tuple(options), model_files, train, tuple(train_options),
-                              resumable, referenced_files, given_defaults))
+                              resumable, composition))
         return build
     return decorate
 
