@@ -264,7 +264,7 @@ def test_experiment_sequences_take_joint_maps(walk, tmp_path):
 
 
 def test_experiment_training_clips_take_joint_maps(walk, reference, tmp_path):
-    from tracker.app.compare import load_clips
+    from tracker.app.clips import load_clip_specs
     from tracker.app.experiment import load_experiment
 
     bvh, mapping = foreign_names(walk, tmp_path)
@@ -276,7 +276,7 @@ def test_experiment_training_clips_take_joint_maps(walk, reference, tmp_path):
                     f'"{seq}"], options = {{ order = 1 }} }}]\n')
     clips = load_experiment(path).priors[0].train[0].mocap
     assert clips[0].joint_map == mapping and clips[1].joint_map is None  # its content: part of the model's key
-    loaded = load_clips(clips, 30.0)
+    loaded = load_clip_specs(clips, 30.0)
     assert gap_mm(loaded[0].markers, reference(30.0).markers) < TOLERANCE_MM and len(loaded[1].poses) > 3
 
 

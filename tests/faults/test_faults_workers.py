@@ -92,9 +92,9 @@ def test_without_retries_left_the_experiment_stops_in_one_line_and_reruns_only_m
     else:
         import contextlib
 
-        import tracker.app.compare as compare_module
+        import tracker.app.backends as backends_module
 
-        monkeypatch.setattr(compare_module, "RAY_RETRIES", 0)
+        monkeypatch.setattr(backends_module, "RAY_RETRIES", 0)
         settings = contextlib.nullcontext()
     path = experiment(tmp_path)
     out = tmp_path / "out"

@@ -21,18 +21,20 @@ import shutil
 import time
 from dataclasses import replace
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Callable
 
 import numpy as np
 
 from data_tools.files import atomic_path, first_missing, undone_unless_started, write_text_atomic, writing
 from data_tools.fingerprints import CACHE_NAME, config_hash, file_hash, sequence_hash
-from tracker.app.experiment import Experiment, RunSpec, expand_runs, load_experiment, run_seed
+from tracker.app.backends import BACKENDS, run_all, warm_joblib_workers
+from tracker.app.clips import load_clip_specs
+from tracker.app.experiment import load_experiment
+from tracker.app.experiment_spec import Experiment
+from tracker.app.run_grid import RunSpec, expand_runs, run_seed
 from tracker.core.errors import InputError
 
 log = logging.getLogger(__name__)
-
-BACKENDS = ("joblib", "dask", "ray")
 
 
 # -- preparing sequences and models ---------------------------------------------------------------------------
@@ -83,7 +85,7 @@ def prepare_models(exp: Experiment, out: Path, version: str, say: Callable[[str]
             if not path.exists():
                 say(f"training {name} for {p.label!r} on {len(t.mocap)} clip(s)")
                 try:
-                    clips = load_clips(t.mocap, exp.fps, t.skeletons)
+                    clips = load_clip_specs(t.mocap, exp.fps, t.skeletons)
                 except InputError as exc:
                     raise InputError(f"prior {p.label!r}: {exc}", exp.path) from None
                 model = train(name, clips, fps=exp.fps, seed=t.seed, **t.options)
@@ -94,29 +96,12 @@ def prepare_models(exp: Experiment, out: Path, version: str, say: Callable[[str]
     return models
 
 
-def load_clips(clips, fps: float, skeletons=None) -> list:
-    """Retargeted training clips of :class:`~tracker.app.experiment.ClipSpec` entries, each cut to its range
-    (``skeletons``: one ASF for all AMC clips or one per clip; default the one beside each)."""
-    from data_tools.load import load_training_clips
-
-    maps = [m.joint_map for m in clips]
-    loaded = load_training_clips([m.path for m in clips], skeletons, fps,
-                                 None if all(j is None for j in maps) else [j or "none" for j in maps])
-    cut = [slice(m.start, None if m.frames is None else m.start + m.frames) for m in clips]
-    out = [replace(c, poses=c.poses[k], markers=c.markers[k], model_markers=c.model_markers[k])
-           for c, k in zip(loaded, cut)]
-    for c, m in zip(out, clips):
-        if len(c.poses) < 3:
-            raise InputError(f"training clip {m.path.name} has {len(c.poses)} frame(s) from start {m.start}")
-    return out
-
-
 def prepare_scales(exp: Experiment) -> dict[str, np.ndarray | None]:
     """Random-walk scales by prior label, from each prior's ``train_mocap`` clips (None: the defaults)."""
     from tracker.core.representation import step_rms
 
-    return {p.label: None if p.train_mocap is None else step_rms([c.poses for c in load_clips(p.train_mocap,
-                                                                                              exp.fps)])
+    return {p.label: None if p.train_mocap is None else step_rms([c.poses for c in load_clip_specs(p.train_mocap,
+                                                                                                   exp.fps)])
             for p in exp.priors}
 
 
@@ -260,104 +245,6 @@ def _execute_run(spec: RunSpec, final: Path, tmp: Path) -> dict:
     return result
 
 
-# -- executors --------------------------------------------------------------------------------------------------
-
-def _ready() -> bool:
-    """Imports a worker needs before its first run (the tracker, its plugins, torch)."""
-    from tracker.app.api import available_priors
-
-    available_priors()
-    return True
-
-
-def warm_joblib_workers(jobs: int):
-    """Start joblib's worker processes and their imports in a background thread, so that they are ready when
-    the runs start (they are reused by the next ``Parallel`` of the same size); returns the thread to join."""
-    import threading
-
-    from joblib import Parallel, delayed
-
-    thread = threading.Thread(target=lambda: Parallel(n_jobs=jobs)(delayed(_ready)() for _ in range(jobs)),
-                              daemon=True)
-    thread.start()
-    return thread
-
-
-#: How often Ray runs a run again whose worker process died.
-RAY_RETRIES = 3
-
-
-def lost_worker(exc: BaseException) -> InputError:
-    """The one line for a run whose workers kept dying (killed, out of memory) after the engine's retries."""
-    reason = str(exc).splitlines()[0][:200] if str(exc) else type(exc).__name__
-    return InputError(f"a run's worker died too often ({reason}); finished runs are kept: run the same compare "
-                      "again to run only the missing ones")
-
-
-def run_all(specs: list[RunSpec], jobs: int, backend: str, address: str | None) -> Iterator[dict]:
-    """Execute runs with the chosen backend, yielding each summary as it finishes (in any order)."""
-    if backend == "joblib":
-        from joblib import Parallel, delayed
-
-        if jobs == 1:
-            for s in specs:
-                yield execute_run(s)
-            return
-        yield from Parallel(n_jobs=jobs, return_as="generator_unordered")(delayed(execute_run)(s) for s in specs)
-    elif backend == "dask":
-        try:
-            from distributed import Client, LocalCluster, as_completed
-        except ImportError:
-            raise InputError("--backend dask needs the dask extra: pip install '.[dask]'") from None
-        from distributed import KilledWorker
-
-        cluster = None if address else LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
-                                                    dashboard_address=None)
-        client = Client(address or cluster)
-        try:
-            # A run whose worker dies is given to another worker by the scheduler, up to its allowed failures
-            # (distributed.scheduler.allowed-failures, 3 by default); then the experiment stops in one line.
-            for future in as_completed(client.map(execute_run, specs, pure=False)):
-                try:
-                    yield future.result()
-                except KilledWorker as exc:
-                    raise lost_worker(exc) from None
-        finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
-    elif backend == "ray":
-        try:
-            import ray
-        except ImportError:
-            raise InputError("--backend ray needs the ray extra: pip install '.[ray]'") from None
-        started = not ray.is_initialized()
-        if started:
-            ray.init(address=address, num_cpus=None if address else jobs, include_dashboard=False,
-                     log_to_driver=False, configure_logging=False)
-        from ray.exceptions import RayTaskError, WorkerCrashedError
-
-        try:
-            # A run whose worker dies is run again by Ray (max_retries; an error the run raises is not retried).
-            remote = ray.remote(num_cpus=1, max_retries=RAY_RETRIES)(execute_run)
-            pending = [remote.remote(s) for s in specs]
-            while pending:
-                done, pending = ray.wait(pending, num_returns=1)
-                try:
-                    yield ray.get(done[0])
-                except RayTaskError as exc:  # a bad input or a failed write: its one line, not Ray's traceback
-                    if isinstance(getattr(exc, "cause", None), InputError):
-                        raise exc.cause from None
-                    raise
-                except WorkerCrashedError as exc:
-                    raise lost_worker(exc) from None
-        finally:
-            if started:
-                ray.shutdown()
-    else:
-        raise InputError(f"unknown backend {backend!r}; choose from {', '.join(BACKENDS)}")
-
-
 # -- the whole experiment -------------------------------------------------------------------------------------
 
 def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str = "joblib",
@@ -428,7 +315,7 @@ def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str
 
         bar = progress_bar(total=len(todo), desc="runs", unit="run", shown=True)
     try:
-        for res in run_all(todo, jobs, backend, address):
+        for res in run_all(todo, jobs, backend, address, execute_run):
             summaries[res["run"]["key"]] = res
             if bar is not None:
                 bar.update(1)
