@@ -14,16 +14,21 @@ its own, with what can be said without one: the seconds per frame, the spread be
 runs of different seeds put the markers, :func:`seed_spread`) and, where the experiment names a reference
 reconstruction, each run's mean distance to it after one rigid alignment
 (:func:`data_tools.reference.compare_to_reference`, as ``compare-trc`` prints it).
+
+The tables are built once as data (:class:`tracker.app.report_tables.Report`), which :func:`markdown` writes as
+``table.md`` and :mod:`tracker.app.report_html` as the tables of ``report.html``.
 """
 from __future__ import annotations
 
 import csv
 import io
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
 from data_tools.files import atomic_path, write_text_atomic
+from tracker.app.report_tables import Cell, Code, Report, Table, Text
 from tracker.core.metrics import METRICS as CORE_METRICS, summarize_runs
 
 #: The tables' metrics: (name, unit, heading), the names and order of :data:`tracker.core.metrics.METRICS`.
@@ -101,19 +106,25 @@ def _tracked_markers(result: dict, runs_dir: Path) -> np.ndarray:
     return markers[result["tracked_frames"]]
 
 
-def _cell(values: list[float], digits: int = 1) -> str:
-    """``mean ± std`` over runs (:func:`~tracker.core.metrics.summarize_runs`), or n/a."""
+def _cell(values: list[float], digits: int = 1) -> Cell:
+    """``mean ± std`` over runs (:func:`~tracker.core.metrics.summarize_runs`), ranked by its mean; or n/a."""
     v = np.asarray(values, float)
     if v.size == 0 or not np.all(np.isfinite(v)):
-        return "n/a"
+        return Cell("n/a")
     mean, sd = summarize_runs(v)
-    return f"{mean:.{digits}f} ± {sd:.{digits}f}"
+    return Cell(f"{mean:.{digits}f} ± {sd:.{digits}f}", mean=float(mean), digits=digits)
+
+
+def _row(*cells: Cell | str) -> tuple[Cell, ...]:
+    """A table row: its cells, a plain text (a label, a count, a time) as a cell without numbers."""
+    return tuple(c if isinstance(c, Cell) else Cell(c) for c in cells)
 
 
 def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
     """``table.md``, ``table.csv`` and ``per_frame.png`` from the run results; returns the summary: ``table``
-    (table.md's text), ``tables`` (the same without the closing line about this invocation), ``runs`` and
-    ``run_seconds`` (all runs' time, s)."""
+    (table.md's text), ``tables`` (the same without the closing line about this invocation), ``report`` (those
+    tables as data, :class:`~tracker.app.report_tables.Report`), ``runs`` and ``run_seconds`` (all runs' time,
+    s)."""
     rows = list(dict.fromkeys(r["run"]["row"] for r in results))
     seqs = list(dict.fromkeys(r["run"]["sequence"] for r in results))
     by = {}
@@ -122,28 +133,10 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
     for group in by.values():
         group.sort(key=lambda r: r["run"]["seed_index"])
 
-    md = io.StringIO()
     free = [s for s in seqs if not all(has_truth(by.get((row, s), [])) for row in rows)]
     all_seqs, seqs = seqs, [s for s in seqs if s not in free]  # the marker error's tables: ground truth only
-    md.write(f"# {exp.description or exp.path.stem}\n\n")
-    md.write(f"`{exp.path.name}`: {exp.seeds} seed(s) per configuration, master seed {exp.seed}; "
-             f"mean ± std over seeds of each run's mean over its tracked frames.\n")
     csv_rows = [["metric", "row", "sequence", "mean", "std", "runs", "seconds_per_frame"]]
-    for metric, _, title in METRICS if seqs else ():
-        md.write(f"\n## {title}\n\n| prior | " + " | ".join(seqs) + " | s/frame |\n")
-        md.write("|---" * (len(seqs) + 2) + "|\n")
-        for row in rows:
-            cells, secs = [], []
-            for s in seqs:
-                group = by.get((row, s), [])
-                vals = [per_run(r, metric) for r in group]
-                cells.append(_cell(vals))
-                secs += [r["seconds_per_frame"] for r in group]
-                if group and np.all(np.isfinite(vals)):
-                    mean, sd = summarize_runs(vals)
-                    csv_rows.append([metric, row, s, f"{mean:.4f}", f"{sd:.4f}", len(vals),
-                                     f"{np.mean([r['seconds_per_frame'] for r in group]):.4f}"])
-            md.write(f"| {row} | " + " | ".join(cells) + f" | {np.mean(secs):.3f} |\n")
+    tables = [_metric_table(metric, title, rows, seqs, by, csv_rows) for metric, _, title in METRICS if seqs]
     labels = [p.label for p in exp.priors]
 
     def split_row(row: str) -> tuple[str, str]:
@@ -158,51 +151,80 @@ def write_report(exp, results: list[dict], out: Path, meta: dict) -> dict:
         elif label != exp.baseline and exp.baseline + variant in rows:
             pairs.append((row, exp.baseline + variant))
     if pairs and seqs:
-        title = exp.baseline if exp.paired == "baseline" else "each other (row minus compared row)"
-        md.write(f"\n## Paired difference to {title} ({PRIMARY}, mm; 95% bootstrap interval over seeds)\n\n")
-        md.write("| prior | compared with | " + " | ".join(seqs) + " |\n" + "|---" * (len(seqs) + 2) + "|\n")
-        for row, base_row in pairs:
-            cells = []
-            for s in seqs:
-                a = {r["run"]["seed_index"]: per_run(r, PRIMARY) for r in by.get((row, s), [])}
-                b = {r["run"]["seed_index"]: per_run(r, PRIMARY) for r in by.get((base_row, s), [])}
-                common = sorted(set(a) & set(b))
-                d = np.array([a[i] - b[i] for i in common])
-                if d.size == 0 or not np.all(np.isfinite(d)):
-                    cells.append("n/a")
-                    continue
-                lo, hi = bootstrap_interval(d)
-                cells.append(f"{d.mean():+.1f} [{lo:+.1f}, {hi:+.1f}]" if d.size > 1 else f"{d.mean():+.1f}")
-            md.write(f"| {row} | {base_row} | " + " | ".join(cells) + " |\n")
+        tables.append(_paired_table(exp, pairs, seqs, by))
     if free:
-        _write_without_truth(md, csv_rows, rows, free, by, out / "runs")
+        tables += _tables_without_truth(csv_rows, rows, free, by, out / "runs")
     groups = _replicate_groups(exp, rows, split_row)
-    _write_replicates(md, csv_rows, groups if seqs else {}, seqs, lambda row, s: [
+    tables += _replicate_tables(csv_rows, groups if seqs else {}, seqs, lambda row, s: [
         per_run(r, PRIMARY) for r in by.get((row, s), [])])
-    tables = md.getvalue()  # without the line about this invocation (report.html is the same on a rerun)
+    intro: Text = (Code(exp.path.name), (f": {exp.seeds} seed(s) per configuration, master seed {exp.seed}; "
+                                         "mean ± std over seeds of each run's mean over its tracked frames."))
+    report = Report(exp.description or exp.path.stem, (intro,), tuple(tables))
+    text = markdown(report)  # without the line about this invocation (report.html is the same on a rerun)
     cpu = sum({r["run"]["key"]: r.get("wall_seconds", 0.0) for r in results}.values())
-    md.write(f"\n{meta['runs']} runs, {cpu:.0f} s of run time in all; this invocation ran {meta['ran_now']} of them "
-             f"with {meta['jobs']} {meta['backend']} job(s) in {meta['wall_seconds_now']:.0f} s; package version "
-             f"{meta['version']}.\n")
-    write_text_atomic(out / "table.md", md.getvalue())
+    table = (text + f"\n{meta['runs']} runs, {cpu:.0f} s of run time in all; this invocation ran {meta['ran_now']} "
+             f"of them with {meta['jobs']} {meta['backend']} job(s) in {meta['wall_seconds_now']:.0f} s; package "
+             f"version {meta['version']}.\n")
+    write_text_atomic(out / "table.md", table)
     buf = io.StringIO()
     csv.writer(buf).writerows(csv_rows)
     write_text_atomic(out / "table.csv", buf.getvalue())
     _plot(out / "per_frame.png", _plotted_rows(rows, groups), all_seqs, by)
-    return {"table": md.getvalue(), "tables": tables, "runs": len(results), "run_seconds": cpu}
+    return {"table": table, "tables": text, "report": report, "runs": len(results), "run_seconds": cpu}
 
 
-def _write_without_truth(md: io.StringIO, csv_rows: list, rows: list[str], seqs: list[str], by: dict,
-                         runs_dir: Path) -> None:
+def _metric_table(metric: str, title: str, rows: list[str], seqs: list[str], by: dict, csv_rows: list) -> Table:
+    """The table of one metric of :data:`METRICS` (``title`` its heading) over the sequences ``seqs`` (which have
+    ground truth), with every row's seconds per frame; its lines of ``table.csv`` are added to ``csv_rows``."""
+    body = []
+    for row in rows:
+        cells, secs = [], []
+        for s in seqs:
+            group = by.get((row, s), [])
+            vals = [per_run(r, metric) for r in group]
+            cells.append(_cell(vals))
+            secs += [r["seconds_per_frame"] for r in group]
+            if group and np.all(np.isfinite(vals)):
+                mean, sd = summarize_runs(vals)
+                csv_rows.append([metric, row, s, f"{mean:.4f}", f"{sd:.4f}", len(vals),
+                                 f"{np.mean([r['seconds_per_frame'] for r in group]):.4f}"])
+        body.append(_row(row, *cells, f"{np.mean(secs):.3f}"))
+    return Table(title, ("prior", *seqs, "s/frame"), tuple(body), higher_is_better=metric.startswith("pck"))
+
+
+def _paired_table(exp, pairs: list[tuple[str, str]], seqs: list[str], by: dict) -> Table:
+    """The paired differences of :data:`PRIMARY` of every (row, compared row) of ``pairs``: the mean over the
+    seed indices both have of (row - compared row), with its :func:`bootstrap_interval` where there are two or
+    more."""
+    body = []
+    for row, base_row in pairs:
+        cells = []
+        for s in seqs:
+            a = {r["run"]["seed_index"]: per_run(r, PRIMARY) for r in by.get((row, s), [])}
+            b = {r["run"]["seed_index"]: per_run(r, PRIMARY) for r in by.get((base_row, s), [])}
+            common = sorted(set(a) & set(b))
+            d = np.array([a[i] - b[i] for i in common])
+            if d.size == 0 or not np.all(np.isfinite(d)):
+                cells.append(Cell("n/a"))
+                continue
+            if d.size == 1:
+                cells.append(Cell(f"{d.mean():+.1f}"))
+                continue
+            lo, hi = bootstrap_interval(d)
+            cells.append(Cell(f"{d.mean():+.1f} [{lo:+.1f}, {hi:+.1f}]", interval=(lo, hi)))
+        body.append(_row(row, base_row, *cells))
+    title = exp.baseline if exp.paired == "baseline" else "each other (row minus compared row)"
+    return Table(f"Paired difference to {title} ({PRIMARY}, mm; 95% bootstrap interval over seeds)",
+                 ("prior", "compared with", *seqs), tuple(body))
+
+
+def _tables_without_truth(csv_rows: list, rows: list[str], seqs: list[str], by: dict, runs_dir: Path
+                          ) -> list[Table]:
     """The tables of the sequences ``seqs`` that have no ground truth: the spread between seeds with the seconds
     per frame, and the distance to the reference reconstruction where the sequence has one (``by``: the results
     by ``(row, sequence)``). Their lines in ``table.csv`` are the metrics ``seed_spread`` (its std empty) and
     ``reference_distance``."""
-    md.write("\n## Without ground truth: spread between seeds (mm)\n\n")
-    md.write("No ground truth, so no marker error: each cell is how far apart the seeds put the markers (the mean "
-             "distance of a run's markers from the mean over seeds, over its tracked frames; n/a with one seed), "
-             "which says how repeatable a prior is, not how right.\n\n")
-    md.write("| prior | " + " | ".join(seqs) + " | s/frame |\n" + "|---" * (len(seqs) + 2) + "|\n")
+    body = []
     for row in rows:
         cells, secs = [], []
         for s in seqs:
@@ -213,28 +235,36 @@ def _write_without_truth(md: io.StringIO, csv_rows: list, rows: list[str], seqs:
             if group and np.isfinite(spread):
                 csv_rows.append(["seed_spread", row, s, f"{spread:.4f}", "", len(group),
                                  f"{np.mean([r['seconds_per_frame'] for r in group]):.4f}"])
-        md.write(f"| {row} | " + " | ".join(cells) + f" | {np.mean(secs):.3f} |\n")
+        body.append(_row(row, *cells, f"{np.mean(secs):.3f}"))
+    spread_note: Text = (("No ground truth, so no marker error: each cell is how far apart the seeds put the markers "
+                          "(the mean distance of a run's markers from the mean over seeds, over its tracked frames; "
+                          "n/a with one seed), which says how repeatable a prior is, not how right."),)
+    tables = [Table("Without ground truth: spread between seeds (mm)", ("prior", *seqs, "s/frame"), tuple(body),
+                    notes=(spread_note,))]
     referenced = [s for s in seqs if any(reference_values(r) for row in rows for r in by.get((row, s), []))]
     if not referenced:
-        return
-    md.write("\n## Distance to the reference reconstruction (mm), after one rigid alignment\n\n")
-    md.write("Mean ± std over seeds of each run's mean distance to the sequence's reference (its keypoints mapped "
-             "to our markers, one rigid alignment of the whole run, every frame of the run, as `compare-trc` "
-             "prints it). A reference is another method's estimate, not the truth, and its keypoints are not our "
-             "markers (a detector's hip is not the hip joint's centre): the distances hold that difference, and "
-             "compare priors with each other better than they measure error.\n\n")
-    md.write("| prior | " + " | ".join(referenced) + " |\n" + "|---" * (len(referenced) + 1) + "|\n")
+        return tables
+    body = []
     for row in rows:
         cells = []
         for s in referenced:
             group = by.get((row, s), [])
             vals = [r["reference"]["mean"] for r in group if reference_values(r)]
-            cells.append(_cell(vals) if len(vals) == len(group) else "n/a")
+            cells.append(_cell(vals) if len(vals) == len(group) else Cell("n/a"))
             if group and len(vals) == len(group):
                 mean, sd = summarize_runs(vals)
                 csv_rows.append(["reference_distance", row, s, f"{mean:.4f}", f"{sd:.4f}", len(vals),
                                  f"{np.mean([r['seconds_per_frame'] for r in group]):.4f}"])
-        md.write(f"| {row} | " + " | ".join(cells) + " |\n")
+        body.append(_row(row, *cells))
+    note: Text = (("Mean ± std over seeds of each run's mean distance to the sequence's reference (its keypoints "
+                   "mapped to our markers, one rigid alignment of the whole run, every frame of the run, as "),
+                  Code("compare-trc"),
+                  (" prints it). A reference is another method's estimate, not the truth, and its keypoints are not "
+                   "our markers (a detector's hip is not the hip joint's centre): the distances hold that difference, "
+                   "and compare priors with each other better than they measure error."))
+    tables.append(Table("Distance to the reference reconstruction (mm), after one rigid alignment",
+                        ("prior", *referenced), tuple(body), notes=(note,)))
+    return tables
 
 
 def _replicate_groups(exp, rows: list[str], split_row) -> dict[tuple[str, str], list[str]]:
@@ -255,34 +285,61 @@ def _group_name(group: str, variant: str, members: list[str]) -> str:
     return f"{group} (over {len(members)} training seeds){variant}"
 
 
-def _write_replicates(md: io.StringIO, csv_rows: list, groups: dict[tuple[str, str], list[str]], seqs: list[str],
-                      errors) -> None:
-    """The "over training seeds" table of the ``groups`` (:func:`_replicate_groups`): for each, the mean over its
-    models of each model's absolute MPJPE (its mean over tracking seeds), the standard deviation between them, their
-    range, and the mean standard deviation over tracking seeds within a model. ``errors(row, sequence)`` gives a
-    row's per-run errors (mm). The means also go to ``table.csv`` as rows named like the group (their ``std`` is
-    the spread between the models, ``runs`` all the models' runs), which :mod:`benchmarks.loso_summary` reads like
-    any other."""
+def _replicate_tables(csv_rows: list, groups: dict[tuple[str, str], list[str]], seqs: list[str],
+                      errors: Callable[[str, str], list[float]]) -> list[Table]:
+    """The "over training seeds" table of the ``groups`` (:func:`_replicate_groups`; none without groups): for
+    each, the mean over its models of each model's absolute MPJPE (its mean over tracking seeds), the standard
+    deviation between them, their range, and the mean standard deviation over tracking seeds within a model.
+    ``errors(row, sequence)`` gives a row's per-run errors (mm). The means also go to ``table.csv`` as rows named
+    like the group (their ``std`` is the spread between the models, ``runs`` all the models' runs), which
+    :mod:`benchmarks.loso_summary` reads like any other."""
     if not groups:
-        return
-    md.write(f"\n## Over training seeds ({PRIMARY}, mm): mean over models ± std between models [range]; "
-             "mean std over tracking seeds within a model\n\n| prior | models | " + " | ".join(seqs) + " |\n"
-             + "|---" * (len(seqs) + 2) + "|\n")
+        return []
+    body = []
     for (group, variant), members in groups.items():
         cells = []
         name = _group_name(group, variant, members)
         for s in seqs:
             per_model = [errors(row, s) for row in members]
             if any(not v or not np.all(np.isfinite(v)) for v in per_model):
-                cells.append("n/a")
+                cells.append(Cell("n/a"))
                 continue
             means = [float(np.mean(v)) for v in per_model]
             mean, between = summarize_runs(means)
             within = float(np.mean([summarize_runs(v)[1] for v in per_model]))
-            cells.append(f"{mean:.1f} ± {between:.1f} [{min(means):.1f}, {max(means):.1f}]; {within:.1f}")
+            cells.append(Cell(f"{mean:.1f} ± {between:.1f} [{min(means):.1f}, {max(means):.1f}]; {within:.1f}",
+                              mean=float(mean)))
             csv_rows.append([PRIMARY, name, s, f"{mean:.4f}", f"{between:.4f}",
                              sum(len(v) for v in per_model), ""])
-        md.write(f"| {group}{variant} | {len(members)} | " + " | ".join(cells) + " |\n")
+        body.append(_row(f"{group}{variant}", str(len(members)), *cells))
+    return [Table(f"Over training seeds ({PRIMARY}, mm): mean over models ± std between models [range]; mean std "
+                  "over tracking seeds within a model", ("prior", "models", *seqs), tuple(body))]
+
+
+# -- table.md -----------------------------------------------------------------------------------------------------
+
+def markdown(report: Report) -> str:
+    """``report`` as Markdown, ``table.md``'s text (without its closing line about the invocation): the title as
+    a heading, the introduction, then every table under its own heading, its notes above it."""
+    lines = [f"# {report.title}", ""] + [_markdown_text(t) for t in report.intro]
+    for table in report.tables:
+        lines += ["", f"## {table.title}", ""]
+        for note in table.notes:
+            lines += [_markdown_text(note), ""]
+        lines.append(_markdown_row(table.header))
+        lines.append("|---" * len(table.header) + "|")
+        lines += [_markdown_row([c.text for c in row]) for row in table.rows]
+    return "\n".join(lines) + "\n"
+
+
+def _markdown_text(text: Text) -> str:
+    """A line of text as Markdown: its :class:`~tracker.app.report_tables.Code` parts in backticks."""
+    return "".join(f"`{part.text}`" if isinstance(part, Code) else part for part in text)
+
+
+def _markdown_row(cells) -> str:
+    """A Markdown table row of the texts ``cells``."""
+    return "| " + " | ".join(cells) + " |"
 
 
 def _plotted_rows(rows: list[str], groups: dict[tuple[str, str], list[str]]) -> dict[str, list[str]]:
