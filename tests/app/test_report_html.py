@@ -132,6 +132,7 @@ def test_no_videos_leaves_them_out_and_a_moved_sequence_is_a_note(finished, tmp_
     assert "<video" not in page and "--no-videos" in page and "<table>" in page
     # A report written from runs whose sequence folder is gone keeps its tables and says why a video is missing.
     from tracker.app.experiment import load_experiment
+    from tracker.app.report import write_report
     from tracker.app.report_html import write_html_report
 
     results = [json.loads((d / "result.json").read_text()) for d in sorted((copy / "runs").iterdir())]
@@ -139,8 +140,10 @@ def test_no_videos_leaves_them_out_and_a_moved_sequence_is_a_note(finished, tmp_
         r["run"]["sequence_path"] = str(tmp_path / "moved away")
     said = []
     meta = json.loads((copy / "experiment.json").read_text())
-    summary = write_html_report(load_experiment(path), results, copy, (copy / "table.md").read_text(), meta,
-                                "python -m tracker compare exp.toml --out out", say=said.append)
+    exp = load_experiment(path)
+    tables = write_report(exp, results, copy, meta)["report"]
+    summary = write_html_report(exp, results, copy, tables, meta, "python -m tracker compare exp.toml --out out",
+                                say=said.append)
     page = (copy / "report.html").read_text(encoding="utf-8")
     assert summary["videos"] == 0 and "<video" not in page and "<table>" in page
     assert page.count("no video (") == 2 and "moved away" in page

@@ -339,7 +339,7 @@ def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str
     from tracker.app.report_html import compare_command, write_html_report
 
     command = command or compare_command(experiment, out, jobs, backend, address, data_root, videos)
-    summary.update(write_html_report(exp, results, out, summary["tables"], meta, command, videos, say))
+    summary.update(write_html_report(exp, results, out, summary["report"], meta, command, videos, say))
     write_text_atomic(out / "experiment.json", json.dumps(meta, indent=1))  # last: complete once all is written
     return summary
 

@@ -4,7 +4,9 @@ The page holds everything it shows (the per-frame plot as a PNG and the videos a
 ``data:`` URIs, the style inline), so the one file opens in any browser, offline, wherever it is copied. It is
 built from the finished runs alone (their ``result.json`` and ``estimates.npz``, and the sequence folders),
 so running ``compare`` again over a finished folder writes the same page again, apart from its date; the
-videos are also kept in ``OUT/videos/`` (by a hash of what they show) and reused by such a rerun.
+videos are also kept in ``OUT/videos/`` (by a hash of what they show) and reused by such a rerun. The tables
+come as data (:class:`tracker.app.report_tables.Report`, the same that ``table.md`` is written from), shown by
+:func:`tables_html` with the best mean of each column and the paired differences that exclude zero coloured.
 
 For every sequence and every variant of the grid (view set, likelihood, particle count, annealing layers:
 rows that differ only in their prior) one video puts the best and the worst prior side by side: the rows with
@@ -36,6 +38,7 @@ from typing import Callable, Iterator
 import numpy as np
 
 from data_tools.files import write_text_atomic
+from tracker.app.report_tables import Code, Report, Table, Text, cell_marks
 from tracker.core.errors import InputError
 
 log = logging.getLogger(__name__)
@@ -371,62 +374,36 @@ def compare_command(experiment: str | Path, out: str | Path, jobs: int = 1, back
     return shlex.join(args)
 
 
-def _inline(text: str) -> str:
-    """Markdown text to HTML: escaped, with ``code`` spans."""
-    return re.sub(r"`([^`]*)`", r"<code>\1</code>", html.escape(text))
+def tables_html(report: Report, taken: set[str]) -> tuple[str, str, list[tuple[str, str]]]:
+    """``report``'s tables (:mod:`tracker.app.report_tables`, as :func:`tracker.app.report.write_report` builds
+    them) as HTML: the introduction's paragraphs, every table under its own heading with its notes above it, and
+    each table's (anchor, title) for the contents; the anchors are added to ``taken``."""
+    intro = "".join(f"<p>{_text_html(t)}</p>\n" for t in report.intro)
+    blocks, links = [], []
+    for table in report.tables:
+        anchor = _slug(table.title, taken)
+        links.append((anchor, table.title))
+        block = [f'<h2 id="{anchor}">{html.escape(table.title)}</h2>']
+        block += [f'<p class="note">{_text_html(t)}</p>' for t in table.notes]
+        block.append(_table_html(table))
+        blocks.append("\n".join(block))
+    return intro, "\n".join(blocks), links
 
 
-def markdown_sections(md: str) -> list[dict]:
-    """The sections of ``table.md``'s text (as :func:`tracker.app.report.write_report` writes it): the text
-    before the first table (title ``""``), then each ``## title`` with its paragraphs, header and rows."""
-    sections = [{"title": "", "text": [], "header": None, "rows": []}]
-    for line in md.splitlines():
-        if line.startswith("# "):
-            continue
-        if line.startswith("## "):
-            sections.append({"title": line[3:].strip(), "text": [], "header": None, "rows": []})
-        elif line.startswith("|"):
-            cells = [c.strip() for c in line.strip()[1:-1].split("|")]
-            if all(set(c) <= {"-", ":"} and c for c in cells):
-                continue
-            if sections[-1]["header"] is None:
-                sections[-1]["header"] = cells
-            else:
-                sections[-1]["rows"].append(cells)
-        elif line.strip():
-            sections[-1]["text"].append(line.strip())
-    return sections
+def _text_html(text: Text) -> str:
+    """A line of text as HTML: escaped, its :class:`~tracker.app.report_tables.Code` parts in ``<code>``."""
+    return "".join(f"<code>{html.escape(part.text)}</code>" if isinstance(part, Code) else html.escape(part)
+                   for part in text)
 
 
-_MEAN = re.compile(r"^([-+]?\d+(?:\.\d+)?) ± ")
-_INTERVAL = re.compile(r"\[([-+]?\d+(?:\.\d+)?), ([-+]?\d+(?:\.\d+)?)\]$")
-
-
-def _cell_classes(section: dict, higher_is_better: bool) -> list[list[str]]:
-    """CSS classes of each body cell: ``best`` for the best mean of a column of ``mean ± std`` cells,
-    ``better``/``worse`` for a paired difference whose interval lies below/above zero."""
-    rows = section["rows"]
-    classes = [["" for _ in r] for r in rows]
-    for c in range(1, len(section["header"])):
-        means = {i: float(m.group(1)) for i, r in enumerate(rows) if c < len(r) and (m := _MEAN.match(r[c]))}
-        if len(means) > 1:
-            best = (max if higher_is_better else min)(means.values())
-            for i, v in means.items():
-                if v == best:
-                    classes[i][c] = "best"
-        for i, r in enumerate(rows):
-            m = _INTERVAL.search(r[c]) if c < len(r) else None
-            if m and _MEAN.match(r[c]) is None:
-                lo, hi = float(m.group(1)), float(m.group(2))
-                classes[i][c] = "better" if hi < 0 else "worse" if lo > 0 else ""
-    return classes
-
-
-def _table_html(section: dict, higher_is_better: bool) -> str:
-    classes = _cell_classes(section, higher_is_better)
-    head = "".join(f"<th>{_inline(h)}</th>" for h in section["header"])
-    body = "".join("<tr>" + "".join(f'<td class="{k}">{_inline(c)}</td>' if k else f"<td>{_inline(c)}</td>"
-                                    for c, k in zip(r, cl)) + "</tr>\n" for r, cl in zip(section["rows"], classes))
+def _table_html(table: Table) -> str:
+    """One table, scrolling sideways when wider than the page; each body cell carries its mark
+    (:func:`~tracker.app.report_tables.cell_marks`) as its CSS class: ``best``, ``better`` or ``worse``."""
+    marks = cell_marks(table)
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in table.header)
+    body = "".join("<tr>" + "".join(f'<td class="{mark}">{html.escape(cell.text)}</td>' if mark else
+                                    f"<td>{html.escape(cell.text)}</td>" for cell, mark in zip(row, row_marks))
+                   + "</tr>\n" for row, row_marks in zip(table.rows, marks))
     return f'<div class="scroll"><table>\n<thead><tr>{head}</tr></thead>\n<tbody>\n{body}</tbody></table></div>'
 
 
@@ -511,25 +488,6 @@ $videos
 """)
 
 
-def _tables_html(tables_md: str, taken: set[str]) -> tuple[str, str, list[tuple[str, str]]]:
-    """The text before the tables, the tables (each under its heading) and their (anchor, title)."""
-    from tracker.app.report import METRICS
-
-    pck_titles = {title for key, _, title in METRICS if key.startswith("pck")}
-    sections = markdown_sections(tables_md)
-    intro = "".join(f"<p>{_inline(t)}</p>\n" for t in sections[0]["text"])
-    blocks, links = [], []
-    for s in sections[1:]:
-        anchor = _slug(s["title"], taken)
-        links.append((anchor, s["title"]))
-        block = [f'<h2 id="{anchor}">{_inline(s["title"])}</h2>']
-        block += [f'<p class="note">{_inline(t)}</p>' for t in s["text"]]
-        if s["header"]:
-            block.append(_table_html(s, s["title"] in pck_titles))
-        blocks.append("\n".join(block))
-    return intro, "\n".join(blocks), links
-
-
 def _videos_html(exp, results: list[dict], runs_dir: Path, taken: set[str], say: Callable[[str], None]
                  ) -> tuple[str, list[tuple[str, str]], int]:
     """The videos' section (:func:`pick_runs`, :func:`render_video`), the (anchor, title) of each video and
@@ -552,7 +510,7 @@ def _videos_html(exp, results: list[dict], runs_dir: Path, taken: set[str], say:
         title = pick.sequence + (f": {pick.variant}" if pick.variant else "")
         anchor = _slug(f"video {title}", taken)
         links.append((anchor, f"video: {title}"))
-        parts.append(f'<h3 id="{anchor}">{_inline(title)}</h3>')
+        parts.append(f'<h3 id="{anchor}">{html.escape(title)}</h3>')
         try:
             if pick.sequence not in sequences:
                 sequences[pick.sequence] = load_sequence(pick.best.run["run"]["sequence_path"])
@@ -563,18 +521,20 @@ def _videos_html(exp, results: list[dict], runs_dir: Path, taken: set[str], say:
         except InputError as exc:
             note = f"{title}: no video ({exc})"
             say(f"report.html: {note}")
-            parts.append(f'<p class="note">{_inline(note)}</p>')
+            parts.append(f'<p class="note">{html.escape(note)}</p>')
             continue
         made += 1
         shown = f"{count} frames" + (f", one sequence frame in {step} ({step}× speed)" if step > 1 else "")
         best, worst = pick.best, pick.worst
         if pick.basis == UNRANKED:
-            said = (f"Unranked (no ground truth or reference): left {_inline(best.row)}, right {_inline(worst.row)} "
-                    f"(seeds {best.run['run']['seed_index']} and {worst.run['run']['seed_index']} shown).")
+            said = (f"Unranked (no ground truth or reference): left {html.escape(best.row)}, "
+                    f"right {html.escape(worst.row)} (seeds {best.run['run']['seed_index']} and "
+                    f"{worst.run['run']['seed_index']} shown).")
         else:
             what = "" if pick.basis == BY_TRUTH else " from the reference"
-            said = (f"Best: {_inline(best.row)}, {best.mean_mm:.1f} mm{what} (seed {best.run['run']['seed_index']} "
-                    f"shown, {best.run_mm:.1f} mm). Worst: {_inline(worst.row)}, {worst.mean_mm:.1f} mm{what} "
+            said = (f"Best: {html.escape(best.row)}, {best.mean_mm:.1f} mm{what} "
+                    f"(seed {best.run['run']['seed_index']} shown, {best.run_mm:.1f} mm). "
+                    f"Worst: {html.escape(worst.row)}, {worst.mean_mm:.1f} mm{what} "
                     f"(seed {worst.run['run']['seed_index']} shown, {worst.run_mm:.1f} mm).")
         parts.append(
             f'<figure>\n<video controls loop muted autoplay playsinline src="{_data_uri("video/mp4", data)}">'
@@ -583,21 +543,21 @@ def _videos_html(exp, results: list[dict], runs_dir: Path, taken: set[str], say:
             f'<figure>\n<img class="still" alt="the estimates of frame {still_frame} in every view" '
             f'src="{_data_uri("image/jpeg", still)}">\n<figcaption>Frame {still_frame}, the last, in every view of '
             "the view set: each side's estimate over the camera images.</figcaption>\n</figure>")
-    parts += [f'<p class="note">{_inline(n)}</p>' for n in notes]
+    parts += [f'<p class="note">{html.escape(n)}</p>' for n in notes]
     return "\n".join(parts), links, made
 
 
-def write_html_report(exp, results: list[dict], out: Path, tables_md: str, meta: dict, command: str,
+def write_html_report(exp, results: list[dict], out: Path, tables: Report, meta: dict, command: str,
                       videos: bool = True, say: Callable[[str], None] | None = None) -> dict:
     """Write ``out/report.html`` (atomically) from the experiment ``exp``, its run ``results`` (each
-    ``result.json`` with ``run``; estimates in ``out/runs/<key>/estimates.npz``), ``table.md``'s tables
-    ``tables_md`` (without the line about the invocation), ``out/per_frame.png``, ``meta`` (``version``,
-    ``runs``) and the ``command`` that wrote them; ``videos=False`` leaves the videos out. A video that cannot
-    be made (a sequence folder moved away) is a note on the page, also passed to ``say`` (default: this module's
-    logger). Returns the number of ``videos`` and the ``video_seconds`` they took."""
+    ``result.json`` with ``run``; estimates in ``out/runs/<key>/estimates.npz``), its ``tables`` (the
+    ``report`` of :func:`tracker.app.report.write_report`, which ``table.md`` shows), ``out/per_frame.png``,
+    ``meta`` (``version``, ``runs``) and the ``command`` that wrote them; ``videos=False`` leaves the videos
+    out. A video that cannot be made (a sequence folder moved away) is a note on the page, also passed to ``say``
+    (default: this module's logger). Returns the number of ``videos`` and the ``video_seconds`` they took."""
     say = say or log.info
     taken = {"per-frame", "videos"}
-    intro, tables, links = _tables_html(tables_md, taken)
+    intro, tables_part, links = tables_html(tables, taken)
     links += [("per-frame", "Error per frame"), ("videos", "Best and worst prior, side by side")]
     t0 = time.perf_counter()
     made = 0
@@ -609,12 +569,12 @@ def write_html_report(exp, results: list[dict], out: Path, tables_md: str, meta:
                       "add them.</p>")
     seconds = time.perf_counter() - t0
     page = PAGE.substitute(
-        title=html.escape(exp.path.stem), description=_inline(exp.description or ""),
+        title=html.escape(exp.path.stem), description=html.escape(exp.description or ""),
         experiment=html.escape(str(exp.path)), version=html.escape(str(meta["version"])),
         date=datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"), command=html.escape(command),
         runs=html.escape(f"{meta['runs']} ({exp.seeds} seed(s) per configuration, master seed {exp.seed})"),
-        contents="\n".join(f'<li><a href="#{a}">{_inline(t)}</a></li>' for a, t in links), intro=intro,
-        tables=tables, plot=_data_uri("image/png", (out / "per_frame.png").read_bytes()), videos=video_html)
+        contents="\n".join(f'<li><a href="#{a}">{html.escape(t)}</a></li>' for a, t in links), intro=intro,
+        tables=tables_part, plot=_data_uri("image/png", (out / "per_frame.png").read_bytes()), videos=video_html)
     write_text_atomic(out / "report.html", page)
     if videos:
         say(f"report.html: {made} video(s) in {seconds:.0f} s")
