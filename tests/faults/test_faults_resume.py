@@ -14,7 +14,7 @@ from data_tools.samples import sample_walks
 from data_tools.sequence import frame_path, write_image
 from tests.faults.test_bad_input_readers import tiny_sequence
 from tests.faults.test_faults_disk import refused, run_cli, track_args
-from tracker.app import cli
+from tracker.app import api, cli
 from tracker.app.tracking import TrackingInterrupted
 from tracker.core.errors import InputError
 
@@ -28,7 +28,7 @@ def seq(tmp_path):
 
 def interrupt_after(frames: int, monkeypatch) -> None:
     """The command line's next ``track`` is interrupted (Ctrl-C) after ``frames`` tracked frames."""
-    real = cli.track
+    real = api.track
 
     def track(*args, on_frame=None, **kwargs):
         count = {"n": 0}
@@ -40,7 +40,7 @@ def interrupt_after(frames: int, monkeypatch) -> None:
                 raise KeyboardInterrupt
         return real(*args, on_frame=frame, **kwargs)
 
-    monkeypatch.setattr(cli, "track", track)
+    monkeypatch.setattr(api, "track", track)
 
 
 def interrupted_run(seq: Path, out: Path, capsys, monkeypatch) -> None:

@@ -20,7 +20,8 @@ import torch
 from data_tools.samples import sample_walks
 from tests.faults.test_bad_input_readers import tiny_sequence
 from tests.faults.test_faults_disk import run_cli, track_args
-from tracker.app import cli
+from tracker.app import api, cli
+from tracker.app.run_folder import REQUEST_FILE
 
 ASF, WALKS = sample_walks()
 REPO = Path(__file__).resolve().parents[2]
@@ -71,7 +72,7 @@ def poses(out: Path) -> np.ndarray:
 def test_track_stopped_by_sigterm_resumes_to_the_uninterrupted_result(moment, seq, tmp_path, capsys, monkeypatch):
     argv = track_args(seq, tmp_path / "cut", "--checkpoint-every", "3", "--seed", "4")
     assert run_cli(track_args(seq, tmp_path / "whole", "--seed", "4"), capsys)[0] == 0
-    real = cli.track
+    real = api.track
     at = {"before the first frame": 0, "before the first checkpoint": 2, "in the middle": 4}[moment]
 
     def track(*args, on_frame=None, **kwargs):
@@ -84,7 +85,7 @@ def test_track_stopped_by_sigterm_resumes_to_the_uninterrupted_result(moment, se
                 sigterm()
         return real(*args, on_frame=frame, **kwargs)
 
-    monkeypatch.setattr(cli, "track", track)
+    monkeypatch.setattr(api, "track", track)
     code, err = run_cli(argv, capsys)
     monkeypatch.undo()
     out = tmp_path / "cut"
@@ -115,25 +116,25 @@ def test_a_run_killed_before_its_first_checkpoint_continues_from_frame_0(seq, tm
     def killed(*args, **kwargs):  # what a SIGKILL leaves: the saved arguments, the cached hashes, no checkpoint
         raise SystemExit(137)
 
-    monkeypatch.setattr(cli, "track", killed)
+    monkeypatch.setattr(api, "track", killed)
     with pytest.raises(SystemExit):
         cli.main(argv)
     monkeypatch.undo()
     out = tmp_path / "cut"
-    assert (out / cli.TRACK_ARGS).exists() and not (out / "checkpoint.npz").exists()
+    assert (out / REQUEST_FILE).exists() and not (out / "checkpoint.npz").exists()
     code, err = run_cli(["track", "--resume", str(out)], capsys)
     assert code == 0 and "tracking from the first frame" in err, err
     assert np.array_equal(poses(out), poses(tmp_path / "whole"))
 
     again = tmp_path / "again"
     with pytest.raises(SystemExit):
-        monkeypatch.setattr(cli, "track", killed)
+        monkeypatch.setattr(api, "track", killed)
         cli.main(track_args(seq, again, "--checkpoint-every", "0", "--seed", "4"))
     monkeypatch.undo()
     code, err = run_cli(track_args(seq, again, "--checkpoint-every", "0", "--seed", "4"), capsys)
     assert code == 0 and "holds this run, unfinished: continuing it" in err, err
     assert np.array_equal(poses(again), poses(tmp_path / "whole"))
-    assert not (again / cli.TRACK_ARGS).exists()
+    assert not (again / REQUEST_FILE).exists()
 
 
 @pytest.mark.parametrize("command, says", [("track", "a run stopped before its first checkpoint starts from its "
@@ -152,7 +153,7 @@ def test_the_help_of_resume_says_what_a_run_without_a_checkpoint_does(command, s
 
 def test_another_command_into_an_unfinished_run_is_refused_in_one_line(seq, tmp_path, capsys, monkeypatch):
     out = tmp_path / "cut"
-    monkeypatch.setattr(cli, "track", lambda *a, **k: (_ for _ in ()).throw(SystemExit(137)))
+    monkeypatch.setattr(api, "track", lambda *a, **k: (_ for _ in ()).throw(SystemExit(137)))
     with pytest.raises(SystemExit):
         cli.main(track_args(seq, out, "--seed", "4"))
     monkeypatch.undo()
@@ -366,7 +367,7 @@ def test_a_run_whose_mixture_component_names_its_model_resumes_from_another_fold
     out = tmp_path / "cut"
     argv = ["track", str(seq), "--prior", "mixture", "--components", "crbm:model=c.pt,zero-velocity",
             "--particles", "20", "--annealing-layers", "1", "--checkpoint-every", "0", "--out", str(out)]
-    monkeypatch.setattr(cli, "track", lambda *a, **k: (_ for _ in ()).throw(SystemExit(137)))
+    monkeypatch.setattr(api, "track", lambda *a, **k: (_ for _ in ()).throw(SystemExit(137)))
     with pytest.raises(SystemExit):
         cli.main(argv)
     monkeypatch.undo()

@@ -1,6 +1,6 @@
 """Ctrl-C before the filter's first frame (while the sequence is read or the priors are prepared) is one line,
 exit status 130, and leaves nothing behind: the same command then runs without --overwrite."""
-from tracker.app import cli
+from tracker.app import api, cli
 
 
 def test_ctrl_c_before_the_first_frame_leaves_nothing_behind(synthetic_walk, tmp_path, monkeypatch, capsys):
@@ -11,7 +11,7 @@ def test_ctrl_c_before_the_first_frame_leaves_nothing_behind(synthetic_walk, tmp
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli, "track", interrupted)
+    monkeypatch.setattr(api, "track", interrupted)
     capsys.readouterr()
     assert cli.main(argv) == 130
     err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]

@@ -29,10 +29,11 @@ from data_tools.load import load_retargeted, load_training_clips
 from data_tools.retarget import RetargetResult
 from data_tools.sequence import Sequence, read_sequence
 from tracker.app import schema
-from tracker.app.schema import FILTER_OPTIONS, RECORDED_SETTINGS, TRACK_SETTINGS
+from tracker.app.schema import (FILTER_OPTIONS, KEYPOINT_LIKELIHOOD, RECORDED_SETTINGS, SILHOUETTE_LIKELIHOOD,
+                                TRACK_SETTINGS)
 from tracker.app.schema import TRACK_ANNEALING_LAYERS  # noqa: F401  (the API names the default: tracker.track)
 from tracker.app.plugins import (  # the discovery functions of the API
-    available_likelihoods, available_priors, likelihood_entry, prior_entry,
+    available_priors, likelihood_entry, prior_entry,
 )
 from tracker.app.threads import configured_threads, sync_torch_threads
 from tracker.app.walk_scale import walk_scale
@@ -360,6 +361,16 @@ def split_options(prior: str | MotionPrior, likelihood: str | Likelihood, option
     return out["prior"], out["likelihood"]
 
 
+def _refuse_options_of_the_other_default(chosen: str, options: Mapping[str, Any], seq: Sequence) -> None:
+    """An option of the keypoint likelihood, given to a run whose default likelihood (:func:`default_likelihood`)
+    is the one without keypoints, is refused naming why: the sequence has none."""
+    keypoints = {o.name for o in likelihood_entry(KEYPOINT_LIKELIHOOD).options}
+    theirs = sorted(n for n in options if n in keypoints - {o.name for o in likelihood_entry(chosen).options})
+    if theirs:
+        raise InputError(f"{theirs[0]} does not apply to the {chosen} likelihood, which this sequence takes (it has "
+                         "no keypoints)", seq.root)
+
+
 def model_name(model: str | Path | Any) -> str:
     """How ``result.json`` names a prior's model: its file, or the kind of a model given in memory."""
     return str(model) if isinstance(model, (str, os.PathLike)) else f"{type(model).__name__} (in memory)"
@@ -385,9 +396,9 @@ def run_settings(given: Mapping[str, Any], sequence: Sequence) -> dict[str, Any]
 
 
 def default_likelihood(sequence: Sequence) -> str:
-    """The likelihood a run takes unless told: ``keypoints+edge-silhouette`` for a sequence with 2-D keypoints
-    (``seq/keypoints/``), else ``edge-silhouette``."""
-    return "keypoints+edge-silhouette" if getattr(sequence, "keypoints", None) is not None else "edge-silhouette"
+    """The likelihood a run takes unless told: :data:`KEYPOINT_LIKELIHOOD` for a sequence with 2-D keypoints
+    (``seq/keypoints/``), else :data:`SILHOUETTE_LIKELIHOOD`."""
+    return KEYPOINT_LIKELIHOOD if getattr(sequence, "keypoints", None) is not None else SILHOUETTE_LIKELIHOOD
 
 
 @records_call
@@ -432,8 +443,10 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     ``resume=True`` continues from the checkpoint to the result an uninterrupted run gives.
     """
     seq = sequence if isinstance(sequence, Sequence) else load_sequence(sequence)
-    likelihood = default_likelihood(seq) if likelihood is None else likelihood
     given, options = split_settings(settings)
+    if likelihood is None:
+        likelihood = default_likelihood(seq)
+        _refuse_options_of_the_other_default(likelihood, options, seq)
     run = run_settings(given, seq)
     check_frames(seq, run["frames"], run["known_frames"], init)  # before anything is built or loaded
     config = FilterConfig.from_options({o.name: run[o.name] for o in FILTER_OPTIONS})

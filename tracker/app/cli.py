@@ -289,171 +289,105 @@ def cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
-TRACK_ARGS = "track_arguments.json"
-#: What the command line adds to the parsed arguments besides the run's settings: not saved for --resume, and
-#: allowed beside it.
+#: What the command line adds to the parsed arguments besides the run's: allowed beside ``--resume``.
 _CONSOLE = ("quiet", "verbose", "argv")
 
 
-def _saved_arguments(args: argparse.Namespace) -> dict:
-    """The arguments of a run as kept in ``OUTDIR/track_arguments.json`` (paths already made absolute)."""
-    saved = {k: v for k, v in vars(args).items() if k not in ("resume", "command", "threads", *_CONSOLE)}
-    saved["plugin"] = [str(Path(p).resolve()) if p.endswith(".py") else p for p in args.plugin]
-    return saved
+def _views(text: str | None) -> list[int] | None:
+    """``--views 0,2`` as camera indices (the run checks them against the sequence's cameras)."""
+    if text is None:
+        return None
+    try:
+        return [int(v) for v in text.split(",") if v.strip() != ""]
+    except ValueError:
+        raise InputError(f"--views must be comma-separated camera indices, got {text!r}") from None
 
 
-def _same_run(saved: dict, given: dict) -> list[str]:
-    """The arguments in which ``given`` differs from an unfinished run's ``saved`` ones (``--overwrite`` aside)."""
-    def plain(d: dict) -> dict:
-        return json.loads(json.dumps({k: v for k, v in d.items() if k != "overwrite"}))
+def _track_request(args: argparse.Namespace):
+    """The run the parsed arguments ask for (:class:`tracker.app.run_folder.TrackRequest`)."""
+    from tracker.app.run_folder import TrackRequest
 
-    a, b = plain(saved), plain(given)
-    return sorted(k for k in set(a) | set(b) if a.get(k) != b.get(k))
+    likelihood = likelihood_entry(args.likelihood or UNNAMED_LIKELIHOOD)
+    settings = {name: getattr(args, name) for name in TRACK_SETTINGS if name != "views"}
+    return TrackRequest.of(args.sequence, args.prior, models=args.model or (), likelihood=args.likelihood,
+                           init=args.init, train_mocap=args.train_mocap, video=args.video, plugins=args.plugin,
+                           views=_views(args.views), **settings,
+                           **given_options(args, prior_entry(args.prior).options),
+                           **given_options(args, likelihood.options))
 
 
-def _track_arguments(args: argparse.Namespace) -> argparse.Namespace:
-    """The arguments of a run: as given (paths made absolute, kept in OUTDIR for --resume), or with --resume
-    those saved by the interrupted run. The same command again, into the folder of its unfinished run, continues
-    that run as ``--resume OUTDIR`` does."""
-    if args.resume:
-        defaults = vars(build_parser(["track"]).parse_args(["track"]))
-        given = [k for k, v in vars(args).items() if k not in ("resume", "command", "plugin", "threads", *_CONSOLE)
-                 and v not in (None, False, [], defaults.get(k))]
-        if given:
-            raise InputError(f"--resume takes no other arguments (got {', '.join('--' + g for g in given)})")
-        path = Path(args.resume) / TRACK_ARGS
-        if not path.is_file():
-            raise InputError(f"no interrupted run to resume here (no {TRACK_ARGS})", args.resume)
-        from data_tools.textfiles import read_json
+def _resumed_request(args: argparse.Namespace):
+    """The request kept in the folder of ``--resume`` (also one an earlier version kept: its parsed arguments)."""
+    from tracker.app.run_folder import saved_request
 
-        saved = read_json(path, "saved track arguments")
-        if not isinstance(saved, dict):
-            raise InputError("saved track arguments are not a JSON object", path)
-        for spec in saved.get("plugin", []):
-            import_plugin(spec)
-        return argparse.Namespace(**{**vars(args), **saved, "resume": args.resume})
-    missing = [name for name, given in (("DIR", args.sequence), ("--prior", args.prior), ("--out", args.out))
-               if not given]
-    if missing:
-        raise InputError(f"track: missing {' and '.join(missing)} (usage: {PROG} track DIR --prior NAME --out OUTDIR, "
-                         f"or {PROG} track --resume OUTDIR)")
-    for key in ("sequence", "out", "video", "init"):
-        if getattr(args, key):
-            setattr(args, key, str(Path(getattr(args, key)).resolve()))
-    for key in ("model", "train_mocap"):
-        if getattr(args, key):
-            setattr(args, key, [str(Path(m).resolve()) for m in getattr(args, key)])
-    if isinstance(getattr(args, "components", None), str):  # a mixture's components name their own model files
-        from tracker.engine.components import with_model_paths
-
-        args.components = with_model_paths(args.components, f"prior {args.prior}",
-                                           lambda m: str(Path(m).expanduser().resolve()))
-    unfinished = Path(args.out) / TRACK_ARGS
-    if unfinished.is_file() and not args.overwrite:
-        from data_tools.textfiles import read_json
-
-        saved = read_json(unfinished, "saved track arguments")
-        differ = _same_run(saved, _saved_arguments(args)) if isinstance(saved, dict) else ["all"]
-        if differ:
-            raise InputError(f"the output folder holds an unfinished run of other arguments ({', '.join(differ)}): "
-                             f"continue it with {PROG} track --resume {args.out}, or pass --overwrite to start this "
-                             "one in its place", args.out)
-        log.info(f"{args.out} holds this run, unfinished: continuing it")
-        args.resume = args.out
-    return args
+    defaults = vars(build_parser(["track"]).parse_args(["track"]))
+    given = [k for k, v in vars(args).items() if k not in ("resume", "command", "plugin", "threads", *_CONSOLE)
+             and v not in (None, False, [], defaults.get(k))]
+    if given:
+        raise InputError(f"--resume takes no other arguments (got {', '.join('--' + g for g in given)})")
+    return saved_request(args.resume, earlier=lambda saved: _track_request(argparse.Namespace(
+        **{**defaults, **saved, "plugin": saved.get("plugin", [])})))
 
 
 def cmd_track(args: argparse.Namespace) -> int:
-    from data_tools.estimates import read_poses_file
-    from data_tools.files import write_text_atomic
-    from tracker.app.api import default_likelihood, load_sequence
-    from tracker.app.tracking import TrackingInterrupted, check_frames, metrics_line
-    from tracker.app.visualize import overlay_frames, write_video
+    from tracker.app.run_folder import run_in_folder, TrackingStopped
+    from tracker.app.tracking import metrics_line
 
-    args = _track_arguments(args)
-    # before any tracking, so a bad output path loses no work; --resume continues in its own folder
-    out = check_output_folder(args.out, empty=not (args.overwrite or args.resume))
-    check_not_inside(out, {"sequence folder": args.sequence})
-    if args.video:
-        check_output_file(args.video, "--video", (".mp4",), new=not (args.overwrite or args.resume))
-        check_not_inside(args.video, {"sequence folder": args.sequence})
-    checkpoint = out / "checkpoint.npz"
+    if args.resume:
+        request, out = _resumed_request(args), Path(args.resume)
+        if request is None:
+            from tracker.app.run_folder import REQUEST_FILE
+
+            raise InputError(f"no interrupted run to resume here (no {REQUEST_FILE})", args.resume)
+    else:
+        missing = [name for name, given in (("DIR", args.sequence), ("--prior", args.prior), ("--out", args.out))
+                   if not given]
+        if missing:
+            raise InputError(f"track: missing {' and '.join(missing)} (usage: {PROG} track DIR --prior NAME --out "
+                             f"OUTDIR, or {PROG} track --resume OUTDIR)")
+        request, out = _track_request(args), Path(args.out)
     errors: list[float] = []  # the mpjpe_abs of each frame, for the bar
     bars: list = []  # the bar appears with the first tracked frame: a refusal before that stays one line
+    frames: list[int] = []
+
+    def on_frame(step, err: float | None) -> None:
+        if not bars:  # counts the tracked frames; its rate starts with the second (the first has none)
+            bars.append(progress_bar(total=frames[0], initial=1, desc=f"tracking ({request.prior})", unit="frame"))
+        else:
+            bars[0].update(1)
+        if err is not None:
+            errors.append(err)
+            bars[0].set_postfix({"mpjpe_abs": f"{err:.0f} mm", "mean": f"{np.mean(errors):.0f} mm"})
+
     try:
-        with undone_unless_started(first_missing(out)) as work:  # refused or stopped before the first frame:
-            # nothing stays behind
-            seq = load_sequence(args.sequence)
-            likelihood = args.likelihood or default_likelihood(seq)
-            likelihood_options = given_options(args, likelihood_entry(likelihood).options)
-            foreign = sorted(set(given_options(args, likelihood_entry(UNNAMED_LIKELIHOOD).options))
-                             - set(likelihood_options))
-            if foreign:
-                raise InputError(f"--{foreign[0].replace('_', '-')} does not apply to the {likelihood} likelihood, "
-                                 "which this sequence takes (it has no keypoints)", args.sequence)
-            views = _parse_views(args.views, seq.n_views)
-            init = read_poses_file(args.init, "initial poses", seq.model) if args.init else None
-            T, _, n_known = check_frames(seq, args.frames, args.known_frames, init)
-            if not args.resume:
-                checkpoint.unlink(missing_ok=True)  # an earlier run's, in a folder given with --overwrite
-                write_text_atomic(out / TRACK_ARGS, json.dumps(_saved_arguments(args), indent=1))
-            elif not checkpoint.exists():  # stopped before its first checkpoint (or killed): the whole run again
-                log.info(f"no checkpoint in {out}: tracking from the first frame with the saved arguments")
-
-            def on_frame(step, err: float | None) -> None:
-                work["started"] = True
-                if not bars:  # counts the tracked frames; its rate starts with the second (the first has none)
-                    bars.append(progress_bar(total=T - n_known, initial=1, desc=f"tracking ({args.prior})",
-                                             unit="frame"))
-                else:
-                    bars[0].update(1)
-                if err is not None:
-                    errors.append(err)
-                    bars[0].set_postfix({"mpjpe_abs": f"{err:.0f} mm", "mean": f"{np.mean(errors):.0f} mm"})
-
-            try:
-                run = track(seq, args.prior, models=args.model or (), likelihood=likelihood,
-                            **given_options(args, prior_entry(args.prior).options), **likelihood_options,
-                            **{name: getattr(args, name) for name in TRACK_SETTINGS if name != "views"},
-                            views=views, init=init, train_mocap=args.train_mocap, on_frame=on_frame,
-                            checkpoint=checkpoint, resume=bool(args.resume) and checkpoint.exists())
-            except TrackingInterrupted as stop:  # Ctrl-C or SIGTERM once the filter runs
-                for bar in bars:
-                    bar.close()
-                if stop.partial is None and not args.resume:  # before its first frame: as if never started
-                    work["started"] = False
-                    raise KeyboardInterrupt from None
-                work["started"] = True
-                if stop.partial is not None:
-                    stop.partial.invocation = {"argv": [PROG, *args.argv]}
-                    stop.partial.save(out, overwrite=True)
-                done = "" if stop.partial is None else f" after {len(stop.partial.tracked_frames)} frame(s)"
-                kept = "partial result" if stop.partial is not None else "saved arguments"
-                log.warning(f"interrupted{done}: {kept} in {out}; resume with: {PROG} track --resume {out}")
-                return interrupted_status()
-    except KeyboardInterrupt:  # before the first frame: nothing kept but the saved arguments of a resumed run
-        again = (f"resume with: {PROG} track --resume {out}" if args.resume
-                 else f"nothing was kept: run the same command again")
-        log.warning(f"interrupted before the first frame was tracked; {again}")
+        run = run_in_folder(request, out, overwrite=args.overwrite, resume=bool(args.resume), on_frame=on_frame,
+                            on_start=frames.append, invocation={"argv": [PROG, *args.argv]}, overwrite_flag="--overwrite",
+                            resume_command=f"{PROG} track --resume {out}")
+    except TrackingStopped as stop:  # Ctrl-C or SIGTERM
+        for bar in bars:
+            bar.close()
+        if stop.partial is not None:
+            kept = f" after {len(stop.partial.tracked_frames)} frame(s): partial result in {out}"
+        elif stop.resumable:
+            kept = f": saved arguments in {out}"
+        else:
+            log.warning("interrupted before the first frame was tracked; nothing was kept: run the same command "
+                        "again")
+            return interrupted_status()
+        log.warning(f"interrupted{kept}; resume with: {PROG} track --resume {out}")
         return interrupted_status()
     for bar in bars:
-        bar.update(T - n_known - bar.n)
+        bar.update(frames[0] - bar.n)
         bar.close()
-    run.invocation = {"argv": [PROG, *args.argv]}
-    result = run.save(out, overwrite=True)
-    (out / TRACK_ARGS).unlink(missing_ok=True)
     if run.recovered_frames:
-        log.warning(f"no particle explained frame(s) {result['recovered_frames']}; the filter re-diffused around "
-                    "its last estimate")
+        log.warning(f"no particle explained frame(s) {run.recovered_frames}; the filter re-diffused around its last "
+                    "estimate")
     layers = run.settings["annealing_layers"]
-    log.info(f"{args.particles} particles{f' x {layers} annealing layers' if layers > 1 else ''}, {len(views)} "
-             f"view(s): {run.seconds_per_frame:.3f} s per frame")
-    n = result["frames_tracked"]
-    print(f"{args.prior}, {n} frame{'' if n == 1 else 's'} tracked: {metrics_line(result['metrics'])} -> {out}")
-    if args.video:
-        write_video(Path(args.video), overlay_frames(seq, run.poses, views, run.errors, run.first_tracked,
-                                                     estimate_name=args.prior), seq.fps or 25.0)
-        log.info(f"overlay video -> {args.video}")
+    log.info(f"{run.settings['particles']} particles{f' x {layers} annealing layers' if layers > 1 else ''}, "
+             f"{len(run.settings['views'])} view(s): {run.seconds_per_frame:.3f} s per frame")
+    n = len(run.tracked_frames)
+    print(f"{request.prior}, {n} frame{'' if n == 1 else 's'} tracked: {metrics_line(run.to_dict()['metrics'])} "
+          f"-> {out}")
     return 0
 
 

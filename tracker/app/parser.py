@@ -18,7 +18,7 @@ import numpy as np
 from data_tools.checks import MAX_FPS, MAX_IMAGE_SIDE, MAX_MM_PER_UNIT, MAX_VIEWS, MIN_FPS, MIN_MM_PER_UNIT
 from tracker.app.plugins import available_likelihoods, available_priors, likelihood_entry, prior_entry
 from tracker.app.console import PROG, error_line
-from tracker.app.schema import add_flags, argument_type, setting
+from tracker.app.schema import KEYPOINT_LIKELIHOOD, add_flags, argument_type, setting
 from tracker.core.errors import InputError
 from tracker.engine.registry import Option
 
@@ -404,7 +404,7 @@ def _plugin_group(parser: argparse.ArgumentParser, title: str, options: Sequence
 
 #: Whose options a ``track`` command line takes when it names no likelihood: the default likelihood is chosen by
 #: the sequence (:func:`tracker.app.api.default_likelihood`), and these are the options of both choices.
-UNNAMED_LIKELIHOOD = "keypoints+edge-silhouette"
+UNNAMED_LIKELIHOOD = KEYPOINT_LIKELIHOOD
 
 
 def given_options(args: argparse.Namespace, declared: Sequence[Option]) -> dict:

@@ -26,7 +26,7 @@ from tracker.core.errors import InputError
 from tracker.engine.config import FILTER_OPTIONS, MAX_PARTICLES, TRACK_ANNEALING_LAYERS
 from tracker.engine.registry import Option
 
-__all__ = ["FILTER_OPTIONS", "MAX_PARTICLES", "TRACK_ANNEALING_LAYERS", "RUN_OPTIONS", "TRACK_SETTINGS",
+__all__ = ["FILTER_OPTIONS", "MAX_PARTICLES", "TRACK_ANNEALING_LAYERS", "KEYPOINT_LIKELIHOOD", "SILHOUETTE_LIKELIHOOD", "RUN_OPTIONS", "TRACK_SETTINGS",
            "EXPERIMENT_SETTINGS", "GRID_AXES", "RECORDED_SETTINGS", "setting", "defaults", "check", "add_flags"]
 
 #: The largest seed (numpy's generators take any non-negative integer; results name it as an int64).
@@ -45,6 +45,10 @@ RUN_OPTIONS: tuple[Option, ...] = (
     Option("checkpoint_every", int, 25, "save the filter's state every K frames to the checkpoint (0: only on "
            "Ctrl-C); removed once the results are written", minimum=0, unit="frames"),
 )
+
+#: The likelihood a run takes unless told (:func:`tracker.app.api.default_likelihood`), for a sequence with 2-D
+#: keypoints and for one without; a command line that names no likelihood takes the options of both.
+KEYPOINT_LIKELIHOOD, SILHOUETTE_LIKELIHOOD = "keypoints+edge-silhouette", "edge-silhouette"
 
 #: Every setting of a run, by name.
 TRACK_SETTINGS: dict[str, Option] = {o.name: o for o in FILTER_OPTIONS + RUN_OPTIONS}
