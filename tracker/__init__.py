@@ -6,6 +6,7 @@ The public API (``import tracker``)::
     tracker.load_clips("walks/*.bvh")                               a corpus: files, folders, patterns
     tracker.sample_walks()                                          the shipped CMU walks (skeleton, clips)
     tracker.build_prior, tracker.build_likelihood, tracker.train    models
+    tracker.train_into(model_file, ...)                            a training stopped and continued
     tracker.track -> TrackingResult (.save writes result.json)     tracking
     tracker.track_into(out, ...), tracker.resume_tracking(out)      a run in a folder, stopped and continued
     tracker.show(seq, frame=0, poses=..., out="f.png", video=...)   the body model drawn over the views
@@ -44,7 +45,8 @@ _EXPORTS = {
     "load_sequence": "tracker.app.api", "load_clip": "tracker.app.api", "load_clips": "tracker.app.api",
     "synthesize": "tracker.app.api",
     "build_prior": "tracker.app.api", "build_likelihood": "tracker.app.api", "train": "tracker.app.api",
-    "track": "tracker.app.api", "track_into": "tracker.app.run_folder", "resume_tracking": "tracker.app.run_folder", "available_priors": "tracker.app.api", "available_likelihoods": "tracker.app.api",
+    "track": "tracker.app.api", "track_into": "tracker.app.run_folder", "resume_tracking": "tracker.app.run_folder",
+    "train_into": "tracker.app.train_file", "available_priors": "tracker.app.api", "available_likelihoods": "tracker.app.api",
     "random_walk_scale": "tracker.app.api", "show": "tracker.app.api",
     "TrackingResult": "tracker.app.tracking", "compare": "tracker.app.compare",
     "load_experiment": "tracker.app.experiment", "fetch": "tracker.app.fetching", "set_threads": "tracker.app.threads",

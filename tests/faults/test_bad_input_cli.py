@@ -13,7 +13,7 @@ import pytest
 
 from data_tools.samples import sample_walks
 from tests.faults.test_bad_input_readers import _png_claiming, tiny_sequence
-from tracker.app import cli
+from tracker.app import api, cli
 
 ASF, WALKS = sample_walks()
 AMC = str(WALKS[0])
@@ -144,7 +144,7 @@ def test_ctrl_c_in_training_says_how_to_resume(monkeypatch, tmp_path, capsys):
         (tmp_path / "m.pt.checkpoint").write_bytes(b"state")
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli, "train", interrupted)
+    monkeypatch.setattr(api, "train", interrupted)
     code, err = run_cli(["train", "--prior", "gpdm", "--mocap", AMC, "--checkpoint-every", "10", "--out",
                          str(tmp_path / "m.pt")], capsys)
     assert code == 130 and "--resume" in err and "Traceback" not in err and not (tmp_path / "m.pt").exists()

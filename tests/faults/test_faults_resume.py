@@ -14,7 +14,7 @@ from data_tools.samples import sample_walks
 from data_tools.sequence import frame_path, write_image
 from tests.faults.test_bad_input_readers import tiny_sequence
 from tests.faults.test_faults_disk import refused, run_cli, track_args
-from tracker.app import api, cli
+from tracker.app import api
 from tracker.app.tracking import TrackingInterrupted
 from tracker.core.errors import InputError
 
@@ -167,7 +167,7 @@ def test_train_resume_on_the_command_line_names_the_changed_skeleton(tmp_path, c
     out = tmp_path / "m.pt"
     argv = ["train", "--prior", "crbm", "--mocap", str(clips / WALKS[0].name), "--order", "1", "--epochs", "4",
             "--hidden", "8", "--checkpoint-every", "2", "--out", str(out)]
-    real = cli.train
+    real = api.train
 
     def interrupted(*args, progress=None, **kwargs):
         def stop(done, total, metrics):
@@ -175,11 +175,11 @@ def test_train_resume_on_the_command_line_names_the_changed_skeleton(tmp_path, c
                 raise KeyboardInterrupt
         return real(*args, progress=stop, **kwargs)
 
-    cli.train = interrupted
+    api.train = interrupted
     try:
         assert run_cli(argv, capsys)[0] == 130
     finally:
-        cli.train = real
+        api.train = real
     skeleton = clips / ASF.name
     skeleton.write_text(skeleton.read_text() + "\n")
     refused(*run_cli([*argv, "--resume"], capsys), f"the training file {skeleton} changed", "start the training again")

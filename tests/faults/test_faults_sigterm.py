@@ -257,7 +257,7 @@ def test_train_stopped_by_sigterm_resumes_to_the_uninterrupted_model(prior, ever
 
     base, counter = TRAINING[prior]
     argv = [*base, *(["--checkpoint-every", every] if every else []), "--out", str(tmp_path / "cut.pt")]
-    real = cli.train
+    real = api.train
 
     def train(*args, progress=None, **kwargs):
         if at == 0:
@@ -269,7 +269,7 @@ def test_train_stopped_by_sigterm_resumes_to_the_uninterrupted_model(prior, ever
                 sigterm()
         return real(*args, progress=report, **kwargs)
 
-    monkeypatch.setattr(cli, "train", train)
+    monkeypatch.setattr(api, "train", train)
     code, err = run_cli(argv, capsys)
     monkeypatch.undo()
     assert code == 143 and not (tmp_path / "cut.pt").exists()

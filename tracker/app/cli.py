@@ -20,8 +20,7 @@ from typing import NoReturn, Sequence
 
 import numpy as np
 
-from data_tools.files import (atomic_path, check_not_inside, check_output_file, check_output_folder, first_missing,
-                              undone_unless_started)
+from data_tools.files import (atomic_path, check_not_inside, check_output_file, check_output_folder)
 from tracker.app.console import (PROG, close_bars, configure_logging, error_line, interrupted_status, invoked_as,
                                  progress_bar, shows_progress, stop_signals, verbosity)
 from tracker.app.parser import UNNAMED_LIKELIHOOD, build_parser, given_options, parse_arguments
@@ -212,15 +211,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return run_demo(Path(args.out), args.frames, overwrite=args.overwrite)
 
 
-def _progress_bar(desc: str, on_start=None):
+def _progress_bar(desc: str):
     """A ``progress(done, total, metrics)`` callback drawing one tqdm bar (created on the first call; none under
-    ``--quiet``); ``on_start()`` runs at the first call, when the work has passed every check and begun."""
+    ``--quiet``)."""
     state = {}
 
     def progress(done: int, total: int, metrics: dict) -> None:
         if "bar" not in state:
-            if on_start is not None:
-                on_start()
             state["bar"] = progress_bar(total=total, desc=desc, unit="it")
         bar = state["bar"]
         bar.update(done - bar.n)
@@ -232,60 +229,23 @@ def _progress_bar(desc: str, on_start=None):
     return progress
 
 
-def train(*args, **kwargs):
-    """:func:`tracker.app.api.train`, the API imported on the first call (help texts do without it)."""
-    from tracker.app.api import train as train_prior
-
-    return train_prior(*args, **kwargs)
-
-
-def track(*args, **kwargs):
-    """:func:`tracker.app.api.track`, the API imported on the first call (help texts do without it)."""
-    from tracker.app.api import track as track_sequence
-
-    return track_sequence(*args, **kwargs)
-
-
 def cmd_train(args: argparse.Namespace) -> int:
-    out = check_output_file(args.out, "the model file", new=not args.overwrite)
-    check_not_inside(out, {f"training file {i + 1}": f for i, f in enumerate([*args.mocap, *(args.skeleton or [])])})
-    from data_tools.corpus import is_label_source, label_source
-    from data_tools.load import load_training_clips
+    from tracker.app.train_file import TrainingStopped, train_into
 
-    options = given_options(args, prior_entry(args.prior).train_options)
-    if is_label_source(options.get("labels")):  # a labels pattern or file is checked before any clip is read
-        label_source(options["labels"]).training_keys()
-    clips = load_training_clips(args.mocap, args.skeleton, args.fps, args.joint_map)  # every file read, checked first
-    checkpoint = out.with_name(out.name + ".checkpoint")
-    resume = args.resume and (checkpoint.exists() or not prior_entry(args.prior).resumable)  # the latter refused
-    if args.resume and not resume:  # stopped before its first checkpoint: the whole training again
-        log.info(f"no training checkpoint at {checkpoint}: training from the start")
-    side = checkpoint.with_name(checkpoint.name + ".inputs.json")
-    with undone_unless_started(first_missing(out), checkpoint, side) as work:  # refused: nothing stays behind
-
-        def started() -> None:  # once every setting is checked
-            work["started"] = True
-            log.info(f"training a {args.prior} prior on {len(clips)} clip(s), "
-                     f"{sum(len(c.poses) for c in clips)} frames at {clips[0].fps:g} fps")
-
-        progress = _progress_bar(f"training {args.prior}", on_start=started)
-        try:
-            model = train(args.prior, clips, skeletons=args.skeleton, fps=clips[0].fps, seed=args.seed,
-                          progress=progress, checkpoint=checkpoint, resume=resume, **options)
-        except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the training state at the stop (if any) stays for --resume
-            progress.close()
-            work["started"] = True  # the model file is written only at the end: nothing else to undo
-            command = shlex.join([*invoked_as().split(), *args.argv])
-            if not checkpoint.exists():  # stopped before the training kept any state, or a prior that cannot resume
-                side.unlink(missing_ok=True)
-                again = f"nothing saved; start again with: {command}"
-            else:
-                again = f"continue with: {command}{'' if args.resume else ' --resume'}"
-            log.warning(f"interrupted: {again}")
-            return interrupted_status()
-    with atomic_path(out) as tmp:
-        model.save(tmp)
-    print(f"{model.summary()} -> {out}")  # how the training went: its result
+    progress = _progress_bar(f"training {args.prior}")
+    try:
+        model = train_into(args.out, args.prior, args.mocap, skeletons=args.skeleton, fps=args.fps,
+                           joint_maps=args.joint_map, seed=args.seed, progress=progress, resume=args.resume,
+                           overwrite=args.overwrite, overwrite_flag="--overwrite",
+                           **given_options(args, prior_entry(args.prior).train_options))
+    except TrainingStopped as stop:  # Ctrl-C or SIGTERM: the training state at the stop (if any) stays for --resume
+        progress.close()
+        command = shlex.join([*invoked_as().split(), *args.argv])
+        again = (f"continue with: {command}{'' if args.resume else ' --resume'}" if stop.resumable
+                 else f"nothing saved; start again with: {command}")
+        log.warning(f"interrupted: {again}")
+        return interrupted_status()
+    print(f"{model.summary()} -> {args.out}")  # how the training went: its result
     return 0
 
 
@@ -361,8 +321,8 @@ def cmd_track(args: argparse.Namespace) -> int:
 
     try:
         run = run_in_folder(request, out, overwrite=args.overwrite, resume=bool(args.resume), on_frame=on_frame,
-                            on_start=frames.append, invocation={"argv": [PROG, *args.argv]}, overwrite_flag="--overwrite",
-                            resume_command=f"{PROG} track --resume {out}")
+                            on_start=frames.append, invocation={"argv": [PROG, *args.argv]},
+                            overwrite_flag="--overwrite", resume_command=f"{PROG} track --resume {out}")
     except TrackingStopped as stop:  # Ctrl-C or SIGTERM
         for bar in bars:
             bar.close()
