@@ -6,18 +6,18 @@ the frame the model knows (a posture offset, a root-height offset), it normalise
 inputs in front (the particle's pace, where the model takes one), and the model draws the next frame's normalised
 features (:meth:`ConditionalPrior.draw`, the one method a member of the family implements). The prediction goes
 back through the same parts, the root is integrated from the pending step, and the ground diffusion is added. The
-CRBM, the FCRBM and the deep CRBM priors are this step with their own model.
+CRBM, the FCRBM, the deep CRBM and the neural priors are this step with their own model.
 """
 from __future__ import annotations
 
 from abc import abstractmethod
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar, Mapping
 
 import numpy as np
 
 from priors.common import torch_generator
-from priors.learned import LearnedPrior
-from priors.parts import GroundDiffusion, GrowingModels, HeightOffset, PaceInput, PostureOffset, Step
+from priors.learned import LearnedPrior, PartSpec, is_paced, resolve_parts
+from priors.parts import GroundDiffusion, GrowingModels, HeightOffset, PaceInput, Part, PostureOffset, Step
 from tracker.core.errors import InputError
 from tracker.core.representation import STEP_FEATURES, pending_step, poses_to_invariant
 from tracker.engine.prior import PriorState
@@ -26,31 +26,35 @@ if TYPE_CHECKING:  # torch loads when a prior is built, not when the priors regi
     import torch
 
 
+#: The parts of the CRBM family, in the order a step runs them: the pace (exactly when the models take a pace
+#: input), the root-height offset and the posture offset (both off by default), the ground diffusion.
+CONDITIONAL_PARTS = (PartSpec("pace", PaceInput, paced=True), PartSpec("height", HeightOffset),
+                     PartSpec("posture", PostureOffset), PartSpec("ground", GroundDiffusion))
+
+
 class ConditionalPrior(LearnedPrior):
     """Samples every particle's next pose from its own history with a model of the CRBM family, in one batch.
 
     ``models`` are the models of increasing order (:class:`~priors.parts.GrowingModels`; each has ``order``,
-    ``normaliser``, ``pose_step_rms`` and, when trained with a pace input, ``pace_input(log_paces)``). The parts,
-    in this order: ``pace`` (exactly when the models take a pace input), ``height`` and ``posture`` (None: off),
-    ``ground``. Per-particle state: ``step`` ``P x 3``, the pending root step
-    (:data:`~tracker.core.representation.STEP_FEATURES`) of the newest history frame, which the previous sample
-    chose, and the parts' own entries. Each sample's torch generator is seeded from the filter's generator.
+    ``normaliser``, ``pose_step_rms`` and, when trained with a pace input, ``pace_input(log_paces)``). The parts
+    are those the prior declares (:attr:`PARTS`; by default :data:`CONDITIONAL_PARTS`), each given as a keyword
+    under its name (``ground=GroundDiffusion(0.0)``; None or absent: from ``options``, the registered builder's
+    option values, else its default for the models; :func:`~priors.learned.resolve_parts`). Per-particle state:
+    ``step`` ``P x 3``, the pending root step (:data:`~tracker.core.representation.STEP_FEATURES`) of the newest
+    history frame, which the previous sample chose, and the parts' own entries. Each sample's torch generator is
+    seeded from the filter's generator.
     """
 
+    PARTS: ClassVar[tuple[PartSpec, ...]] = CONDITIONAL_PARTS
+
     def __init__(self, models: GrowingModels, *, device: str | torch.device = "cpu",
-                 ground: GroundDiffusion = GroundDiffusion(), pace: PaceInput | None = None,
-                 height: HeightOffset | None = None, posture: PostureOffset | None = None):
+                 options: Mapping[str, Any] | None = None, **parts: Part | None):
         import torch
 
-        paced = getattr(models.first, "pace_label", None) is not None
-        if any((getattr(m, "pace_label", None) is not None) != paced for m in models):
+        paced = is_paced(models.first)
+        if any(is_paced(m) != paced for m in models):
             raise InputError(f"{models.kind} models for one prior must all have a pace input or none")
-        if pace is not None and not paced:
-            raise InputError(f"the pace settings are for a {models.kind} trained with a pace input (train "
-                             "--pace-input); this one has none")
-        parts = [] if not paced else [PaceInput() if pace is None else pace]
-        super().__init__([*parts, HeightOffset() if height is None else height,
-                          PostureOffset() if posture is None else posture, ground])
+        super().__init__(resolve_parts(self.PARTS, paced=paced, options=options, given=parts, kind=models.kind))
         self.models = models
         self.device = torch.device(device)
         self.order = models.order

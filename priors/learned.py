@@ -8,20 +8,134 @@ every random number first, in one order for every learned prior: the parts that 
 order (:attr:`~priors.parts.Part.CONDITIONS`, where the model reads the history's features:
 :attr:`LearnedPrior.reads_history`), then the model, then the other parts; so a particle's numbers are those at
 its row whatever the batch.
+
+A learned prior declares its parts once, as :class:`PartSpec` entries of :attr:`LearnedPrior.PARTS`, in the order
+its steps run them. From that one declaration :func:`part_options` gives the options its registration declares,
+:func:`resolve_parts` turns the options (or parts given to the constructor) into the parts in that order,
+:meth:`LearnedPrior.part` finds a part in use by its name, and the contract tests enumerate the parts and the
+small models (:attr:`LearnedPrior.SMALL_MODELS`) of every registered learned prior.
 """
 from __future__ import annotations
 
 from abc import abstractmethod
-from dataclasses import dataclass
-from typing import Any, Sequence, TypeVar
+from dataclasses import dataclass, field, replace
+from typing import Any, ClassVar, Mapping, Sequence, TypeVar
 
 import numpy as np
 
-from priors.parts import GroundDiffusion, HeightOffset, PaceInput, Part, PostureOffset, Step
+from priors.parts import OPTION_ORDER, Part, Step
+from tracker.core.errors import InputError
 from tracker.core.representation import STEP_FEATURES, next_poses
 from tracker.engine.prior import MotionPrior, PriorState
+from tracker.engine.registry import Option
 
 P = TypeVar("P", bound=Part)
+
+
+#: What the help says of an option whose default depends on whether the model takes a pace input.
+PACED_DEFAULT = "{paced:g} for a model trained with a pace input, 0 otherwise"
+
+
+def is_paced(model: Any) -> bool:
+    """Whether ``model`` takes a pace input (its ``pace_label`` is set: ``train --pace-input``)."""
+    return getattr(model, "pace_label", None) is not None
+
+
+@dataclass(frozen=True)
+class PartSpec:
+    """One part a learned prior declares (:attr:`LearnedPrior.PARTS`): the name its constructor takes the part
+    under and :meth:`LearnedPrior.part` finds it by (``name``), its type (``kind``), and where the defaults of its
+    options differ from the part's own: ``defaults`` (option name -> value) for every model, ``paced_defaults`` for
+    a model trained with a pace input (such an option is unset by default, its help saying so, and a model without
+    a pace input takes the part's own default). ``paced``: the part is there exactly when the model takes a pace
+    input (:func:`is_paced`), and its options, unset by default, are refused for a model without one."""
+
+    name: str
+    kind: type[Part]
+    defaults: Mapping[str, float] = field(default_factory=dict)
+    paced_defaults: Mapping[str, float] = field(default_factory=dict)
+    paced: bool = False
+
+    def options(self) -> tuple[Option, ...]:
+        """The part's options as the prior declares them, with the prior's defaults."""
+        out = []
+        for option in self.kind.OPTIONS:
+            if self.paced:
+                option = replace(option, default=None, default_note=f"{option.default:g}")
+            elif option.name in self.paced_defaults:
+                option = replace(option, default=None,
+                                 default_note=PACED_DEFAULT.format(paced=self.paced_defaults[option.name]))
+            elif option.name in self.defaults:
+                option = replace(option, default=self.defaults[option.name])
+            out.append(option)
+        return tuple(out)
+
+    def build(self, values: Mapping[str, Any], paced: bool) -> Part:
+        """The part of the option ``values`` (option name -> value; a missing or None value takes the prior's
+        default for a model with, ``paced``, or without a pace input)."""
+        defaults = {o.name: o.default for o in self.kind.OPTIONS}
+        defaults.update(self.defaults)
+        if paced:
+            defaults.update(self.paced_defaults)
+        return self.kind(*(defaults[o.name] if values.get(o.name) is None else values[o.name]
+                           for o in self.kind.OPTIONS))
+
+
+def part_options(specs: Sequence[PartSpec]) -> tuple[Option, ...]:
+    """The options of a learned prior's parts ``specs``, as its registration declares them: the shared parts' in
+    :data:`~priors.parts.OPTION_ORDER` (one order on every prior's help, whatever the order its steps run the
+    parts in), then any other part's in declared order."""
+    rank = {kind: i for i, kind in enumerate(OPTION_ORDER)}
+    ordered = sorted(specs, key=lambda s: rank.get(s.kind, len(rank)))  # stable: the others keep their order
+    return tuple(o for spec in ordered for o in spec.options())
+
+
+def resolve_parts(specs: Sequence[PartSpec], *, paced: bool = False, options: Mapping[str, Any] | None = None,
+                  given: Mapping[str, Part | None] | None = None, kind: str = "learned prior") -> tuple[Part, ...]:
+    """The parts of a learned prior, in the order of its ``specs`` (:attr:`LearnedPrior.PARTS`; the order its
+    steps run them and draw their random numbers in). Each spec's part is the one ``given`` under its name (the
+    constructor's keywords; None or absent: unset), else that of its option values in ``options`` (a registered
+    builder's resolved options; unset values take the defaults), else its default for the model. A ``paced``
+    spec's part is there exactly when the model takes a pace input (``paced``); a pace part or pace option given
+    for a model without one is refused, as is a model with a pace input for a prior that declares none
+    (:class:`InputError`, naming the model's ``kind``), and a part no spec names (:class:`TypeError`)."""
+    given = {k: v for k, v in (given or {}).items()}
+    options = options or {}
+    names = [s.name for s in specs]
+    unknown = sorted(set(given) - set(names))
+    if unknown:
+        raise TypeError(f"the {kind} prior takes the parts {', '.join(names)}, not {', '.join(unknown)}")
+    if paced and not any(s.paced for s in specs):
+        raise InputError(f"this prior takes no pace input, and this {kind} was trained with one")
+    parts = []
+    for spec in specs:
+        part = given.get(spec.name)
+        values = {o.name: options.get(o.name) for o in spec.kind.OPTIONS}
+        if spec.paced and not paced:
+            if part is not None:
+                raise InputError(f"the {spec.name} settings are for a {kind} trained with a pace input (train "
+                                 "--pace-input); this one has none")
+            set_values = [name for name, value in values.items() if value is not None]
+            if set_values:
+                raise InputError(f"{', '.join(n.replace('_', ' ') for n in set_values)} applies to a model trained "
+                                 "with a pace input (train --pace-input); this one has none")
+            continue
+        if part is not None and not isinstance(part, spec.kind):
+            raise TypeError(f"the {kind} prior's {spec.name} part is a {spec.kind.__name__}, got "
+                            f"{type(part).__name__}")
+        parts.append(spec.build(values, paced) if part is None else part)
+    return tuple(parts)
+
+
+@dataclass(frozen=True)
+class SmallModel:
+    """A model of a learned prior that trains in seconds, which its contract tests build it from
+    (tests/priors/test_prior_contract.py): the training ``options`` on the first ``clips`` of the tests' walks (of
+    different people, so that their paces vary); ``label`` tells the models of one prior apart."""
+
+    options: Mapping[str, Any]
+    clips: int = 1
+    label: str = ""
 
 
 @dataclass
@@ -41,6 +155,11 @@ class LearnedPrior(MotionPrior):
     #: Whether the model reads the history's features (which the conditioning parts move); a model that does not
     #: (the GPDM: latent coordinates) draws its random numbers before every part's.
     reads_history: bool = True
+    #: The parts the prior takes, declared once, in the order its steps run them (which fixes the order of their
+    #: random draws): its options (:func:`part_options`), its constructor's keywords and :meth:`part`'s names.
+    PARTS: ClassVar[tuple[PartSpec, ...]] = ()
+    #: Small models the prior's contract tests train and build it from.
+    SMALL_MODELS: ClassVar[tuple[SmallModel, ...]] = ()
 
     def __init__(self, parts: Sequence[Part]):
         #: Every part given, in order, in use or not.
@@ -54,29 +173,16 @@ class LearnedPrior(MotionPrior):
         """``"quantity"``: the summary is the posterior means of the parts' quantities."""
         return "quantity" if self.summary_names else "posterior"
 
-    def part(self, kind: type[P]) -> P | None:
-        """The part in use of type ``kind`` (None if there is none)."""
-        return next((p for p in self.parts if isinstance(p, kind)), None)
-
-    @property
-    def ground(self) -> GroundDiffusion | None:
-        """The ground diffusion in use (None: none)."""
-        return self.part(GroundDiffusion)
-
-    @property
-    def pace(self) -> PaceInput | None:
-        """The pace input in use (None: none; a model trained without one takes none)."""
-        return self.part(PaceInput)
-
-    @property
-    def height(self) -> HeightOffset | None:
-        """The root-height offset in use (None: none)."""
-        return self.part(HeightOffset)
-
-    @property
-    def posture(self) -> PostureOffset | None:
-        """The posture offset in use (None: none)."""
-        return self.part(PostureOffset)
+    def part(self, which: str | type[P]) -> Part | None:
+        """The part in use declared under the name ``which`` (:attr:`PARTS`: ``prior.part("height")``), or of the
+        type ``which``; None if there is none in use. A name the prior does not declare is a :class:`KeyError`."""
+        if isinstance(which, str):
+            spec = next((s for s in self.PARTS if s.name == which), None)
+            if spec is None:
+                raise KeyError(f"{self.name} declares no part {which!r} (its parts: "
+                               f"{', '.join(s.name for s in self.PARTS)})")
+            which = spec.kind
+        return next((p for p in self.parts if isinstance(p, which)), None)
 
     # -- what a family of learned priors implements --------------------------------------------------------------
 

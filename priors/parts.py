@@ -1,8 +1,8 @@
 """The parts a learned prior is built from besides its model: small per-particle pieces with their own options.
 
-A learned prior (CRBM, FCRBM, deep CRBM, GPDM) is a model that draws the next frame of the invariant features
-(:mod:`tracker.core.representation`) from a batch of histories, plus an ordered list of these parts
-(:class:`priors.learned.LearnedPrior`):
+A learned prior (CRBM, FCRBM, deep CRBM, GPDM, neural) is a model that draws the next frame of the invariant
+features (:mod:`tracker.core.representation`) from a batch of histories, plus an ordered list of these parts
+(:class:`priors.learned.LearnedPrior`, which declares them once: :class:`priors.learned.PartSpec`):
 
 - :class:`PaceInput`: each particle's own pace (log ground speed), given to a model trained with a pace input.
 - :class:`HeightOffset`: each particle's own root-height offset (mm), so that the images select the height of a
@@ -341,6 +341,11 @@ class GroundDiffusion(Part):
         """The poses moved on the ground plane."""
         if noise is not None:
             step.poses[:, :2] += self.std_mm * noise
+
+
+#: The order in which a learned prior's options list the shared parts' (:func:`priors.learned.part_options`): one
+#: order on every prior's help, whatever the order its steps run its parts in.
+OPTION_ORDER: tuple[type[Part], ...] = (GroundDiffusion, PaceInput, HeightOffset, PostureOffset)
 
 
 M = TypeVar("M")

@@ -7,20 +7,20 @@ prior (``train`` and ``track --prior crbm``); several model files all of one ord
 """
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, Mapping, Sequence
 
 import numpy as np
 
 from priors.common import gibbs_steps_option, loaded, source_of
 from priors.conditional import ConditionalPrior
 from priors.ensemble import EnsemblePrior
-from priors.parts import GroundDiffusion, GrowingModels, HeightOffset, PaceInput, PostureOffset
+from priors.learned import PartSpec, SmallModel, part_options
+from priors.parts import GroundDiffusion, GrowingModels, HeightOffset, PaceInput, Part, PostureOffset
 from priors.settings import CRBM_TRAIN_OPTIONS
 from tracker.core.errors import InputError
 from tracker.engine.prior import PriorState
-from tracker.engine.registry import Option, PriorContext, TrainingData, register_prior
+from tracker.engine.registry import PriorContext, TrainingData, register_prior
 
 if TYPE_CHECKING:  # the model and torch load when the prior is built or trained, not when it registers
     import torch
@@ -39,6 +39,13 @@ PACED_HEIGHT_SPREAD = 50.0
 #: Default posture gain of a CRBM trained with a pace input: it won against none and against 0.2 and 0.4 on the
 #: tuning and test folds (docs/methods_report.md). Without a pace input the default is 0.
 PACED_POSTURE_GAIN = 0.1
+#: The parts of a CRBM prior (and of the neural prior), in the order a step runs them: the
+#: :class:`~priors.conditional.ConditionalPrior`'s, a model trained with a pace input taking a height offset of
+#: :data:`PACED_HEIGHT_SPREAD` and a posture gain of :data:`PACED_POSTURE_GAIN` by default, one without neither.
+PACED_PARTS = (PartSpec("pace", PaceInput, paced=True),
+               PartSpec("height", HeightOffset, paced_defaults={"height_spread": PACED_HEIGHT_SPREAD}),
+               PartSpec("posture", PostureOffset, paced_defaults={"posture_gain": PACED_POSTURE_GAIN}),
+               PartSpec("ground", GroundDiffusion))
 
 
 class CRBMPrior(ConditionalPrior):
@@ -46,30 +53,30 @@ class CRBMPrior(ConditionalPrior):
 
     ``models`` of increasing order grow the history (each file carries the lower orders it was trained with).
     ``mode`` is ``'gibbs'`` (``gibbs_steps`` alternating Gibbs steps, for tracking) or ``'free-energy'`` (the
-    best guess, eq. 4.19, for prediction). The parts (``ground``, ``pace``, ``height``, ``posture``) are
-    :class:`~priors.conditional.ConditionalPrior`'s; a part left None takes its default for these models
-    (:func:`model_defaults`): a model trained with a pace input gets a :class:`~priors.parts.PaceInput`, a
-    height offset of :data:`PACED_HEIGHT_SPREAD` and a posture gain of :data:`PACED_POSTURE_GAIN`; one without
-    gets neither offset. Pass ``HeightOffset(0)`` or ``PostureOffset(0)`` to turn one off.
+    best guess, eq. 4.19, for prediction). The parts are :data:`PACED_PARTS` (``ground``, ``pace``, ``height``,
+    ``posture``, given as keywords or by ``options``: :class:`~priors.conditional.ConditionalPrior`); a part left
+    unset takes its default for these models: a model trained with a pace input gets a
+    :class:`~priors.parts.PaceInput`, a height offset of :data:`PACED_HEIGHT_SPREAD` and a posture gain of
+    :data:`PACED_POSTURE_GAIN`; one without gets neither offset. Pass ``HeightOffset(0)`` or ``PostureOffset(0)``
+    to turn one off.
     """
 
     name = "crbm"
+    PARTS: ClassVar[tuple[PartSpec, ...]] = PACED_PARTS
+    SMALL_MODELS: ClassVar[tuple[SmallModel, ...]] = (
+        SmallModel({"order": 3, "hidden": 20, "epochs": 3}),
+        SmallModel({"order": 2, "hidden": 20, "epochs": 3, "pace_input": True}, clips=3, label="paced"))
 
     def __init__(self, models: Sequence[CRBMModel], gibbs_steps: int = GIBBS_STEPS, *, device: str = "cpu",
-                 mode: str = "gibbs", ground: GroundDiffusion = GroundDiffusion(), pace: PaceInput | None = None,
-                 height: HeightOffset | None = None, posture: PostureOffset | None = None):
+                 mode: str = "gibbs", options: Mapping[str, Any] | None = None, **parts: Part | None):
         from priors.crbm.model import CRBM
 
         grown = GrowingModels(models, "CRBM")
-        first = grown.first
         if isinstance(gibbs_steps, bool) or not isinstance(gibbs_steps, (int, np.integer)) or gibbs_steps < 1:
             raise InputError(f"Gibbs steps must be an integer of at least 1, got {gibbs_steps!r}")
         if mode not in ("gibbs", "free-energy"):
             raise InputError(f"CRBM prior mode must be 'gibbs' or 'free-energy', got {mode!r}")
-        spread, gain = model_defaults(first.pace_label is not None)
-        super().__init__(grown, device=device, ground=ground, pace=pace,
-                         height=HeightOffset(spread) if height is None else height,
-                         posture=PostureOffset(gain) if posture is None else posture)
+        super().__init__(grown, device=device, options=options, **parts)
         self.gibbs_steps, self.mode = int(gibbs_steps), mode
         for m in grown:
             m.crbm.W, m.crbm.A, m.crbm.B, m.crbm.a, m.crbm.b = (
@@ -88,46 +95,6 @@ class CRBMPrior(ConditionalPrior):
         return {**super().settings(), "gibbs_steps": self.gibbs_steps, "mode": self.mode}
 
 
-def model_defaults(paced: bool) -> tuple[float, float]:
-    """The default height spread (mm) and posture gain of a CRBM with (``paced``) or without a pace input."""
-    return (PACED_HEIGHT_SPREAD, PACED_POSTURE_GAIN) if paced else (0.0, 0.0)
-
-
-def learned_parts(options: dict, paced: bool) -> dict:
-    """The parts of a learned prior from its resolved options (those it declares): ground diffusion, the pace
-    (a model with a pace input; its options are refused for one without), the height offset and the posture
-    offset. An option left unset (None) takes its default for this model (:func:`model_defaults`)."""
-    parts = {"ground": GroundDiffusion(options["root_noise"])}
-    pace_given = {k: options.get(k) for k in ("pace_spread", "pace_drift") if options.get(k) is not None}
-    if pace_given and not paced:
-        raise InputError(f"{', '.join(k.replace('_', ' ') for k in pace_given)} applies to a model trained with a "
-                         "pace input (train --pace-input); this one has none")
-    if paced:
-        parts["pace"] = PaceInput(**{k.split("_")[1]: v for k, v in pace_given.items()})
-    spread, gain = model_defaults(paced)
-    if "height_spread" in options:
-        given = options["height_spread"]
-        parts["height"] = HeightOffset(spread if given is None else given, options["height_drift"])
-    if "posture_gain" in options:
-        given = options["posture_gain"]
-        parts["posture"] = PostureOffset(gain if given is None else given)
-    return parts
-
-
-#: Options of the CRBM prior whose default depends on the model: what the help says of it.
-PACED_DEFAULT = "{paced:g} for a model trained with a pace input, 0 otherwise"
-
-
-def paced_default(option: Option, paced_value: float) -> Option:
-    """``option`` unset by default (None: :func:`learned_parts` resolves it for the model), its help saying so."""
-    return replace(option, default=None, default_note=PACED_DEFAULT.format(paced=paced_value))
-
-
-HEIGHT_SPREAD, HEIGHT_DRIFT = HeightOffset.OPTIONS
-#: The pace options, unset by default (None) so that they are refused for a model without a pace input.
-PACE_OPTIONS = tuple(replace(o, default=None, default_note=f"{o.default:g}") for o in PaceInput.OPTIONS)
-
-
 def train_crbm_from_data(data: TrainingData, options: dict, rng: np.random.Generator,
                          progress: Callable[[int, int, dict], None] | None = None, checkpoint: Path | None = None,
                          resume: bool = False) -> CRBMModel:
@@ -141,12 +108,7 @@ def train_crbm_from_data(data: TrainingData, options: dict, rng: np.random.Gener
     "crbm", summary="Conditional RBM (Taylor 2009); several model files of increasing order grow the history, "
                     "several of one order form an ensemble",
     model_files="several", train=train_crbm_from_data, train_options=CRBM_TRAIN_OPTIONS, resumable=True,
-    options=(gibbs_steps_option(GIBBS_STEPS),
-             *GroundDiffusion.OPTIONS,
-             *PACE_OPTIONS,
-             paced_default(HEIGHT_SPREAD, PACED_HEIGHT_SPREAD),
-             HEIGHT_DRIFT,
-             paced_default(PostureOffset.OPTIONS[0], PACED_POSTURE_GAIN)))
+    options=(gibbs_steps_option(GIBBS_STEPS), *part_options(CRBMPrior.PARTS)))
 def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> CRBMPrior | EnsemblePrior:
     """The CRBM prior of ``model_files``: models of increasing order grow the history; several files all of one
     order (each with the growth models it carries) form an ensemble, each drawing its share of the particles."""
@@ -158,8 +120,7 @@ def build_crbm(context: PriorContext, model_files: Sequence[Path], options: dict
         m.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, source_of(given))
 
     def prior(of: list[CRBMModel]) -> CRBMPrior:
-        parts = learned_parts(options, paced=of[0].pace_label is not None)
-        return CRBMPrior(of, options["gibbs_steps"], device=context.device, **parts)
+        return CRBMPrior(of, options["gibbs_steps"], device=context.device, options=options)
 
     if len(models) > 1 and len({m.order for m in models}) == 1:
         return EnsemblePrior([prior([m]) for m in models])

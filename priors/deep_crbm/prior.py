@@ -7,13 +7,14 @@ Sec. 6.4).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, Mapping, Sequence
 
 import numpy as np
 
 from priors.common import gibbs_steps_option, loaded, source_of
-from priors.crbm.prior import CRBMPrior, learned_parts
-from priors.parts import GroundDiffusion, HeightOffset, PostureOffset
+from priors.crbm.prior import CRBMPrior
+from priors.learned import PartSpec, SmallModel, part_options
+from priors.parts import GroundDiffusion, HeightOffset, Part, PostureOffset
 from priors.settings import CRBM_TRAIN_OPTIONS, TopConfig
 from tracker.engine.prior import PriorState
 from tracker.engine.registry import Option, PriorContext, TrainingData, register_prior
@@ -27,16 +28,20 @@ if TYPE_CHECKING:  # torch and the models load when the prior is built or traine
 class DeepCRBMPrior(CRBMPrior):
     """Samples every particle's next pose through both layers once ``N + M`` history frames are real poses, and
     with the first layer (or the lower orders its file carries) before; the pose step, the parts and the
-    per-particle state are the CRBM prior's."""
+    per-particle state are the CRBM prior's. Its first layer takes no pace input (its file refuses one), so its
+    parts are the height and posture offsets (off by default) and the ground diffusion."""
 
     name = "deep-crbm"
+    PARTS: ClassVar[tuple[PartSpec, ...]] = (PartSpec("height", HeightOffset), PartSpec("posture", PostureOffset),
+                                             PartSpec("ground", GroundDiffusion))
+    SMALL_MODELS: ClassVar[tuple[SmallModel, ...]] = (
+        SmallModel({"order": 2, "hidden": 20, "epochs": 3, "top_order": 1, "top_hidden": 10, "top_epochs": 3}),)
 
     def __init__(self, model: DeepCRBMModel, gibbs_steps: int = 30, *, device: str = "cpu",
-                 ground: GroundDiffusion = GroundDiffusion(), height: HeightOffset | None = None,
-                 posture: PostureOffset | None = None):
+                 options: Mapping[str, Any] | None = None, **parts: Part | None):
         from priors.crbm.model import CRBM
 
-        super().__init__([model.bottom], gibbs_steps, device=device, ground=ground, height=height, posture=posture)
+        super().__init__([model.bottom], gibbs_steps, device=device, options=options, **parts)
         self.deep = model
         for k in CRBM.PARAMS:
             setattr(model.top, k, getattr(model.top, k).to(self.device))
@@ -89,7 +94,7 @@ DEEP_TRAIN_OPTIONS = tuple(o for o in CRBM_TRAIN_OPTIONS if o.name != "pace_inpu
 @register_prior(
     "deep-crbm", summary="two-layer CRBM (Taylor 2009, Sec. 4.3): a second CRBM on the first one's hidden units",
     model_files="one", train=train_deep_crbm_from_data, train_options=DEEP_TRAIN_OPTIONS, resumable=True,
-    options=(gibbs_steps_option(30), *GroundDiffusion.OPTIONS, *HeightOffset.OPTIONS, *PostureOffset.OPTIONS))
+    options=(gibbs_steps_option(30), *part_options(DeepCRBMPrior.PARTS)))
 def build_deep_crbm(context: PriorContext, model_files: Sequence[Path], options: dict) -> DeepCRBMPrior:
     from priors.deep_crbm.file import load_deep_crbm
     from priors.deep_crbm.model import DeepCRBMModel
@@ -97,4 +102,4 @@ def build_deep_crbm(context: PriorContext, model_files: Sequence[Path], options:
     model = loaded(model_files[0], load_deep_crbm, DeepCRBMModel, "deep CRBM", device=context.device)
     model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps,
                            source_of(model_files[0]))
-    return DeepCRBMPrior(model, options["gibbs_steps"], device=context.device, **learned_parts(options, paced=False))
+    return DeepCRBMPrior(model, options["gibbs_steps"], device=context.device, options=options)

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, Mapping, Sequence
 
 import numpy as np
 
 from priors.common import gibbs_steps_option, loaded, source_of
 from priors.conditional import ConditionalPrior
-from priors.parts import GroundDiffusion, GrowingModels, HeightOffset, PostureOffset
+from priors.learned import PartSpec, SmallModel, part_options
+from priors.parts import GroundDiffusion, GrowingModels, HeightOffset, Part, PostureOffset
 from priors.settings import CRBM_TRAIN_OPTIONS, STYLE_TEMPERATURE, FCRBMConfig
 from tracker.core.errors import InputError
 from tracker.engine.mixture import Mixing, switching
@@ -98,16 +99,21 @@ class FCRBMPrior(ConditionalPrior):
     schedule reads). An unknown style is inferred by mixture tracking: every label keeps an equal share of the
     particles, and the filter moves weight between the labels by their tempered evidence and switches with
     probability ``style_switch`` per frame (:meth:`mixing`). ``style`` fixes every particle's label (no switching: the
-    oracle), or follows a schedule. :meth:`summarize` gives the filter's posterior over the labels.
+    oracle), or follows a schedule. :meth:`summarize` gives the filter's posterior over the labels. The parts
+    (an FCRBM takes no pace input): the height and posture offsets (off by default) and the ground diffusion.
     """
 
     name = "fcrbm"
     summary_kind = "posterior"
+    PARTS: ClassVar[tuple[PartSpec, ...]] = (PartSpec("height", HeightOffset), PartSpec("posture", PostureOffset),
+                                             PartSpec("ground", GroundDiffusion))
+    SMALL_MODELS: ClassVar[tuple[SmallModel, ...]] = (
+        SmallModel({"labels": "a,b", "order": 2, "hidden": 20, "factors": 10, "features": 4, "epochs": 3},
+                   clips=2),)
 
     def __init__(self, models: Sequence[FCRBMModel], gibbs_steps: int = 30, *, device: str = "cpu",
-                 ground: GroundDiffusion = GroundDiffusion(), height: HeightOffset | None = None,
-                 posture: PostureOffset | None = None, style_switch: float = 0.05, style: str | None = None,
-                 style_temperature: float = STYLE_TEMPERATURE):
+                 style_switch: float = 0.05, style: str | None = None, style_temperature: float = STYLE_TEMPERATURE,
+                 options: Mapping[str, Any] | None = None, **parts: Part | None):
         grown = GrowingModels(models, "FCRBM")
         first = grown.first
         checks = {"Gibbs steps": (gibbs_steps, gibbs_steps >= 1),
@@ -116,7 +122,7 @@ class FCRBMPrior(ConditionalPrior):
         for what, (value, ok) in checks.items():
             if not ok:
                 raise InputError(f"FCRBM prior: bad {what} {value!r}")
-        super().__init__(grown, device=device, ground=ground, height=height, posture=posture)
+        super().__init__(grown, device=device, options=options, **parts)
         self.labels = list(first.labels)
         self.style = None if style in (None, "") else str(style)
         self.schedule = None if self.style is None else parse_style_schedule(self.style, self.labels)
@@ -302,9 +308,7 @@ FCRBM_TRAIN_OPTIONS = (
                      "result.json reports the posterior over the labels per frame",
     model_files="one", train=train_fcrbm_prior, train_options=FCRBM_TRAIN_OPTIONS, resumable=True,
     options=(gibbs_steps_option(30),
-             *GroundDiffusion.OPTIONS,
-             *HeightOffset.OPTIONS,
-             *PostureOffset.OPTIONS,
+             *part_options(FCRBMPrior.PARTS),
              Option("style_switch", float, 0.05, "probability per frame that the style switches to another label "
                                                  "(default 0.05)", minimum=0.0, maximum=1.0),
              Option("style", str, None, "give every particle this label and never switch (the oracle), or a "
@@ -320,9 +324,5 @@ def build_fcrbm(context: PriorContext, model_files: Sequence[Path], options: dic
     model = loaded(model_files[0], load_fcrbm, FCRBMModel, "FCRBM", device=context.device)
     model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps,
                            source_of(model_files[0]))
-    return FCRBMPrior([model], options["gibbs_steps"], device=context.device,
-                      ground=GroundDiffusion(options["root_noise"]),
-                      height=HeightOffset(options["height_spread"], options["height_drift"]),
-                      posture=PostureOffset(options["posture_gain"]), style_switch=options["style_switch"],
-                      style=options["style"],
-                      style_temperature=options["style_temperature"])
+    return FCRBMPrior([model], options["gibbs_steps"], device=context.device, style_switch=options["style_switch"],
+                      style=options["style"], style_temperature=options["style_temperature"], options=options)

@@ -2,17 +2,16 @@
 plus the parts of :mod:`priors.parts`. Registered as ``gpdm`` (``train`` and ``track --prior gpdm``)."""
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, Mapping, Sequence
 
 import numpy as np
 
 from priors.common import loaded, source_of
 from priors.gpdm.subset import MIN_STRETCH
 from priors.settings import AUTO_INDUCING, DYNAMICS, EXACT_MAX_FRAMES, GPDM_MAX_FRAMES, MAX_LATENT_NOISE, GPDMConfig
-from priors.learned import LearnedPrior
-from priors.parts import GroundDiffusion, HeightOffset, PostureOffset, Step
+from priors.learned import LearnedPrior, PartSpec, SmallModel, part_options, resolve_parts
+from priors.parts import GroundDiffusion, HeightOffset, Part, PostureOffset, Step
 from tracker.core.errors import InputError
 from tracker.core.representation import STEP_FEATURES, pending_step, poses_to_invariant
 from tracker.engine.prior import PriorState
@@ -38,11 +37,12 @@ class GPDMPrior(LearnedPrior):
     frame (see :class:`priors.conditional.ConditionalPrior` for why). A step draws the next latent point from the
     dynamics GP, mean plus ``noise_scale`` times the predictive standard deviation; the observation GP's mean gives
     the new frame's invariant features; the root moves by the pending step. Initial latent points are the
-    projections of the known poses. The parts, in this order (:mod:`priors.parts`; the model reads no history
-    features, so they move only its prediction): ``ground`` (:class:`~priors.parts.GroundDiffusion`); ``height``
-    (:class:`~priors.parts.HeightOffset`; None, the default, is a spread of :data:`HEIGHT_SPREAD`;
-    ``HeightOffset(0)`` turns it off), each particle's own root-height offset added to the heights the observation
-    GP predicts; ``posture``
+    projections of the known poses. The parts, in the order of :attr:`PARTS` (:mod:`priors.parts`; the model reads
+    no history features, so they move only its prediction), each given as a keyword under its name (None or
+    absent: from ``options``, the registered builder's option values, else its default;
+    :func:`~priors.learned.resolve_parts`): ``ground`` (:class:`~priors.parts.GroundDiffusion`); ``height``
+    (:class:`~priors.parts.HeightOffset`; by default a spread of :data:`HEIGHT_SPREAD`; ``HeightOffset(0)`` turns
+    it off), each particle's own root-height offset added to the heights the observation GP predicts; ``posture``
     (:class:`~priors.parts.PostureOffset`, off by default), an offset added to the predicted posture angles that
     integrates the images' corrections.
     """
@@ -50,17 +50,21 @@ class GPDMPrior(LearnedPrior):
     name = "gpdm"
     order = 1
     reads_history = False
+    PARTS: ClassVar[tuple[PartSpec, ...]] = (
+        PartSpec("ground", GroundDiffusion),
+        PartSpec("height", HeightOffset, defaults={"height_spread": HEIGHT_SPREAD}),
+        PartSpec("posture", PostureOffset))
+    SMALL_MODELS: ClassVar[tuple[SmallModel, ...]] = (SmallModel({"iterations": 3}),)
 
-    def __init__(self, model: GPDMPriorModel, noise_scale: float = 1.0, *,
-                 ground: GroundDiffusion = GroundDiffusion(), height: HeightOffset | None = None,
-                 posture: PostureOffset = PostureOffset(), dtype: torch.dtype | None = None):
+    def __init__(self, model: GPDMPriorModel, noise_scale: float = 1.0, *, dtype: torch.dtype | None = None,
+                 options: Mapping[str, Any] | None = None, **parts: Part | None):
         import torch
 
         from priors.gpdm.predict import prepare
 
         if not noise_scale >= 0:
             raise InputError("GPDM latent noise must be non-negative")
-        super().__init__([ground, HeightOffset(HEIGHT_SPREAD) if height is None else height, posture])
+        super().__init__(resolve_parts(self.PARTS, options=options, given=parts, kind="GPDM"))
         self.model = model
         self.predictor = prepare(model.gpdm)
         self.sampler = self.predictor.sampler(torch.float32 if dtype is None else dtype)
@@ -103,7 +107,7 @@ class GPDMPrior(LearnedPrior):
     def prepare(self, history: np.ndarray, available: int, state: PriorState) -> Step:
         """The pending step of each particle's newest frame; with a posture offset, that frame's features too
         (the posterior the offset updates from). The model reads no history features."""
-        if self.posture is not None:
+        if self.part("posture") is not None:
             previous = poses_to_invariant(history[:, -2:] if history.shape[1] > 1 else
                                           np.concatenate([history[:, :1], history], axis=1))[:, -1]
         else:
@@ -165,10 +169,7 @@ GPDM_TRAIN_OPTIONS = (
     options=(Option("latent_noise", float, 1.0,
                     "multiple of the predictive standard deviation added to each latent step",
                     minimum=0.0, maximum=MAX_LATENT_NOISE),
-             *GroundDiffusion.OPTIONS,
-             replace(HeightOffset.OPTIONS[0], default=HEIGHT_SPREAD),
-             HeightOffset.OPTIONS[1],
-             *PostureOffset.OPTIONS))
+             *part_options(GPDMPrior.PARTS)))
 def build_gpdm(context: PriorContext, model_files: Sequence[Path], options: dict) -> GPDMPrior:
     from priors.gpdm.file import load_gpdm_prior
     from priors.gpdm.model import GPDMPriorModel
@@ -177,9 +178,7 @@ def build_gpdm(context: PriorContext, model_files: Sequence[Path], options: dict
     model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps,
                            source_of(model_files[0]))
     try:
-        return GPDMPrior(model, options["latent_noise"], ground=GroundDiffusion(options["root_noise"]),
-                         height=HeightOffset(options["height_spread"], options["height_drift"]),
-                         posture=PostureOffset(options["posture_gain"]))
+        return GPDMPrior(model, options["latent_noise"], options=options)
     except InputError as exc:  # a kernel matrix of the file's hyperparameters that is not positive definite
         if exc.path is not None:
             raise

@@ -9,16 +9,16 @@ lower-order models. Registered as the ``neural`` prior (``train`` and ``track --
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, Mapping, Sequence
 
 import numpy as np
 
 from priors.common import loaded, source_of
 from priors.conditional import ConditionalPrior
-from priors.crbm.prior import HEIGHT_DRIFT, HEIGHT_SPREAD, PACE_OPTIONS, PACED_HEIGHT_SPREAD, PACED_POSTURE_GAIN, \
-    learned_parts, model_defaults, paced_default
+from priors.crbm.prior import PACED_PARTS
+from priors.learned import PartSpec, SmallModel, part_options
 from priors.neural.settings import NEURAL_TRAIN_OPTIONS
-from priors.parts import GroundDiffusion, GrowingModels, HeightOffset, PaceInput, PostureOffset, Step
+from priors.parts import GrowingModels, Part, Step
 from tracker.engine.prior import PriorState
 from tracker.engine.registry import PriorContext, TrainingData, register_prior
 
@@ -31,18 +31,19 @@ if TYPE_CHECKING:  # the model and torch load when the prior is built or trained
 class NeuralPrior(ConditionalPrior):
     """Samples every particle's next pose from its own last ``min(available, order)`` poses with a trained
     :class:`~priors.neural.model.NeuralModel`, in one batch. The parts are
-    :class:`~priors.conditional.ConditionalPrior`'s; a part left None takes the CRBM's default for a model with or
-    without a pace input (:func:`priors.crbm.prior.model_defaults`)."""
+    :class:`~priors.conditional.ConditionalPrior`'s, declared as the CRBM's
+    (:data:`priors.crbm.prior.PACED_PARTS`): a part left unset takes the CRBM's default for a model with or
+    without a pace input."""
 
     name = "neural"
+    PARTS: ClassVar[tuple[PartSpec, ...]] = PACED_PARTS
+    SMALL_MODELS: ClassVar[tuple[SmallModel, ...]] = (
+        SmallModel({"order": 3, "hidden": 16, "layers": 1, "epochs": 2}),
+        SmallModel({"order": 2, "hidden": 16, "layers": 1, "epochs": 2, "pace_input": True}, clips=3, label="paced"))
 
-    def __init__(self, model: NeuralModel, *, device: str = "cpu", ground: GroundDiffusion = GroundDiffusion(),
-                 pace: PaceInput | None = None, height: HeightOffset | None = None,
-                 posture: PostureOffset | None = None):
-        spread, gain = model_defaults(model.pace_label is not None)
-        super().__init__(GrowingModels([model], "neural prior"), device=device, ground=ground, pace=pace,
-                         height=HeightOffset(spread) if height is None else height,
-                         posture=PostureOffset(gain) if posture is None else posture)
+    def __init__(self, model: NeuralModel, *, device: str = "cpu", options: Mapping[str, Any] | None = None,
+                 **parts: Part | None):
+        super().__init__(GrowingModels([model], "neural prior"), device=device, options=options, **parts)
         self.model = model
         model.net.to(self.device).eval()
 
@@ -83,11 +84,7 @@ def train_neural_from_data(data: TrainingData, options: dict, rng: np.random.Gen
     "neural", summary="neural autoregressive prior: a mixture density network over an MLP encoding of the last "
                       "frames, drawing from one known frame on",
     model_files="one", train=train_neural_from_data, train_options=NEURAL_TRAIN_OPTIONS, resumable=True,
-    options=(*GroundDiffusion.OPTIONS,
-             *PACE_OPTIONS,
-             paced_default(HEIGHT_SPREAD, PACED_HEIGHT_SPREAD),
-             HEIGHT_DRIFT,
-             paced_default(PostureOffset.OPTIONS[0], PACED_POSTURE_GAIN)))
+    options=part_options(NeuralPrior.PARTS))
 def build_neural(context: PriorContext, model_files: Sequence[Path], options: dict) -> NeuralPrior:
     """The neural prior of one model file (or a trained model), checked against the sequence."""
     from priors.neural.file import load_neural
@@ -96,5 +93,4 @@ def build_neural(context: PriorContext, model_files: Sequence[Path], options: di
     given = model_files[0]
     model = loaded(given, load_neural, NeuralModel, "neural prior", device=context.device)
     model.check_compatible(context.body_model.name, context.body_model.dof_names, context.fps, source_of(given))
-    parts = learned_parts(options, paced=model.pace_label is not None)
-    return NeuralPrior(model, device=context.device, **parts)
+    return NeuralPrior(model, device=context.device, options=options)

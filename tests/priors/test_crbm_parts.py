@@ -82,7 +82,8 @@ def test_the_model_walks_at_the_pace_it_is_given(paced, walk_07_01):
 
 def test_each_particle_starts_at_the_known_pace_and_drifts(paced, walk_07_01):
     prior = CRBMPrior([paced])
-    assert (prior.pace.spread, prior.pace.drift) == (PACE_SPREAD, PACE_DRIFT)
+    pace = prior.part("pace")
+    assert (pace.spread, pace.drift) == (PACE_SPREAD, PACE_DRIFT)
     rng = np.random.default_rng(1)
     state = prior.start(walk_07_01[:60], 4000, rng)
     step = poses_to_invariant(walk_07_01[58:60])[-1]
@@ -131,7 +132,8 @@ def test_paced_model_files_are_checked(paced, plain, tmp_path):
 def test_paced_and_unpaced_models_do_not_mix(paced, plain):
     with pytest.raises(InputError, match="pace input or none"):
         CRBMPrior([plain, paced])
-    assert CRBMPrior([plain]).pace is None and "pace" not in CRBMPrior([plain]).start(np.zeros((3, 40)), 2, None)
+    assert CRBMPrior([plain]).part("pace") is None
+    assert "pace" not in CRBMPrior([plain]).start(np.zeros((3, 40)), 2, None)
     assert plain.to_document()["pace_label"] is None
 
 
@@ -226,8 +228,9 @@ def test_a_paced_crbm_gives_each_particle_a_height_offset_by_default(paced, plai
     from priors.crbm.prior import PACED_HEIGHT_SPREAD
     from tracker.app.api import prior_entry
 
-    assert PACED_HEIGHT_SPREAD == 50.0 and CRBMPrior([paced]).height.spread == PACED_HEIGHT_SPREAD
-    assert CRBMPrior([plain]).height is None and CRBMPrior([paced], height=HeightOffset(0.0)).height is None
+    assert PACED_HEIGHT_SPREAD == 50.0 and CRBMPrior([paced]).part("height").spread == PACED_HEIGHT_SPREAD
+    assert CRBMPrior([plain]).part("height") is None
+    assert CRBMPrior([paced], height=HeightOffset(0.0)).part("height") is None
     option = {o.name: o for o in prior_entry("crbm").options}["height_spread"]
     assert option.default is None and "(default 50 for a model trained with a pace input" in option.described()
     state = CRBMPrior([paced]).start(walk_07_01[:60], 4000, np.random.default_rng(8))
@@ -238,8 +241,9 @@ def test_a_paced_crbm_corrects_its_posture_by_default(paced, plain):
     from priors.crbm.prior import PACED_POSTURE_GAIN
     from tracker.app.api import prior_entry
 
-    assert PACED_POSTURE_GAIN == 0.1 and CRBMPrior([paced]).posture.gain == PACED_POSTURE_GAIN
-    assert CRBMPrior([plain]).posture is None and CRBMPrior([paced], posture=PostureOffset(0.0)).posture is None
+    assert PACED_POSTURE_GAIN == 0.1 and CRBMPrior([paced]).part("posture").gain == PACED_POSTURE_GAIN
+    assert CRBMPrior([plain]).part("posture") is None
+    assert CRBMPrior([paced], posture=PostureOffset(0.0)).part("posture") is None
     option = {o.name: o for o in prior_entry("crbm").options}["posture_gain"]
     assert option.default is None and f"(default {PACED_POSTURE_GAIN:g} for a model" in option.described()
     deep = {o.name: o for o in prior_entry("deep-crbm").options}["posture_gain"]

@@ -480,7 +480,7 @@ def test_gpdm_height_offsets_start_spread_drift_are_summarised_and_batched_equal
             for i in range(P)]
     assert np.allclose(batched, np.concatenate([r[0] for r in rows]), atol=2e-4)
     assert np.array_equal(bstate["height_offset"], np.concatenate([r[1]["height_offset"] for r in rows]))
-    assert GPDMPrior(gpdm_prior_model).height.spread == 50.0  # the default
+    assert GPDMPrior(gpdm_prior_model).part("height").spread == 50.0  # the default
     option = {o.name: o for o in prior_entry("gpdm").options}["height_spread"]
     assert option.default == 50.0 and "(default 50)" in option.described()
     plain = GPDMPrior(gpdm_prior_model, height=HeightOffset(0.0))

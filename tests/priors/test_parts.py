@@ -79,3 +79,52 @@ def test_a_learned_priors_settings_use_its_option_names(name, model, options, wa
     assert declared <= set(settings), declared - set(settings)
     for key, value in options.items():
         assert settings[key] == value
+
+
+def test_a_learned_priors_parts_come_in_the_order_it_declares_them():
+    """One function turns a prior's declared parts into its parts (:func:`priors.learned.resolve_parts`): in the
+    declared order (the order of the step's random draws), a given part before the options, the options before the
+    defaults, the pace part exactly for a model with a pace input."""
+    from priors.learned import PartSpec, resolve_parts
+
+    ground, height, posture = (PartSpec("ground", GroundDiffusion), PartSpec("height", HeightOffset),
+                               PartSpec("posture", PostureOffset))
+    pace = PartSpec("pace", PaceInput, paced=True)
+    assert [type(p) for p in resolve_parts((ground, height, posture))] == [GroundDiffusion, HeightOffset, PostureOffset]
+    assert [type(p) for p in resolve_parts((pace, height, posture, ground), paced=True)] == \
+        [PaceInput, HeightOffset, PostureOffset, GroundDiffusion]
+    assert [type(p) for p in resolve_parts((pace, height, posture, ground))] == \
+        [HeightOffset, PostureOffset, GroundDiffusion]
+    parts = resolve_parts((ground, height), options={"root_noise": 2.0, "height_spread": None, "height_drift": 1.0},
+                          given={"height": HeightOffset(7.0)})
+    assert parts == (GroundDiffusion(2.0), HeightOffset(7.0))
+    assert resolve_parts((height,), options={"height_spread": None}) == (HeightOffset(),)
+
+
+def test_a_learned_priors_declared_defaults_and_refusals():
+    from priors.learned import PACED_DEFAULT, PartSpec, part_options, resolve_parts
+
+    height = PartSpec("height", HeightOffset, paced_defaults={"height_spread": 50.0})
+    assert resolve_parts((height,), paced=False) == (HeightOffset(0.0),)
+    with pytest.raises(InputError, match="takes no pace input"):
+        resolve_parts((height,), paced=True, kind="CRBM")
+    assert resolve_parts((pace_spec := PartSpec("pace", PaceInput, paced=True), height), paced=True) == \
+        (PaceInput(), HeightOffset(50.0))
+    tall = PartSpec("height", HeightOffset, defaults={"height_spread": 40.0})
+    assert resolve_parts((tall,)) == (HeightOffset(40.0),)
+    options = {o.name: o for o in part_options((PartSpec("posture", PostureOffset), tall))}
+    assert options["height_spread"].default == 40.0
+    pace = pace_spec
+    assert [o.name for o in part_options((PartSpec("posture", PostureOffset), height, pace,
+                                          PartSpec("ground", GroundDiffusion)))] == \
+        ["root_noise", "pace_spread", "pace_drift", "height_spread", "height_drift", "posture_gain"]
+    assert part_options((height,))[0].default is None
+    assert part_options((height,))[0].default_note == PACED_DEFAULT.format(paced=50.0)
+    with pytest.raises(InputError, match="pace spread applies to a model trained with a pace input"):
+        resolve_parts((pace, height), options={"pace_spread": 0.2}, kind="CRBM")
+    with pytest.raises(InputError, match="pace settings are for a CRBM trained with a pace input"):
+        resolve_parts((pace, height), given={"pace": PaceInput()}, kind="CRBM")
+    with pytest.raises(TypeError, match="takes the parts height"):
+        resolve_parts((height,), given={"posture": PostureOffset(0.1)})
+    with pytest.raises(TypeError, match="HeightOffset"):
+        resolve_parts((height,), given={"height": PostureOffset(0.1)})

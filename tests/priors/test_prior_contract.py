@@ -1,13 +1,16 @@
 """The motion-prior contract (:class:`tracker.testing.PriorContract`), run for every registered prior of the
 package.
 
-Every prior the registry knows is built through the public API from small models trained here, in each
-configuration of ``BUILT`` below, and checked by the contract's tests (a plugin's own tests inherit the same
-class: tests/plugin_example). A prior of the package that has no configuration in ``BUILT`` fails the tests: a
-new prior joins the contract by being added there.
+Every prior the registry knows is built through the public API and checked by the contract's tests (a plugin's
+own tests inherit the same class: tests/plugin_example). A learned prior (:class:`priors.learned.LearnedPrior`)
+is built from the small models it declares (:attr:`~priors.learned.LearnedPrior.SMALL_MODELS`, trained here), at
+its defaults and with every part it declares (:attr:`~priors.learned.LearnedPrior.PARTS`) switched on: a new
+learned prior joins the contract by being registered. The other priors, and further configurations of the
+learned ones, are listed in ``EXTRA``; a prior of the package with no configuration fails the tests.
 """
 from __future__ import annotations
 
+import inspect
 from pathlib import Path
 
 import numpy as np
@@ -16,96 +19,139 @@ import torch
 
 from tracker.testing import PriorContract
 
+#: The walks the small models train on, of different people (so that their paces vary), in this order.
+WALKS = ("07/07_01.amc", "02/02_01.amc", "91/91_straight_walk.amc")
+#: Options that stand for "every part the prior declares switched on" (:func:`parts_switched_on`).
+PARTS_ON = "parts on"
+
+
+def package_priors() -> list[str]:
+    """The names of the priors the package registers (not a plugin's)."""
+    from tracker.app.api import available_priors, prior_entry
+
+    return [n for n in available_priors() if prior_entry(n).build.__module__.startswith("priors.")]
+
+
+def learned_priors() -> dict[str, type]:
+    """The learned priors the package registers: name -> the concrete :class:`~priors.learned.LearnedPrior`
+    subclass of the package of that name."""
+    from priors.learned import LearnedPrior
+
+    names = package_priors()  # imports the modules that define them
+    found, stack = {}, [LearnedPrior]
+    while stack:
+        cls = stack.pop()
+        stack.extend(cls.__subclasses__())
+        if not inspect.isabstract(cls) and cls.__module__.startswith("priors."):
+            found.setdefault(cls.name, cls)
+    return {name: found[name] for name in names if name in found}
+
+
+def model_key(name: str, small) -> str:
+    """The key of a prior's small model (:class:`~priors.learned.SmallModel`) among the trained files."""
+    return f"{name}-{small.label}" if small.label else name
+
+
+LEARNED = learned_priors()
+
 
 @pytest.fixture(scope="module")
 def models(mocap_dir, tmp_path_factory):
-    """Small model files of every learned prior, trained once through the API."""
+    """The small models every learned prior declares, trained once through the API: key -> (file, whether the
+    model takes a pace input)."""
     import tracker
+    from priors.learned import is_paced
 
     torch.set_num_threads(1)
     out = tmp_path_factory.mktemp("contract_models")
-    walks = [mocap_dir / "07" / "07_01.amc", mocap_dir / "02" / "02_01.amc", mocap_dir / "91" / "91_straight_walk.amc"]
-    files = {
-        "crbm": tracker.train("crbm", walks[:1], order=3, hidden=20, epochs=3, seed=0),
-        "crbm-paced": tracker.train("crbm", walks, order=2, hidden=20, epochs=3, seed=1),
-        "gpdm": tracker.train("gpdm", walks[:1], iterations=3, seed=2),
-        "fcrbm": tracker.train("fcrbm", walks[:2], labels="a,b", order=2, hidden=20, factors=10, features=4,
-                               epochs=3, seed=3),
-        "deep-crbm": tracker.train("deep-crbm", walks[:1], order=2, hidden=20, epochs=3, top_order=1, top_hidden=10,
-                                   top_epochs=3, seed=4),
-        "neural": tracker.train("neural", walks[:1], order=3, hidden=16, layers=1, epochs=2, seed=5),
-        "neural-paced": tracker.train("neural", walks, order=2, hidden=16, layers=1, epochs=2, seed=6),
-    }
-    paths = {}
-    for name, model in files.items():
-        paths[name] = out / f"{name}.pt"
-        model.save(paths[name])
-    return paths
+    walks = [mocap_dir / w for w in WALKS]
+    files, seed = {}, 0
+    for name, cls in LEARNED.items():
+        for small in cls.SMALL_MODELS:
+            key = model_key(name, small)
+            model = tracker.train(name, walks[:small.clips], seed=seed, **small.options)
+            files[key] = (out / f"{key}.pt", is_paced(model))
+            model.save(files[key][0])
+            seed += 1
+    return files
 
 
-#: How each registered prior is built for the contract: (registered name, model files, options).
-BUILT = {
+def parts_switched_on(cls, paced: bool) -> dict:
+    """Option values that switch on every part ``cls`` declares (the pace only for a model with a pace input): an
+    option's own default where it is on, else a hundredth of its maximum."""
+    return {o.name: o.default or o.maximum / 100 for spec in cls.PARTS if paced or not spec.paced
+            for o in spec.options()}
+
+
+#: Configurations besides the learned priors' own (their defaults and their parts switched on): the priors that
+#: are not learned, and further settings of learned ones. (registered name, model files, options).
+EXTRA = {
     "zero-velocity": [("zero-velocity", [], {})],
     "constant-velocity": [("constant-velocity", [], {})],
-    "crbm": [("crbm", ["crbm"], {}), ("crbm", ["crbm-paced"], {}), ("crbm", ["crbm", "crbm"], {}),
-             ("crbm", ["crbm"], {"height_spread": 30.0, "height_drift": 1.0, "posture_gain": 0.2}),
-             ("crbm", ["crbm-paced"], {"height_spread": 30.0, "height_drift": 1.0, "posture_gain": 0.2})],
-    "gpdm": [("gpdm", ["gpdm"], {}), ("gpdm", ["gpdm"], {"height_drift": 2.0}),
-             ("gpdm", ["gpdm"], {"posture_gain": 0.2}), ("gpdm", ["gpdm"], {"height_drift": 2.0, "posture_gain": 0.2})],
-    "fcrbm": [("fcrbm", ["fcrbm"], {}), ("fcrbm", ["fcrbm"], {"style": "b"}),
-              ("fcrbm", ["fcrbm"], {"height_spread": 20.0, "height_drift": 1.0, "posture_gain": 0.2})],
-    "deep-crbm": [("deep-crbm", ["deep-crbm"], {"height_spread": 20.0}),
-                  ("deep-crbm", ["deep-crbm"], {"height_spread": 20.0, "height_drift": 1.0, "posture_gain": 0.2})],
-    "neural": [("neural", ["neural"], {}),
-               ("neural", ["neural-paced"], {"height_spread": 30.0, "height_drift": 1.0, "posture_gain": 0.2})],
+    "crbm": [("crbm", ["crbm", "crbm"], {}), ("crbm", ["crbm"], {"height_spread": 30.0, "height_drift": 1.0})],
+    "gpdm": [("gpdm", ["gpdm"], {"height_drift": 2.0}), ("gpdm", ["gpdm"], {"posture_gain": 0.2})],
+    "fcrbm": [("fcrbm", ["fcrbm"], {"style": "b"})],
+    "deep-crbm": [("deep-crbm", ["deep-crbm"], {"height_spread": 20.0})],
     "mixture": [("mixture", ["crbm-paced"], {}), ("mixture", ["crbm", "gpdm"], {"components": "crbm,gpdm"}),
                 ("mixture", ["fcrbm", "deep-crbm"], {"components": "fcrbm,deep-crbm"}),
                 ("mixture", [], {"components": "zero-velocity,constant-velocity", "switch": 0.2})],
 }
+#: How each registered prior is built for the contract: (registered name, model files, options).
+BUILT = {name: [(name, [model_key(name, small)], options) for small in cls.SMALL_MODELS
+                for options in ({}, PARTS_ON)] for name, cls in LEARNED.items()}
+for _name, _extra in EXTRA.items():
+    BUILT[_name] = BUILT.get(_name, []) + _extra
 CONFIGURATIONS = [c for configurations in BUILT.values() for c in configurations]
-LABELS = [f"{name}-{'+'.join(files) or 'none'}-{k}" for k, (name, files, _) in enumerate(CONFIGURATIONS)]
+LABELS = [f"{name}-{'+'.join(files) or 'none'}-{'parts-on' if options == PARTS_ON else k}"
+          for k, (name, files, options) in enumerate(CONFIGURATIONS)]
 #: Priors without lower orders to grow their history through.
 RANDOM_WALKS = ("zero-velocity", "constant-velocity")
 
 
-#: The parts each learned prior of the package takes (every one that applies to its model's features).
-LEARNED_PARTS = {"crbm": ("GroundDiffusion", "PaceInput", "HeightOffset", "PostureOffset"),
-                 "fcrbm": ("GroundDiffusion", "HeightOffset", "PostureOffset"),
-                 "deep-crbm": ("GroundDiffusion", "HeightOffset", "PostureOffset"),
-                 "gpdm": ("GroundDiffusion", "HeightOffset", "PostureOffset"),
-                 "neural": ("GroundDiffusion", "PaceInput", "HeightOffset", "PostureOffset")}
+def test_every_learned_prior_declares_small_models_and_its_parts_options():
+    """Each learned prior of the package declares the small models its contract builds it from, and its
+    registration declares its parts' options (:func:`priors.learned.part_options`), each part once."""
+    from priors.learned import part_options
+    from tracker.app.api import prior_entry
+
+    assert set(LEARNED) >= {"crbm", "fcrbm", "deep-crbm", "gpdm", "neural"}
+    for name, cls in LEARNED.items():
+        assert cls.SMALL_MODELS, f"{name} declares no SMALL_MODELS to build its contract configurations from"
+        assert len({s.name for s in cls.PARTS}) == len(cls.PARTS) == len({s.kind for s in cls.PARTS}), name
+        declared = [o for o in prior_entry(name).options if o.name in {p.name for p in part_options(cls.PARTS)}]
+        assert declared == list(part_options(cls.PARTS)), name
 
 
 @pytest.mark.slow
 def test_every_learned_prior_is_checked_with_every_part_it_takes_switched_on(built):
     """The contract checks each part through the part protocol (:meth:`TestRegisteredPriors.parts`): some
-    configuration of each learned prior has all its parts in use."""
-    for name, expected in LEARNED_PARTS.items():
+    configuration of each learned prior has every part it declares in use."""
+    for name, cls in LEARNED.items():
+        expected = sorted(spec.kind.__name__ for spec in cls.PARTS)
         found = [sorted(type(p).__name__ for p in getattr(built(k), "parts", ()))
                  for k, (prior, _, _) in enumerate(CONFIGURATIONS) if prior == name]
-        assert sorted(expected) in found, f"no configuration of {name} uses all of {expected}: {found}"
+        assert expected in found, f"no configuration of {name} uses all of {expected}: {found}"
 
 
 @pytest.mark.slow
-def test_every_learned_prior_names_its_parts_in_use_by_kind(built):
-    """Each learned prior answers ``ground``, ``pace``, ``height`` and ``posture`` alike: the part in use of that
-    kind, or None."""
+def test_every_learned_prior_names_its_parts_in_use(built):
+    """Each learned prior answers :meth:`~priors.learned.LearnedPrior.part` for every part it declares, by name
+    and by type alike (the part in use, or None), and uses no part it does not declare."""
     from priors.learned import LearnedPrior
-    from priors.parts import GroundDiffusion, HeightOffset, PaceInput, PostureOffset
 
-    kinds = {"ground": GroundDiffusion, "pace": PaceInput, "height": HeightOffset, "posture": PostureOffset}
     learned = [built(k) for k in range(len(CONFIGURATIONS)) if isinstance(built(k), LearnedPrior)]
-    assert {p.name for p in learned} >= set(LEARNED_PARTS)
+    assert {p.name for p in learned} >= set(LEARNED)
     for prior in learned:
-        for name, kind in kinds.items():
-            assert getattr(prior, name) is prior.part(kind), f"{prior.name}.{name}"
+        kinds = {spec.kind for spec in prior.PARTS}
+        assert all(type(p) in kinds for p in prior.parts), prior.name
+        for spec in prior.PARTS:
+            assert prior.part(spec.name) is prior.part(spec.kind), f"{prior.name}.part({spec.name!r})"
+        with pytest.raises(KeyError):
+            prior.part("no such part")
 
 
 def test_every_registered_prior_of_the_package_has_a_contract_configuration():
-    from tracker.app.api import available_priors, prior_entry
-
-    names = [n for n in available_priors() if prior_entry(n).build.__module__.startswith("priors.")]
-    missing = sorted(set(names) - set(BUILT))
+    missing = sorted(set(package_priors()) - set(BUILT))
     assert not missing, f"registered priors without a contract configuration: {missing}"
 
 
@@ -126,7 +172,9 @@ def built(models, walk_07_01):
     def get(k: int):
         if k not in cache:
             name, files, options = CONFIGURATIONS[k]
-            cache[k] = build_prior(name, _Seq(), [models[f] for f in files], step_std=step_std, **options)
+            if options == PARTS_ON:
+                options = parts_switched_on(LEARNED[name], paced=models[files[0]][1])
+            cache[k] = build_prior(name, _Seq(), [models[f][0] for f in files], step_std=step_std, **options)
         return cache[k]
     return get
 
@@ -162,7 +210,11 @@ class TestRegisteredPriors(PriorContract):
         """0 for a prior with a posture offset: that offset is one for the whole particle set (it integrates
         the posterior's mean posture correction, :class:`priors.parts.PostureOffset`), the one part that sees
         the other particles by design; before its first move it sees none."""
-        return 0 if any(getattr(m, "posture", None) is not None for m in members(prior)) else 2
+        from priors.learned import LearnedPrior
+        from priors.parts import PostureOffset
+
+        posture = [m.part(PostureOffset) for m in members(prior) if isinstance(m, LearnedPrior)]
+        return 0 if any(p is not None for p in posture) else 2
 
     def grows_history(self, prior):
         return prior.order >= 2 and not all(m.name in RANDOM_WALKS for m in members(prior))
