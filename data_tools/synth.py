@@ -18,7 +18,6 @@ from typing import Callable
 
 import numpy as np
 
-from data_tools.checks import MAX_IMAGE_SIDE, real_number
 from data_tools.render import compose, make_room, person_mesh, render_background, render_person
 from data_tools.retarget import RetargetResult
 from data_tools.files import check_output_folder, follow_umask, fresh_beside, writing
@@ -27,97 +26,14 @@ from tracker.core.kinematics import standing_height
 from tracker.core.cameras import CameraRig, default_rig
 from tracker.core.rotations import continuous_exp_maps, elementary_rotation, exp_map_to_matrix, matrix_to_exp_map
 from tracker.core.errors import InputError
-
-
-@dataclass(frozen=True)
-class SynthConfig:
-    """Generator settings (all recorded in ``meta.json``).
-
-    ``noise``: std of the Gaussian sensor noise, grey levels of 255.
-    ``lighting_change``: the scene's brightness drifts linearly from 1 to
-    ``1 + lighting_change`` over the sequence (the background plate is taken
-    at 1). ``occluder``: a pillar stands between camera 0 and the capture area.
-    ``missing_camera``: index of a camera that delivers only black frames
-    (a dead camera; its plate is black too). ``turn``: the whole clip is turned
-    by this many degrees about the vertical axis before it is placed (counter-
-    clockwise seen from above), so one motion can be rendered walking in another
-    direction through the same rig (:func:`turned`).
-    """
-
-    views: int = 4
-    fps: float = 60.0
-    start: int = 0
-    frames: int | None = None
-    seed: int = 0
-    width: int = 640
-    height: int = 480
-    noise: float = 2.0
-    lighting_change: float = 0.0
-    occluder: bool = False
-    missing_camera: int | None = None
-    turn: float = 0.0
-
-    def __post_init__(self):
-        """Every setting checked on construction, so a bad one is an :class:`InputError` naming it before
-        anything is rendered."""
-
-        checks = {
-            "views": (_whole(self.views) and self.views >= 1, "a whole number of at least 1"),
-            "fps": (_number(self.fps) and self.fps > 0, "a positive number of frames per second"),
-            "start": (_whole(self.start) and self.start >= 0, "a frame index of at least 0"),
-            "frames": (self.frames is None or (_whole(self.frames) and self.frames >= 1), "a whole number of at "
-                                                                                          "least 1"),
-            "seed": (_whole(self.seed) and self.seed >= 0, "a whole number of at least 0"),
-            "width": (_whole(self.width) and 1 <= self.width <= MAX_IMAGE_SIDE,
-                      f"a whole number of pixels in [1, {MAX_IMAGE_SIDE}]"),
-            "height": (_whole(self.height) and 1 <= self.height <= MAX_IMAGE_SIDE,
-                       f"a whole number of pixels in [1, {MAX_IMAGE_SIDE}]"),
-            "noise": (_number(self.noise) and 0 <= self.noise <= 255, "a number of grey levels in [0, 255]"),
-            "lighting_change": (_number(self.lighting_change) and -0.9 < self.lighting_change < 2.0,
-                                "a number in (-0.9, 2)"),
-            "occluder": (isinstance(self.occluder, bool), "true or false"),
-            "missing_camera": (self.missing_camera is None or (_whole(self.missing_camera)
-                                                               and self.missing_camera >= 0), "a camera index"),
-            "turn": (_number(self.turn) and abs(self.turn) <= 360, "a number of degrees in [-360, 360]"),
-        }
-        for name, (ok, expected) in checks.items():
-            if not ok:
-                raise InputError(f"synth setting {name} must be {expected}, got {getattr(self, name)!r}")
-        for name in ("views", "start", "frames", "seed", "width", "height", "missing_camera"):  # plain Python
-            value = getattr(self, name)  # values, so numpy scalars given here reach meta.json as numbers
-            if value is not None:
-                object.__setattr__(self, name, int(value))
-        for name in ("fps", "noise", "lighting_change", "turn"):
-            object.__setattr__(self, name, float(getattr(self, name)))
-
-    def check_missing_camera(self, n_cameras: int, name: str = "missing camera") -> None:
-        """An :class:`InputError` unless ``missing_camera`` (if any) is one of ``n_cameras`` rendered cameras; the
-        message calls the setting ``name`` (as the user wrote it: an experiment file's key, say)."""
-        if self.missing_camera is not None and self.missing_camera >= n_cameras:
-            raise InputError(f"{name} {self.missing_camera} is not one of the {n_cameras} rendered cameras "
-                             f"(0..{n_cameras - 1})")
-
-
-def _number(v) -> bool:
-    """Whether ``v`` is a finite real number (:func:`data_tools.checks.real_number`'s test)."""
-    try:
-        real_number(v, "value")
-    except InputError:
-        return False
-    return True
-
-
-def _whole(v) -> bool:
-    """Whether ``v`` is an integer (not a bool)."""
-    return isinstance(v, (int, np.integer)) and not isinstance(v, bool)
+from data_tools.synth_settings import SynthConfig, synth_option  # noqa: F401  (the settings, re-exported)
 
 
 def turned(result: RetargetResult, degrees: float) -> RetargetResult:
     """``result`` turned by ``degrees`` about the world's vertical axis through the origin: the root's ground
     position and orientation and every marker. The body's motion is unchanged; only the direction it moves in
     (and faces) is. Root orientations stay continuous exp maps."""
-    if not _number(degrees) or not abs(degrees) <= 360:
-        raise InputError(f"turn must be a number of degrees in [-360, 360], got {degrees}")
+    degrees = synth_option("turn").parse(degrees, "turned")
     if degrees == 0:
         return result
     Rz = elementary_rotation("z", np.radians(degrees))

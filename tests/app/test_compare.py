@@ -73,10 +73,10 @@ def test_experiment_file_is_validated_whole(tmp_path, mutation, expected):
 
 
 @pytest.mark.parametrize("setting, expected", [
-    ('noise = "x"', "synth setting noise must be a number of grey levels"),
-    ("turn = 400", "synth setting turn must be a number of degrees in [-360, 360]"),
-    ("occluder = 1", "synth setting occluder must be true or false"),
-    ("seed = -1", "synth setting seed must be a whole number"),
+    ('noise = "x"', "synth setting: noise must be a number, got 'x'"),
+    ("turn = 400", "synth setting: turn must be at least -360 and at most 360, got 400"),
+    ("occluder = 1", "synth setting: occluder must be true or false"),
+    ("seed = -1", "synth setting: seed must be at least 0"),
     ('switch_at = "a"', "switch_at: expected an integer"),
     ("missing_camera = 4", "missing_camera 4 is not one of the 4 rendered cameras"),
 ])

@@ -33,7 +33,7 @@ from tracker.app.schema import (FILTER_OPTIONS, KEYPOINT_LIKELIHOOD, RECORDED_SE
                                 TRACK_SETTINGS)
 from tracker.app.schema import TRACK_ANNEALING_LAYERS  # noqa: F401  (the API names the default: tracker.track)
 from tracker.app.plugins import (  # the discovery functions of the API
-    available_priors, likelihood_entry, prior_entry,
+    available_likelihoods, available_priors, likelihood_entry, prior_entry,
 )
 from tracker.app.threads import configured_threads, sync_torch_threads
 from tracker.app.walk_scale import walk_scale
@@ -100,17 +100,44 @@ def load_clips(mocap: str | Path | Iterable[str | Path], skeletons: Iterable[str
                                else cache)
 
 
+#: A mean retarget residual (mm) above which a conversion is suspect: a well-read file fits within a few mm.
+RESIDUAL_WARNING_MM = 10.0
+
+
+def read_clip(mocap: str | Path, skeleton: str | Path | None = None, fps: float | None = 60.0,
+              length_unit: float | None = None, joint_map: str | Path | Mapping | None = None):
+    """``(clip, retargeted)``: a mocap file read (its reader's notes logged) and retargeted at ``fps`` Hz, afresh
+    (:func:`load_clip` takes it from the cache of converted clips); a mean retarget residual above
+    :data:`RESIDUAL_WARNING_MM` is warned of, naming the likely cause."""
+    from data_tools.load import load_mocap
+    from data_tools.retarget import retarget
+    from tracker.app.plugins import load_plugins
+
+    load_plugins()  # the mocap readers of installed plugins (entry points) register on import
+    clip = load_mocap(mocap, skeleton, length_unit, joint_map=joint_map)
+    name = Path(mocap).name
+    for note in clip.notes:
+        log.info(f"note: {name}: {note}")
+    result = retarget(clip, fps=fps)
+    if result.mean_residual > RESIDUAL_WARNING_MM:
+        log.warning(f"{name}: mean retarget residual {result.mean_residual:.1f} mm; a well-read file fits within a "
+                    "few mm, and tens of mm point to a wrong length unit (--length-unit) or joint mapping "
+                    "(--joint-map): see docs/guide/motion_capture.md")
+    return clip, result
+
+
 def synthesize(mocap: str | Path | RetargetResult, out: str | Path, *, skeleton: str | Path | None = None,
                config: SynthConfig | None = None, progress: Callable | None = None, overwrite: bool = False,
                length_unit: float | None = None, then: str | Path | RetargetResult | None = None,
                then_skeleton: str | Path | None = None, switch_at: int | None = None, fade: int = 12,
                joint_map: str | Path | Mapping | None = None, then_joint_map: str | Path | Mapping | None = None,
-               cameras: int | None = None, **settings) -> Sequence:
+               overwrite_flag: str = "overwrite=True", **settings) -> Sequence:
     """Render a mocap clip (a file, or a clip from :func:`load_clip`) into a synthetic multi-view sequence
-    folder ``out`` and return it. ``cameras`` is the number of cameras (default 4); ``settings`` are the other
-    :class:`~data_tools.synth.SynthConfig` fields (``frames``, ``seed``, ``noise``, ...). A non-empty ``out`` is
-    refused unless ``overwrite``. (``views=N``, the former name of ``cameras``, still works and logs a
-    deprecation warning: :func:`track`'s ``views`` are camera indices.)
+    folder ``out`` and return it. ``settings`` are the rendering settings of
+    :data:`~data_tools.synth_settings.SYNTH_OPTIONS` (``cameras``, ``frames``, ``seed``, ``noise``, ...; or all
+    of them as a ``config``). A non-empty ``out`` is refused unless ``overwrite`` (``overwrite_flag``: how the
+    refusal says so). (``views=N``, the former name of ``cameras``, still works and logs a deprecation warning:
+    :func:`track`'s ``views`` are camera indices.)
 
     With ``then`` (a second clip) the person changes activity: the clip until frame ``switch_at`` (at the
     output rate, before ``start``/``frames`` cut the result), cross-faded over ``fade`` frames into ``then``
@@ -120,37 +147,38 @@ def synthesize(mocap: str | Path | RetargetResult, out: str | Path, *, skeleton:
     from data_tools.synth import SynthConfig, synthesize as render_sequence
     from data_tools.transition import cross_fade
 
-    # before any work; the refusal says how Python asks to replace the folder
+    # before any work; the refusal says how the caller asks to replace the folder
     check_output_folder(out, empty=not overwrite, replaceable=("cameras.json", "meta.json"),
-                        overwrite_flag="overwrite=True")
+                        overwrite_flag=overwrite_flag)
     if "views" in settings:
         log.warning("synthesize(views=N) is deprecated and will be removed: use cameras=N (a number of cameras; "
                     "track's views are camera indices)")
-        if cameras is not None:
+        if "cameras" in settings:
             raise InputError("give the number of cameras once: cameras, not both cameras and views")
-        cameras = settings.pop("views")
-    if cameras is not None:
-        if config is not None:
-            raise InputError("give the number of cameras in config or as cameras, not both")
-        settings["views"] = cameras  # SynthConfig's field
-    try:
-        config = config or SynthConfig(**settings)
-    except TypeError as exc:
-        raise InputError(f"unknown synth setting ({exc})") from None
-    clip = (mocap if isinstance(mocap, RetargetResult)
-            else load_clip(mocap, skeleton, config.fps, length_unit, joint_map))
-    source = str(mocap) if not isinstance(mocap, RetargetResult) else clip.source
-    if then is not None:
-        second = then if isinstance(then, RetargetResult) else load_clip(then, then_skeleton, config.fps, length_unit,
-                                                                          then_joint_map)
-        if switch_at is None:
-            raise InputError("a transition (then = ...) needs switch_at, the frame where the second clip has taken over")
-        clip, _ = cross_fade(clip, second, switch_at, fade)
-        source = clip.source
-    elif switch_at is not None or then_joint_map is not None:
+        settings["cameras"] = settings.pop("views")
+    if config is not None and settings:
+        raise InputError(f"give the rendering settings in config or as keywords, not both ({', '.join(settings)})")
+    config = config or SynthConfig.of(settings)
+    if then is None and (switch_at is not None or then_joint_map is not None):
         raise InputError(f"{'switch_at' if switch_at is not None else 'then_joint_map'} applies to a transition: "
                          "give the second clip (then = ...)")
-    render_sequence(clip, out, config, source=source, progress=progress, overwrite=overwrite)
+    if then is not None and switch_at is None:
+        raise InputError("a transition (then = ...) needs switch_at, the frame where the second clip has taken over")
+    clip = mocap if isinstance(mocap, RetargetResult) else read_clip(mocap, skeleton, config.fps, length_unit,
+                                                                      joint_map)[1]
+    source = str(mocap) if not isinstance(mocap, RetargetResult) else clip.source
+    if then is not None:
+        second = then if isinstance(then, RetargetResult) else read_clip(then, then_skeleton, config.fps,
+                                                                          length_unit, then_joint_map)[1]
+        clip, change = cross_fade(clip, second, switch_at, fade)
+        log.info(f"transition: {Path(source).name} until frame {change.fade_start}, cross-faded into "
+                 f"{Path(getattr(then, 'source', then)).name} (from its frame {change.second_start}) by frame "
+                 f"{change.switch}")
+        source = clip.source
+    written = render_sequence(clip, out, config, source=source, progress=progress, overwrite=overwrite)
+    log.info(f"{Path(str(mocap) if not isinstance(mocap, RetargetResult) else mocap.source).name}: "
+             f"{written.n_frames} frames x {config.views} cameras at {clip.fps:g} fps -> {written.root} "
+             f"({written.render_seconds / written.n_frames * 1000:.0f} ms per frame to render and write)")
     return read_sequence(out)
 
 

@@ -32,41 +32,17 @@ from tracker.core.errors import InputError
 
 log = logging.getLogger(__name__)
 
-def _convert_one(mocap: str | Path, skeleton, fps: float | None, length_unit, out: Path, joint_map=None):
-    from data_tools.clip_io import save_converted_clip
-    from data_tools.load import load_mocap
-    from data_tools.retarget import retarget
-    from tracker.app.plugins import load_plugins
-
-    load_plugins()  # the mocap readers of installed plugins (entry points) register on import
-    clip = load_mocap(mocap, skeleton, length_unit, joint_map=joint_map)
-    result = retarget(clip, fps=fps)
-    with atomic_path(out) as tmp:
-        save_converted_clip(result, tmp)
-    return clip, result
-
-
-#: A mean retarget residual (mm) above which a conversion is suspect: a well-read file fits within a few mm.
-RESIDUAL_WARNING_MM = 10.0
-
-
-def _check_residual(name: str, residual_mm: float) -> None:
-    """Warn when a clip's mean retarget residual points to a wrong length unit or joint mapping."""
-    if residual_mm > RESIDUAL_WARNING_MM:
-        log.warning(f"{name}: mean retarget residual {residual_mm:.1f} mm; a well-read file fits within a few mm, "
-                    "and tens of mm point to a wrong length unit (--length-unit) or joint mapping (--joint-map): "
-                    "see docs/guide/motion_capture.md")
-
-
 def cmd_convert(args: argparse.Namespace) -> int:
+    from data_tools.clip_io import save_converted_clip
+    from tracker.app.api import read_clip
+
     out = check_output_file(args.out, "the output", (".npz",), new=not args.overwrite)
     check_not_inside(out, {"mocap file": args.mocap, **({"skeleton": args.skeleton} if args.skeleton else {})})
-    clip, result = _convert_one(args.mocap, args.skeleton, args.fps, args.length_unit, out, args.joint_map)
-    for note in clip.notes:
-        log.info(f"note: {Path(args.mocap).name}: {note}")
+    clip, result = read_clip(args.mocap, args.skeleton, args.fps, args.length_unit, args.joint_map)
+    with atomic_path(out) as tmp:
+        save_converted_clip(result, tmp)
     print(f"{Path(args.mocap).name}: {clip.summary()}; {len(result.poses)} frames at {result.fps:g} fps, "
           f"mean retarget residual {result.mean_residual:.2f} mm -> {out}")  # the residual: how well it went
-    _check_residual(Path(args.mocap).name, result.mean_residual)
     return 0
 
 
@@ -114,38 +90,17 @@ def cmd_corpus(args: argparse.Namespace) -> int:
 
 
 def cmd_synth(args: argparse.Namespace) -> int:
-    from data_tools.load import load_mocap
-    from data_tools.retarget import retarget
-    from data_tools.synth import SynthConfig, synthesize
-    from tracker.app.plugins import load_plugins
+    from data_tools.synth_settings import SYNTH_OPTIONS
+    from tracker.app.api import synthesize
 
-    load_plugins()  # the mocap readers of installed plugins (entry points) register on import
     check_output_folder(args.out, empty=not args.overwrite, replaceable=("cameras.json", "meta.json"))
-    settings = SynthConfig(views=args.cameras, fps=args.fps, start=args.start, frames=args.frames, seed=args.seed,
-                           width=args.width, height=args.height, noise=args.noise,
-                           lighting_change=args.lighting_change, occluder=args.occluder,
-                           missing_camera=args.missing_camera, turn=args.turn)
-    clip = load_mocap(args.mocap, args.skeleton, args.length_unit, joint_map=args.joint_map)
-    for note in clip.notes:
-        log.info(f"note: {Path(args.mocap).name}: {note}")
-    result = retarget(clip, fps=args.fps)
-    _check_residual(Path(args.mocap).name, result.mean_residual)
-    if args.then or args.switch_at:
-        from data_tools.transition import cross_fade
-
-        if not (args.then and args.switch_at):
-            raise InputError("a transition needs both --then FILE and --switch-at FRAME")
-        second = retarget(load_mocap(args.then, args.then_skeleton, args.length_unit, joint_map=args.then_joint_map),
-                          fps=args.fps)
-        result, change = cross_fade(result, second, args.switch_at, args.fade)
-        log.info(f"transition: {Path(args.mocap).name} until frame {change.fade_start}, cross-faded into "
-                 f"{Path(args.then).name} (from its frame {change.second_start}) by frame {change.switch}")
-    out = synthesize(result, args.out, settings, source=result.source if args.then else str(args.mocap),
-                     overwrite=args.overwrite,
-                     progress=lambda it: progress_bar(it, desc="rendering", unit="frame"))
-    log.info(f"{Path(args.mocap).name}: {out.n_frames} frames x {args.cameras} cameras at "
-             f"{result.fps:g} fps -> {out.root} ({out.render_seconds / out.n_frames * 1000:.0f} ms per frame "
-             f"to render and write)")
+    if (args.then or args.switch_at) and not (args.then and args.switch_at):
+        raise InputError("a transition needs both --then FILE and --switch-at FRAME")
+    synthesize(args.mocap, args.out, skeleton=args.skeleton, length_unit=args.length_unit, joint_map=args.joint_map,
+               then=args.then, then_skeleton=args.then_skeleton, then_joint_map=args.then_joint_map,
+               switch_at=args.switch_at, fade=args.fade, overwrite=args.overwrite, overwrite_flag="--overwrite",
+               progress=lambda it: progress_bar(it, desc="rendering", unit="frame"),
+               **{o.name: getattr(args, o.name) for o in SYNTH_OPTIONS})
     return 0
 
 

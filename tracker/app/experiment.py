@@ -101,6 +101,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from data_tools.synth_settings import SYNTH_OPTIONS, SynthConfig
 from tracker.app.experiment_spec import (ClipSpec, Experiment, LikelihoodSpec, PriorSpec,  # noqa: F401 (re-exported)
                                          SequenceSpec, TrainSpec)
 from tracker.app.run_grid import RunSpec, expand_runs, row_label, run_seed  # noqa: F401 (re-exported)
@@ -128,16 +129,16 @@ EXPERIMENT_OPTIONS = (
 )
 #: The environment variable that replaces an experiment file's ``data_root`` (``compare --data-root`` wins over it).
 DATA_ROOT_ENV = "POSE_TRACKER_DATA_ROOT"
-SEQUENCE_KEYS = {"name", "path", "mocap", "skeleton", "then", "then_skeleton", "switch_at", "fade", "start", "frames",
-                 "cameras", "views", "seed", "noise", "width", "height", "lighting_change", "occluder", "missing_camera",
-                 "turn",
-                 "joint_map", "then_joint_map", "init", "reference", "reference_offset"}
 #: A sequence folder's keys (``path = ...``) besides its name: where its first poses come from, and a reference
 #: reconstruction to measure the runs against.
 FOLDER_KEYS = {"path", "init", "reference", "reference_offset"}
 #: A rendered sequence's keys that describe a change of activity (data_tools.transition) or how its clips are
 #: read (joint maps), not the rendering.
 TRANSITION_KEYS = {"then", "then_skeleton", "switch_at", "fade", "joint_map", "then_joint_map"}
+#: A rendered sequence's rendering settings: those of ``pose-tracker synth`` (the frame rate is the experiment's),
+#: and ``views``, the former name of ``cameras``.
+RENDERING_KEYS = {o.name for o in SYNTH_OPTIONS if o.name != "fps"} | {"views"}
+SEQUENCE_KEYS = {"name", "mocap", "skeleton"} | FOLDER_KEYS | TRANSITION_KEYS | RENDERING_KEYS
 PRIOR_KEYS = {"label", "name", "options", "models", "train", "train_mocap", "train_seeds", "components"}
 TRAIN_KEYS = {"mocap", "skeletons", "options", "seed"}
 #: The keys of a ``[[prior.components]]`` table: one motion model of a prior with components (a mixture).
@@ -444,8 +445,6 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
     seed, seeds, fps = top["seed"], top["seeds"], top["fps"]
     grid = _tracking(w, doc.get("tracking", {}))
     from data_tools.skeleton_points import read_joint_map
-    from data_tools.synth import SynthConfig
-
     sequences = []
     for i, s in enumerate(doc.get("sequence", [])):
         entry = f"[[sequence]] {i + 1}"
@@ -480,8 +479,8 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
                                                     "use cameras (the number of cameras to render)")
                 synth["cameras"] = synth.pop("views")
             try:  # every rendering setting checked now, not when the runner reaches this sequence
-                rendering = SynthConfig(fps=float(fps), **{"views" if k == "cameras" else k: v for k, v in synth.items()
-                                                           if k not in TRANSITION_KEYS})
+                rendering = SynthConfig.of({"fps": float(fps), **{k: v for k, v in synth.items()
+                                                                  if k not in TRANSITION_KEYS}})
                 rendering.check_missing_camera(rendering.views, "missing_camera")
             except InputError as exc:
                 raise w.error(entry, exc.reason) from None

@@ -18,7 +18,8 @@ import numpy as np
 from data_tools.checks import MAX_FPS, MAX_IMAGE_SIDE, MAX_MM_PER_UNIT, MAX_VIEWS, MIN_FPS, MIN_MM_PER_UNIT
 from tracker.app.plugins import available_likelihoods, available_priors, likelihood_entry, prior_entry
 from tracker.app.console import PROG, error_line
-from tracker.app.schema import KEYPOINT_LIKELIHOOD, add_flags, argument_type, setting
+from data_tools.synth_settings import SYNTH_OPTIONS, synth_option
+from tracker.app.schema import KEYPOINT_LIKELIHOOD, add_flags, add_option_flags, argument_type, setting
 from tracker.core.errors import InputError
 from tracker.engine.registry import Option
 
@@ -146,30 +147,12 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     s.add_argument("--mocap", required=True, help="motion file: .amc (CMU ASF/AMC) or .bvh")
     s.add_argument("--skeleton", help="ASF skeleton for an .amc file (default: <subject>.asf beside it)")
     s.add_argument("--out", required=True, help="output sequence folder")
-    s.add_argument("--cameras", type=_views, default=4, metavar="N", help="number of cameras (default 4)")
-    s.add_argument("--views", dest="cameras", type=_views, action=_DeprecatedAlias, new_flag="--cameras N",
-                   why=" (a number of cameras; track's --views is a list of camera indices)",
+    add_option_flags(s, SYNTH_OPTIONS, {"cameras": "N", "lighting_change": "FRACTION", "missing_camera": "INDEX",
+                                        "turn": "DEGREES"})
+    s.add_argument("--views", dest="cameras", type=argument_type(synth_option("cameras")), action=_DeprecatedAlias,
+                   new_flag="--cameras N", why=" (a number of cameras; track's --views is a list of camera indices)",
                    help=argparse.SUPPRESS)  # the former --cameras, kept for one version
-    s.add_argument("--fps", type=_fps, default=60.0,
-                   help="frame rate in Hz (default 60, the rate train uses); the clip is resampled to it")
     s.add_argument("--joint-map", metavar="FILE", help=_JOINT_MAP_HELP)
-    s.add_argument("--start", type=_non_negative_int, default=0, help="first frame, at the output rate (default 0)")
-    s.add_argument("--frames", type=_positive_int, default=None, help="number of frames (default: to the end)")
-    s.add_argument("--seed", type=_seed, default=0,
-                   help="random seed: scene, clothing, widths, noise (default 0)")
-    s.add_argument("--width", type=_image_side, default=640, help="image width in pixels (default 640)")
-    s.add_argument("--height", type=_image_side, default=480, help="image height in pixels (default 480)")
-    s.add_argument("--noise", type=_number(float, 0.0, strict=False, maximum=255.0), default=2.0,
-                   help="sensor noise std in grey levels of 255 (default 2)")
-    s.add_argument("--lighting-change", type=_number(float, -0.9, strict=True, maximum=2.0, strict_max=True),
-                   default=0.0, metavar="FRACTION",
-                   help="brightness drifts from 1 to 1+FRACTION over the sequence (default 0)")
-    s.add_argument("--occluder", action="store_true", help="put a pillar between camera 0 and the person")
-    s.add_argument("--missing-camera", type=_non_negative_int, default=None, metavar="INDEX",
-                   help="this camera delivers only black frames")
-    s.add_argument("--turn", type=_number(float, -360.0, strict=False, maximum=360.0), default=0.0,
-                   metavar="DEGREES", help="turn the whole clip about the vertical axis, so the person moves in "
-                                           "another direction through the rig (default 0)")
     s.add_argument("--length-unit", type=_length_unit, default=None, metavar="MM",
                    help="BVH only: millimetres per file unit (default: inferred)")
     s.add_argument("--overwrite", action="store_true", help="replace a non-empty output folder")

@@ -27,7 +27,7 @@ from tracker.engine.config import FILTER_OPTIONS, MAX_PARTICLES, TRACK_ANNEALING
 from tracker.engine.registry import Option
 
 __all__ = ["FILTER_OPTIONS", "MAX_PARTICLES", "TRACK_ANNEALING_LAYERS", "KEYPOINT_LIKELIHOOD", "SILHOUETTE_LIKELIHOOD", "RUN_OPTIONS", "TRACK_SETTINGS",
-           "EXPERIMENT_SETTINGS", "GRID_AXES", "RECORDED_SETTINGS", "setting", "defaults", "check", "add_flags"]
+           "EXPERIMENT_SETTINGS", "GRID_AXES", "RECORDED_SETTINGS", "setting", "defaults", "check", "add_flags", "add_option_flags"]
 
 #: The largest seed (numpy's generators take any non-negative integer; results name it as an int64).
 MAX_SEED = 2 ** 63 - 1
@@ -110,13 +110,23 @@ _METAVARS = {"checkpoint_every": "K", "device": "DEVICE"}
 
 def add_flags(parser: argparse.ArgumentParser | Any, names: Sequence[str]) -> None:
     """One flag per setting of ``names`` (``--known-frames``), its default, help and check the option's."""
-    for name in names:
-        o = TRACK_SETTINGS[name]
-        kwargs: dict[str, Any] = {"dest": name, "default": o.default, "help": o.described()}
+    add_option_flags(parser, [TRACK_SETTINGS[name] for name in names], _METAVARS)
+
+
+def add_option_flags(parser: argparse.ArgumentParser | Any, options: Sequence[Option],
+                     metavars: Mapping[str, str] = {}) -> None:
+    """One flag per option (``--lighting-change``; a bool option a switch that turns it on), its default, help
+    and check the option's; ``metavars`` names some options' values in the help."""
+    for o in options:
+        kwargs: dict[str, Any] = {"dest": o.name, "default": o.default, "help": o.described()}
+        if o.type is bool:
+            kwargs["action"] = "store_true"
+            parser.add_argument(o.flag, **kwargs)
+            continue
         if o.choices:
             kwargs["choices"] = list(o.choices)
         elif not o.many:  # a list is kept as written: the command checks it against the sequence (its cameras)
             kwargs["type"] = argument_type(o)
-        if name in _METAVARS:
-            kwargs["metavar"] = _METAVARS[name]
+        if o.name in metavars:
+            kwargs["metavar"] = metavars[o.name]
         parser.add_argument(o.flag, **kwargs)
