@@ -31,7 +31,7 @@ expected visible values, probabilities on the final step). Blends and transition
 
 Tracking (:class:`priors.fcrbm.prior.FCRBMPrior`, registered as ``fcrbm``): each particle carries a discrete style label besides its
 pose history, and its pose is drawn with its label clamped. An equal share of the particles carries
-each label and the filter weighs the labels against each other (mixture tracking, :mod:`tracker.engine.mixture`,
+each label and the filter weighs the labels against each other (mixture tracking, :mod:`tracker.engine.multiple_models`,
 switching with probability ``style_switch`` per frame). The filter's posterior over the style is the weighted histogram of the
 particles' labels (:meth:`priors.fcrbm.prior.FCRBMPrior.summarize`), recorded per frame in ``result.json``. Particles
 that share a label share the effective weights ``Wv diag(s) Wh^T``, so sampling works on one ``K x H`` matrix per
@@ -62,7 +62,7 @@ LABEL_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$")
 #: value (:meth:`FCRBM.gibbs`); with more (e.g. every particle a different blend) the factored form.
 GROUPED_STYLES_MAX = 16
 #: How the FCRBM prior infers an unknown style: ``"mixture"`` keeps a fixed share of the particles on every label
-#: and moves weight between them (mixture tracking, :mod:`tracker.engine.mixture`); ``"particles"`` lets every
+#: and moves weight between them (mixture tracking, :mod:`tracker.engine.multiple_models`); ``"particles"`` lets every
 #: particle carry and switch its own label, the posterior being the weighted histogram.
 
 

@@ -2,7 +2,7 @@
 clamped (Taylor 2009, Ch. 5; the model is :mod:`priors.fcrbm.model`). Registered as ``fcrbm``.
 
 An equal share of the particles carries each label and the filter weighs the labels against each other
-(mixture tracking, :mod:`tracker.engine.mixture`, switching with probability ``style_switch`` per frame). The filter's
+(mixture tracking, :mod:`tracker.engine.multiple_models`, switching with probability ``style_switch`` per frame). The filter's
 posterior over the style is the weighted histogram of the particles' labels (:meth:`FCRBMPrior.summarize`),
 recorded per frame in ``result.json``.
 """
@@ -20,7 +20,7 @@ from priors.learned import PartSpec, SmallModel, part_options
 from priors.parts import GroundDiffusion, GrowingModels, HeightOffset, Part, PostureOffset
 from priors.settings import CRBM_TRAIN_OPTIONS, STYLE_TEMPERATURE, FCRBMConfig
 from tracker.core.errors import InputError
-from tracker.engine.mixture import Mixing, switching
+from tracker.engine.multiple_models import Mixing, switching
 from tracker.engine.prior import PriorState
 from tracker.engine.registry import Option, PriorContext, TrainingData, register_prior
 
@@ -173,7 +173,7 @@ class FCRBMPrior(ConditionalPrior):
 
     def mixing(self) -> Mixing | None:
         """For an unknown style, the labels are components the filter keeps apart
-        (:class:`~tracker.engine.mixture.ComponentPrior`): one per label (the particles carrying it), switching with
+        (:class:`~tracker.engine.multiple_models.ComponentPrior`): one per label (the particles carrying it), switching with
         probability ``style_switch``, the evidence tempered by ``style_temperature``; None for a known style."""
         if self.schedule is not None or len(self.labels) < 2:
             return None

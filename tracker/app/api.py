@@ -33,10 +33,11 @@ from tracker.app.schema import (FILTER_OPTIONS, KEYPOINT_LIKELIHOOD, RECORDED_SE
                                 TRACK_SETTINGS)
 from tracker.app.schema import TRACK_ANNEALING_LAYERS  # noqa: F401  (the API names the default: tracker.track)
 from tracker.app.plugins import (  # the discovery functions of the API
-    available_likelihoods, available_priors, likelihood_entry, prior_entry,
+    available_likelihoods, available_priors, likelihood_entry, prior_entry,  # noqa: F401  (re-exported)
 )
 from tracker.app.threads import configured_threads, sync_torch_threads
 from tracker.app.walk_scale import walk_scale
+from tracker.app.clips import load_clips  # noqa: F401  (tracker.load_clips)
 from tracker.app.tracking import (
     TrackingInterrupted, TrackingResult, check_frames, check_views, records_call, run_tracking, seed_description,
 )
@@ -83,21 +84,6 @@ def load_clip(mocap: str | Path, skeleton: str | Path | None = None, fps: float 
 
     load_plugins()  # the mocap readers of installed plugins (entry points) register on import
     return load_retargeted(mocap, skeleton, fps, length_unit, joint_map)
-
-
-def load_clips(mocap: str | Path | Iterable[str | Path], skeletons: Iterable[str | Path] | None = None,
-               fps: float | None = 60.0, joint_maps: Iterable[str | Path | Mapping | None] | str | Path | None = None,
-               cache: str | Path | bool | None = True) -> list[RetargetResult]:
-    """The mocap files that ``mocap`` names (a file, folder or glob pattern, or a list of them: a folder means
-    every file a registered reader takes in it and below, in sorted order; docs/guide/training.md) retargeted
-    at ``fps`` Hz, as :func:`load_clip` does each. ``skeletons`` and ``joint_maps``: one for all files or one
-    per file (as :func:`train` takes them). ``cache``: the folder of converted clips, so that each file is
-    retargeted once (True: the user's cache folder, ``$POSE_TRACKER_CACHE``; None or False: none)."""
-    from tracker.app.plugins import load_plugins
-
-    load_plugins()
-    return load_training_clips(mocap, skeletons, fps, joint_maps, cache=Path(cache) if isinstance(cache, (str, Path))
-                               else cache)
 
 
 #: A mean retarget residual (mm) above which a conversion is suspect: a well-read file fits within a few mm.
@@ -268,16 +254,11 @@ def build_prior(name: str, sequence: Sequence | str | Path | None = None, models
     if isinstance(sequence, (str, os.PathLike)):
         sequence = load_sequence(sequence)
     models = [Path(m) if isinstance(m, (str, os.PathLike)) else m for m in models]
-    if entry.model_files == "none" and models:
-        raise InputError(f"prior {name} takes no model files")
-    if entry.model_files in ("one", "several") and not models:
-        raise InputError(f"prior {name} needs a model file (train one with: pose-tracker train --prior {name})")
-    if entry.model_files == "one" and len(models) > 1:
-        raise InputError(f"prior {name} takes one model file, got {len(models)}")
-    resolved, models = entry.complete(resolve_options(f"prior {name}", entry.options, options), models)
+    entry.check_model_files(len(models), needs=f"a model file (train one with: pose-tracker train --prior {name})")
+    resolved = entry.resolve(options, models)
     source = (lambda: step_std) if step_std is not None else (lambda: random_walk_scale(sequence, train_mocap))
     context = PriorContext(sequence.model, sequence.fps, device_name(device), str(sequence.root), source)
-    prior = entry.build(context, models, resolved)
+    prior = entry.build(context, list(resolved.model_files), resolved.options)
     sync_torch_threads()  # a learned prior has imported torch by now
     return prior
 
@@ -480,9 +461,10 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
     config = FilterConfig.from_options({o.name: run[o.name] for o in FILTER_OPTIONS})
     rng = make_rng(run["seed"])
     prior_options, likelihood_options = split_options(prior, likelihood, options)
+    named_files: tuple[Path, ...] = ()
     if isinstance(prior, str):  # every declared option, checked, with its default: recorded in result.json
-        prior_options, models = prior_entry(prior).complete(
-            resolve_options(f"prior {prior}", prior_entry(prior).options, prior_options), models)
+        resolved = prior_entry(prior).resolve(prior_options, models)
+        prior_options, models, named_files = resolved.options, list(resolved.model_files), resolved.named_files
     if isinstance(likelihood, str):
         likelihood_options = resolve_options(f"likelihood {likelihood}", likelihood_entry(likelihood).options,
                                              likelihood_options)
@@ -499,13 +481,11 @@ def track(sequence: Sequence | str | Path, prior: str | MotionPrior = "zero-velo
         lik_obj = likelihood
     recorded = {name: run[name] for name in RECORDED_SETTINGS if name != "frames"}  # frames: run_tracking's
     recorded["seed"] = seed_description(run["seed"])
-    referenced = prior_entry(prior).referenced_files if isinstance(prior, str) else None
     settings = {
         "prior": prior if isinstance(prior, str) else prior_obj.name, **recorded,
         "sequence": str(seq.root), "model": seq.model.name,
         "prior_options": prior_options, "prior_settings": prior_obj.settings(),
-        "prior_models": [model_name(m) for m in models]
-        + ([str(f) for f in referenced(prior_options)] if referenced is not None else []),
+        "prior_models": [model_name(m) for m in models] + [str(f) for f in named_files],
         "likelihood": likelihood if isinstance(likelihood, str) else lik_obj.name,
         "likelihood_options": likelihood_options, "likelihood_settings": lik_obj.settings(),
     }

@@ -68,6 +68,7 @@ class TrackRequest:
         """A request from :func:`tracker.track`'s arguments (``settings``: the run's settings and the plugins'
         options, told apart here), its paths made absolute. A prior's options that name model files of their
         own (a mixture's components) have theirs made absolute by the prior's registry entry."""
+        from tracker.app.plugins import prior_entry
         from tracker.app.schema import TRACK_SETTINGS
 
         if not isinstance(prior, str):
@@ -75,10 +76,7 @@ class TrackRequest:
                              "resume it)")
         run = {k: v for k, v in settings.items() if k in TRACK_SETTINGS}
         options = {k: v for k, v in settings.items() if k not in TRACK_SETTINGS}
-        if isinstance(options.get("components"), str):  # a mixture's components name their own model files
-            from tracker.engine.components import with_model_paths
-
-            options["components"] = with_model_paths(options["components"], f"prior {prior}", _absolute)
+        options = prior_entry(prior).located(options, _absolute)  # model files the options name themselves
         return cls(sequence=_absolute(sequence), prior=prior, models=tuple(_absolute(m) for m in models),
                    likelihood=likelihood, settings=run, options=options, init=_absolute(init),
                    train_mocap=None if train_mocap is None else tuple(_absolute(m) for m in train_mocap),

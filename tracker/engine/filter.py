@@ -20,7 +20,7 @@ and every frame ends with resampling.
 
 How a frame's likelihood becomes the weights and how the particles are redrawn is a strategy chosen once per
 filter from the prior (:func:`tracker.engine.weighing.weighing_for`): plain SIR as above, or mixture tracking
-for a prior whose particles are split into components kept apart (:mod:`tracker.engine.mixture`). The strategy
+for a prior whose particles are split into components kept apart (:mod:`tracker.engine.multiple_models`). The strategy
 also says which particles annealing layers sharpen and redraw together.
 
 If every weight is ``-inf`` (no particle explains the frame) the filter

@@ -53,7 +53,7 @@ class MotionPrior(ABC):
     implements by defining the methods: a per-frame summary (:class:`Summarizing`), a label per frame
     (:class:`Labelling`), a restart after a lost frame (:class:`Restarting`), taking particles that come from
     another motion model (:class:`Adopting`), and particles split into components the filter keeps apart
-    (:class:`tracker.engine.mixture.ComponentPrior`). The module functions :func:`summary_of`, :func:`summarize`,
+    (:class:`tracker.engine.multiple_models.ComponentPrior`). The module functions :func:`summary_of`, :func:`summarize`,
     :func:`label_for`, :func:`restart` and :func:`adopt` call a prior's own method, or give the default for a
     prior without one.
     """

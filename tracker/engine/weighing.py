@@ -4,7 +4,7 @@ The filter (:mod:`tracker.engine.filter`) proposes, anneals, recovers and estima
 prior; what differs is how a frame's likelihood becomes the particles' weights and how the particles are
 redrawn. :func:`weighing_for` chooses the strategy once, from the prior: plain sequential importance resampling
 (:class:`PlainSIR`), or, for a prior whose particles are split into components the filter keeps apart, mixture
-tracking (:class:`tracker.engine.mixture.MixtureTracking`). A strategy implements :class:`Weighing`.
+tracking (:class:`tracker.engine.multiple_models.MixtureTracking`). A strategy implements :class:`Weighing`.
 """
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from typing import Callable, Protocol, runtime_checkable
 
 import numpy as np
 
-from tracker.engine.mixture import MixtureTracking, mixing_of
+from tracker.engine.multiple_models import MixtureTracking, mixing_of
 from tracker.engine.prior import MotionPrior, PriorState
 from tracker.engine.weights import LogWeights
 
@@ -71,7 +71,7 @@ class PlainSIR:
 
 def weighing_for(prior: MotionPrior, scheme: Callable[..., np.ndarray], n_particles: int) -> Weighing:
     """The strategy for ``prior``: mixture tracking where its particles are split into components kept apart
-    (:func:`tracker.engine.mixture.mixing_of`), else plain SIR."""
+    (:func:`tracker.engine.multiple_models.mixing_of`), else plain SIR."""
     if mixing_of(prior) is not None:
         return MixtureTracking(prior, scheme, n_particles)
     return PlainSIR(prior, scheme, n_particles)

@@ -29,7 +29,7 @@ from typing import Any, Iterator, Sequence
 import numpy as np
 
 from priors.parts import Part
-from tracker.engine.mixture import mixing_of
+from tracker.engine.multiple_models import mixing_of
 from tracker.engine.prior import MotionPrior, PriorState, label_for, reindex_state
 
 
@@ -121,7 +121,7 @@ class PriorContract:
         """Each particle's component ``(P,)`` where the prior keeps groups of particles apart, each sampled
         with its own stream of random numbers (resampling within a group leaves every group's draws where
         they were); None where it samples the whole batch at once. Default: the components the prior keeps
-        apart (:class:`~tracker.engine.mixture.ComponentPrior`)."""
+        apart (:class:`~tracker.engine.multiple_models.ComponentPrior`)."""
         return None if mixing_of(prior) is None else np.asarray(prior.component_of(state))
 
     def frames_before_batch_check(self, prior: MotionPrior) -> int:
