@@ -32,25 +32,25 @@ The engine knows priors and likelihoods only through their interfaces
 draw comes from the one generator passed in. :meth:`ParticleFilter.start` and
 :meth:`ParticleFilter.step` expose the loop one frame at a time (its whole
 state is a :class:`FilterState`); :meth:`ParticleFilter.run` runs it over a
-sequence of frames and returns what the caller asked to record. With
-``workers > 0`` the filter steps in a background thread while the calling
-thread reads and prepares the next frame's observations, and further workers
-prepare frames ahead (:class:`Prefetcher`); preparation draws no random
+sequence of frames and returns what the caller asked to record, through
+:func:`tracker.engine.pipeline.run_frames`: with ``workers > 0`` the filter
+steps in a background thread while the calling thread reads and prepares the
+next frame's observations, and further workers prepare frames ahead
+(:class:`~tracker.engine.pipeline.Prefetcher`); preparation draws no random
 numbers and the steps run in order, so the results are the same.
 """
 from __future__ import annotations
 
 import time
-from collections import deque
-from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass, replace
-from typing import Any, Callable, Iterable, Iterator, Mapping
+from dataclasses import dataclass
+from typing import Any, Callable, Iterable, Mapping
 
 import numpy as np
 
 from tracker.core.blas import serial_blas
 from tracker.engine.config import FilterConfig  # the filter's settings, declared with their options
 from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood, RefiningFrameLikelihood
+from tracker.engine.pipeline import Prefetcher, run_frames  # Prefetcher: also importable from here
 from tracker.engine.prior import MotionPrior, PriorState, label_for, restart, summarize
 from tracker.engine.recording import DEFAULT_RECORD, FrameStep, Recording
 from tracker.engine.resampling import SCHEMES
@@ -151,8 +151,8 @@ class ParticleFilter:
              prepared: FrameLikelihood | None = None) -> tuple[FilterState, FrameStep]:
         """Track one frame: propose, weigh (annealed if configured), estimate, resample when due.
 
-        ``prepared`` is the frame's likelihood already prepared (by a :class:`Prefetcher`); ``load_seconds`` is
-        the time spent waiting for the frame (seconds, recorded as its ``load`` time).
+        ``prepared`` is the frame's likelihood already prepared (by a :class:`~tracker.engine.pipeline.Prefetcher`);
+        ``load_seconds`` is the time spent waiting for the frame (seconds, recorded as its ``load`` time).
         """
         t0 = time.perf_counter()
         frame_lik = self.likelihood.prepare(frame) if prepared is None else prepared
@@ -278,112 +278,5 @@ class ParticleFilter:
         """
         recording = record if isinstance(record, Recording) else Recording(record)
         state = self.start(known) if state is None else state
-
-        clock = [time.perf_counter()]  # when the frame before was done (its callbacks not counted)
-
-        def finish(new_state: FilterState, step: FrameStep) -> FilterState:
-            step = replace(step, seconds={**step.seconds, "wall": time.perf_counter() - clock[0]})
-            recording.add(step)
-            if on_frame is not None:
-                on_frame(step)
-            if on_state is not None:
-                on_state(new_state, recording)
-            clock[0] = time.perf_counter()
-            return new_state
-
-        if workers <= 0:
-            with Prefetcher(frames, self.likelihood, 0) as source:
-                while True:
-                    t0 = time.perf_counter()
-                    item = source.next()
-                    if item is None:
-                        break
-                    state = finish(*self.step(state, item[0], time.perf_counter() - t0, item[1]))
-            return recording.result()
-        # Pipelined: a filter thread steps frame t while this thread reads and prepares frame t+1 (image decoding
-        # stays on this thread, see Prefetcher: its stderr redirection could swallow what the filter thread printed
-        # meanwhile, which is nothing in normal operation), and the workers beyond the first prepare further ahead.
-        # Steps run one at a time in frame order and every callback runs here between them, so the results and
-        # the generator's draws are those of the loop above.
-        with ThreadPoolExecutor(1, thread_name_prefix="filter") as stepper, \
-                Prefetcher(frames, self.likelihood, workers - 1) as source:
-            item, load = self._next_prepared(source)
-            while item is not None:
-                stepping = stepper.submit(self.step, state, item[0], load, item[1])
-                try:
-                    following, load = self._next_prepared(source)
-                except Exception as exc:  # raised once the frames before it are done, as in the loop above
-                    following, failure = None, exc
-                else:
-                    failure = None
-                state = finish(*stepping.result())
-                if failure is not None:
-                    raise failure
-                item = following
-        return recording.result()
-
-    def _next_prepared(self, source: "Prefetcher") -> tuple[tuple[Frame, FrameLikelihood] | None, float]:
-        """The next frame from ``source`` with its observations prepared (here, when ``source`` did not), and
-        the seconds that took; None at the end."""
-        t0 = time.perf_counter()
-        item = source.next()
-        if item is not None and item[1] is None:
-            item = (item[0], self.likelihood.prepare(item[0]))
-        return item, time.perf_counter() - t0
-
-
-class Prefetcher:
-    """Frames in order, each with its likelihood prepared ahead in background threads.
-
-    The calling thread reads the frames (image decoding stays there: readers may briefly redirect the
-    process's stderr to silence image libraries, which would swallow another thread's messages) up to
-    ``workers`` frames ahead of the one it hands out, and ``workers`` threads prepare them with
-    ``likelihood.prepare`` meanwhile. An exception raised while reading or preparing a frame is raised by
-    :meth:`next` when that frame is due, so the frames before it are processed exactly as without
-    prefetching. ``workers = 0`` reads frame by frame and leaves preparation to the caller. Use as a context
-    manager (it stops the threads).
-    """
-
-    def __init__(self, frames: Iterable[Frame], likelihood: Likelihood, workers: int = 0):
-        self.iterator: Iterator[Frame] = iter(frames)
-        self.likelihood = likelihood
-        self.workers = max(0, int(workers))
-        self.pool = ThreadPoolExecutor(self.workers, thread_name_prefix="prepare") if self.workers else None
-        self.pending: deque[tuple[Frame, Future] | BaseException] = deque()
-        self.ended = False
-
-    def __enter__(self) -> "Prefetcher":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        if self.pool is not None:
-            self.pool.shutdown(wait=False, cancel_futures=True)
-
-    def next(self) -> tuple[Frame, FrameLikelihood | None] | None:
-        """The next frame with its prepared likelihood (None when not prefetching), or None at the end."""
-        if self.pool is None:
-            frame = next(self.iterator, None)
-            return None if frame is None else (frame, None)
-        if not self.pending:
-            self._read()
-        item = self.pending.popleft() if self.pending else None
-        while len(self.pending) < self.workers and not self.ended:
-            self._read()  # while the frame about to be handed out is still being prepared
-        if item is None or isinstance(item, BaseException):
-            if item is not None:
-                raise item
-            return None
-        frame, future = item
-        return frame, future.result()
-
-    def _read(self) -> None:
-        try:
-            frame = next(self.iterator, None)
-        except Exception as exc:  # raised when this frame is due
-            self.ended = True
-            self.pending.append(exc)
-            return
-        if frame is None:
-            self.ended = True
-        else:
-            self.pending.append((frame, self.pool.submit(self.likelihood.prepare, frame)))
+        return run_frames(self.step, state, frames, self.likelihood, recording, on_frame, on_state,
+                          workers).result()
