@@ -74,7 +74,7 @@ def crbm_tracking(tmp: Path) -> None:
     layer (plain SIR, as published) and with track's default annealing layers."""
     from priors.crbm.prior import GIBBS_STEPS
     from tracker import train
-    from tracker.app.defaults import TRACK_ANNEALING_LAYERS
+    from tracker.app.schema import TRACK_ANNEALING_LAYERS
 
     mocap = SHARED / "mocap" / "cmu" / "07"
     model = train("crbm", [mocap / f"07_{i}.amc" for i in ("01", "02", "09", "10")], order=3)
