@@ -131,9 +131,11 @@ def test_running_out_of_memory_is_one_line(failure, monkeypatch, capsys, tmp_pat
     def greedy(args):
         raise failure
 
-    monkeypatch.setitem(cli.COMMANDS, "convert", greedy)
+    from tracker.app.commands import convert
+
+    monkeypatch.setattr(convert, "run", greedy)
     one_line_refusal(*run_cli(["convert", "--mocap", AMC, "--out", "x.npz"], capsys), "not enough memory")
-    monkeypatch.setitem(cli.COMMANDS, "convert", lambda args: (_ for _ in ()).throw(RuntimeError("a bug")))
+    monkeypatch.setattr(convert, "run", lambda args: (_ for _ in ()).throw(RuntimeError("a bug")))
     with pytest.raises(RuntimeError, match="a bug"):  # other runtime errors are not taken for bad input
         cli.main(["convert", "--mocap", AMC, "--out", "x.npz"])
 

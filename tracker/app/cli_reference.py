@@ -13,12 +13,11 @@ import os
 from collections.abc import Iterator, Sequence
 
 from tracker.app.api import available_likelihoods, available_priors, prior_entry
+from tracker.app.commands import command_modules
 from tracker.app.parser import build_parser
 
 #: Columns the help is formatted to (argparse reads ``COLUMNS``).
 WIDTH = 100
-COMMANDS = ("convert", "corpus", "synth", "show", "train", "track", "compare", "demo", "fetch", "import-video",
-            "silhouettes", "keypoints", "capture", "initialise", "export", "compare-trc")
 
 
 def _subparser(argv: Sequence[str], command: str) -> argparse.ArgumentParser:
@@ -48,7 +47,7 @@ def sections() -> Iterator[str]:
            "them. `pose-tracker` and `python -m tracker` are the same command. Plugins loaded with `--plugin` "
            "add their priors, likelihoods and options to `track` and `train`.\n")
     yield "## pose-tracker\n\n" + _block(build_parser([]).format_help())
-    for command in COMMANDS:
+    for command in (module.NAME for module in command_modules()):
         yield f"## {command}\n\n" + _block(_subparser([command], command).format_help())
     yield ("## Options of each prior\n\n"
            "`track --prior NAME` accepts the options of that prior (and `train --prior NAME` its training "

@@ -21,14 +21,15 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping
 
-from data_tools.files import (check_not_inside, check_output_file, check_output_folder, first_missing,
+from data_tools.io.files import (check_not_inside, check_output_file, check_output_folder, first_missing,
                               undone_unless_started, write_text_atomic)
 from tracker.app.tracking import TrackingInterrupted, TrackingResult
 from tracker.core.errors import InputError
 
 log = logging.getLogger(__name__)
 
-__all__ = ["REQUEST_FILE", "TrackRequest", "track_into", "resume_tracking", "run_in_folder", "saved_request"]
+__all__ = ["REQUEST_FILE", "TrackRequest", "track_into", "resume_tracking", "run_in_folder", "saved_request",
+           "finished_run", "run_sequence"]
 
 #: The file that keeps an unfinished run's request in its output folder.
 REQUEST_FILE = "track_arguments.json"
@@ -112,7 +113,7 @@ class TrackRequest:
 def saved_request(out: str | Path, earlier: Callable[[dict], TrackRequest] | None = None) -> TrackRequest | None:
     """The request of the unfinished run in ``out`` (None where none is kept), its plugins imported. A file an
     earlier version kept (the command line's parsed arguments) is read by ``earlier``, where given."""
-    from data_tools.textfiles import read_json
+    from data_tools.io.textfiles import read_json
     from tracker.app.plugins import import_plugin
 
     path = Path(out) / REQUEST_FILE
@@ -242,7 +243,7 @@ def run_in_folder(request: TrackRequest, out: str | Path, *, overwrite: bool = F
 def _checked_inputs(request: TrackRequest):
     """The request's sequence and initial poses, read and checked (with its views and frames) before anything is
     written, and how many frames the run tracks."""
-    from data_tools.estimates import read_poses_file
+    from data_tools.sequences.estimates import read_poses_file
     from tracker.app.api import load_sequence, run_settings
     from tracker.app.tracking import check_frames
 
@@ -251,3 +252,25 @@ def _checked_inputs(request: TrackRequest):
     settings = run_settings(request.settings, seq)
     last, _, first = check_frames(seq, settings["frames"], settings["known_frames"], init)
     return seq, init, last - first
+
+
+def finished_run(run: str | Path) -> tuple[Path, dict]:
+    """A tracked run's folder: its ``estimates.npz`` and its ``result.json`` (empty when absent); a folder without
+    estimates is an :class:`InputError`."""
+    from data_tools.io.textfiles import read_json
+
+    folder = Path(run)
+    if not (folder / "estimates.npz").is_file():
+        raise InputError("not a tracked run: no estimates.npz", folder)
+    result = read_json(folder / "result.json", "result.json") if (folder / "result.json").is_file() else {}
+    return folder / "estimates.npz", result if isinstance(result, dict) else {}
+
+
+def run_sequence(result: Mapping[str, Any], given: str | Path | None, run: str | Path):
+    """The sequence a run tracked: ``given``, else the one its ``result.json`` names."""
+    from data_tools.sequences.sequence import read_sequence
+
+    path = given or result.get("sequence")
+    if not path:
+        raise InputError("result.json names no sequence: give --sequence DIR", run)
+    return read_sequence(path)
