@@ -1,4 +1,4 @@
-"""``pose-tracker capture``."""
+"""``pose-tracker capture``: calibrated videos in, tracked poses out: every step in one command."""
 from __future__ import annotations
 
 import argparse

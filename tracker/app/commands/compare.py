@@ -1,4 +1,4 @@
-"""``pose-tracker compare``."""
+"""``pose-tracker compare``: run an experiment: priors x sequences x settings x seeds, with tables."""
 from __future__ import annotations
 
 import argparse
@@ -17,7 +17,8 @@ NAME = "compare"
 
 def add_parser(sub, parents: list, argv: Sequence[str]) -> argparse.ArgumentParser:
     """This command's parser, added to ``pose-tracker``'s commands ``sub`` (``argv``: the whole command line)."""
-    e = sub.add_parser("compare", parents=parents, help="run an experiment: priors x sequences x settings x seeds, with tables",
+    e = sub.add_parser("compare", parents=parents,
+                       help="run an experiment: priors x sequences x settings x seeds, with tables",
                        description="Run every configuration of an experiment file (TOML; see "
                                    "tracker/app/experiment.py and benchmarks/experiments/) in parallel, skipping "
                                    "runs finished before, and write table.md, table.csv, per_frame.png and "

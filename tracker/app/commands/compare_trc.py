@@ -1,4 +1,4 @@
-"""``pose-tracker compare-trc``."""
+"""``pose-tracker compare-trc``: compare a tracked run with a reference reconstruction in a TRC file."""
 from __future__ import annotations
 
 import argparse

@@ -1,4 +1,4 @@
-"""``pose-tracker convert``."""
+"""``pose-tracker convert``: convert a mocap clip (AMC+ASF or BVH) to body-model poses and markers."""
 from __future__ import annotations
 
 import argparse
@@ -16,7 +16,8 @@ NAME = "convert"
 
 def add_parser(sub, parents: list, argv: Sequence[str]) -> argparse.ArgumentParser:
     """This command's parser, added to ``pose-tracker``'s commands ``sub`` (``argv``: the whole command line)."""
-    c = sub.add_parser("convert", parents=parents, help="convert a mocap clip (AMC+ASF or BVH) to body-model poses and markers",
+    c = sub.add_parser("convert", parents=parents,
+                       help="convert a mocap clip (AMC+ASF or BVH) to body-model poses and markers",
                        description="Retarget a mocap clip to the 15-cone body model and write CLIP.npz with "
                                    "poses, markers (ground truth), model_markers, fps and the body shape.")
     c.add_argument("--mocap", required=True, help="motion file: .amc (CMU ASF/AMC) or .bvh")

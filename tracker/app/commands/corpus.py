@@ -1,4 +1,4 @@
-"""``pose-tracker corpus``."""
+"""``pose-tracker corpus``: list what a mocap corpus holds: clips, frames, rates, labels, conventions, refused files."""
 from __future__ import annotations
 
 import argparse

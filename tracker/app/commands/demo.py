@@ -1,4 +1,4 @@
-"""``pose-tracker demo``."""
+"""``pose-tracker demo``: render, track and score a shipped walk: a first run that needs no data of your own."""
 from __future__ import annotations
 
 import argparse
@@ -15,7 +15,8 @@ NAME = "demo"
 
 def add_parser(sub, parents: list, argv: Sequence[str]) -> argparse.ArgumentParser:
     """This command's parser, added to ``pose-tracker``'s commands ``sub`` (``argv``: the whole command line)."""
-    d = sub.add_parser("demo", parents=parents, help="render, track and score a shipped walk: a first run that needs no data of your own",
+    d = sub.add_parser("demo", parents=parents,
+                       help="render, track and score a shipped walk: a first run that needs no data of your own",
                        description="Render 1.5 s of the shipped CMU walk 07_01 (subject 7) into 4 cameras, "
                                    "track it with the zero-velocity prior and with the recommended default, the "
                                    "mixture of the pretrained neural prior (which never saw subject 7) and "

@@ -1,4 +1,4 @@
-"""``pose-tracker export``."""
+"""``pose-tracker export``: write a tracked run's poses as BVH and/or TRC."""
 from __future__ import annotations
 
 import argparse

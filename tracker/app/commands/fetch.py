@@ -1,4 +1,4 @@
-"""``pose-tracker fetch``."""
+"""``pose-tracker fetch``: download CMU mocap trials into a data root, checked."""
 from __future__ import annotations
 
 import argparse

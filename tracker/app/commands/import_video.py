@@ -1,4 +1,4 @@
-"""``pose-tracker import-video``."""
+"""``pose-tracker import-video``: turn one video per calibrated camera into a sequence folder."""
 from __future__ import annotations
 
 import argparse

@@ -1,4 +1,4 @@
-"""``pose-tracker initialise``."""
+"""``pose-tracker initialise``: fit the body's size and first poses to a sequence's keypoints or first silhouettes."""
 from __future__ import annotations
 
 import argparse
@@ -18,7 +18,8 @@ def add_parser(sub, parents: list, argv: Sequence[str]) -> argparse.ArgumentPars
                        description="For a sequence with keypoints (pose-tracker keypoints): measure the body's "
                                    "limbs from the keypoints triangulated over the views and fit the first "
                                    "poses' 40 numbers to the keypoints in every view (one view: the default "
-                                   "body, placed by its height in the image). Otherwise: search the floor position, heading, body scale and stance (standing, "
+                                   "body, placed by its height in the image). Otherwise: search the floor position, "
+                                   "heading, body scale and stance (standing, "
                                    "A-pose, T-pose; or around --near, an approximate pose of your own) that the "
                                    "tracker's likelihood rates best on the first frame's silhouettes, refine "
                                    "every pose number from both headings (silhouettes hardly tell front from "

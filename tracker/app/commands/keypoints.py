@@ -1,4 +1,4 @@
-"""``pose-tracker keypoints``."""
+"""``pose-tracker keypoints``: write a sequence's 2-D keypoints: detected, or read from another tool's files."""
 from __future__ import annotations
 
 import argparse

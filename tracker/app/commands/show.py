@@ -1,4 +1,4 @@
-"""``pose-tracker show``."""
+"""``pose-tracker show``: draw the projected body model over every view of a sequence frame."""
 from __future__ import annotations
 
 import argparse
@@ -17,7 +17,8 @@ NAME = "show"
 
 def add_parser(sub, parents: list, argv: Sequence[str]) -> argparse.ArgumentParser:
     """This command's parser, added to ``pose-tracker``'s commands ``sub`` (``argv``: the whole command line)."""
-    w = sub.add_parser("show", parents=parents, help="draw the projected body model over every view of a sequence frame",
+    w = sub.add_parser("show", parents=parents,
+                       help="draw the projected body model over every view of a sequence frame",
                        description="Draw the projected cones (ground truth, the initial pose, or --poses) over "
                                    "every camera view in one grid image, or a whole sequence as a video.")
     w.add_argument("sequence", metavar="DIR", help="sequence folder (own layout or PARSEC bodytrack)")

@@ -1,4 +1,4 @@
-"""``pose-tracker silhouettes``."""
+"""``pose-tracker silhouettes``: write the person's silhouettes of a sequence that has no background plate."""
 from __future__ import annotations
 
 import argparse

@@ -1,4 +1,4 @@
-"""``pose-tracker synth``."""
+"""``pose-tracker synth``: render a mocap clip into a synthetic multi-view sequence."""
 from __future__ import annotations
 
 import argparse

@@ -1,4 +1,4 @@
-"""``pose-tracker track``."""
+"""``pose-tracker track``: track a person through a sequence with a particle filter."""
 from __future__ import annotations
 
 import argparse
@@ -8,15 +8,8 @@ from typing import Sequence
 
 import numpy as np
 
-from tracker.app.commands.arguments import (
-    UNNAMED_LIKELIHOOD,
-    catalogue,
-    check_clashes,
-    chosen,
-    given_options,
-    plugin_group,
-    wrapped,
-)
+from tracker.app.commands.arguments import (UNNAMED_LIKELIHOOD, catalogue, check_clashes, chosen, given_options,
+                                            plugin_group, wrapped)
 from tracker.app.console import PROG, interrupted_status, progress_bar
 from tracker.app.plugins import available_likelihoods, available_priors, likelihood_entry, prior_entry
 from tracker.app.schema import TRACK_SETTINGS, add_flags
@@ -30,7 +23,8 @@ NAME = "track"
 def add_parser(sub, parents: list, argv: Sequence[str]) -> argparse.ArgumentParser:
     """This command's parser, added to ``pose-tracker``'s commands ``sub`` (``argv``: the whole command line)."""
     t = sub.add_parser("track", parents=parents, help="track a person through a sequence with a particle filter",
-                       description="Track a sequence (a pose-tracker sequence folder or PARSEC bodytrack's) with an SIR particle filter "
+                       description="Track a sequence (a pose-tracker sequence folder or PARSEC bodytrack's) with an "
+                                   "SIR particle filter "
                                    "and an image likelihood; writes OUTDIR/result.json and OUTDIR/estimates.npz.")
     t.add_argument("sequence", metavar="DIR", nargs="?", help="sequence folder")
     t.add_argument("--prior", choices=available_priors(), metavar="NAME",
@@ -60,7 +54,8 @@ def add_parser(sub, parents: list, argv: Sequence[str]) -> argparse.ArgumentPars
                         "first frame")
     priors = {f"prior {n}": prior_entry(n).options for n in available_priors()}
     likelihoods = {f"likelihood {n}": likelihood_entry(n).options for n in available_likelihoods()}
-    shared = {o.name for opts in priors.values() for o in opts} & {o.name for opts in likelihoods.values() for o in opts}
+    shared = ({o.name for opts in priors.values() for o in opts}
+              & {o.name for opts in likelihoods.values() for o in opts})
     if shared:
         raise InputError(f"a prior and a likelihood both declare the option(s) {', '.join(sorted(shared))}; "
                          "rename one of them")

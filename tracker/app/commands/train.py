@@ -1,4 +1,4 @@
-"""``pose-tracker train``."""
+"""``pose-tracker train``: train a learned motion prior on mocap clips."""
 from __future__ import annotations
 
 import argparse
@@ -6,16 +6,8 @@ import logging
 import shlex
 from typing import Sequence
 
-from tracker.app.commands.arguments import (
-    catalogue,
-    check_clashes,
-    chosen,
-    fps_type,
-    given_options,
-    plugin_group,
-    seed_type,
-    wrapped,
-)
+from tracker.app.commands.arguments import (catalogue, check_clashes, chosen, fps_type, given_options, plugin_group,
+                                            seed_type, wrapped)
 from tracker.app.console import interrupted_status, invoked_as, progress_bar
 from tracker.app.plugins import available_priors, prior_entry
 
