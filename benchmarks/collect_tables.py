@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--figures", action="store_true",
                         help="copy each folder's per_frame.png to docs/figures/NAME.png and link it")
     args = parser.parse_args(argv)
-    from data_tools.files import write_text_atomic
+    from data_tools.io.files import write_text_atomic
 
     figures = args.out.parent / "figures"
     text = args.out.read_text(encoding="utf-8") if args.out.exists() else "# Results\n\n"

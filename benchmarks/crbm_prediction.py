@@ -19,8 +19,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from data_tools.asf_amc import asf_amc_clip  # noqa: E402
-from data_tools.retarget import retarget  # noqa: E402
+from data_tools.motion.asf_amc import asf_amc_clip  # noqa: E402
+from data_tools.motion.retarget import retarget  # noqa: E402
 from priors.parts import GroundDiffusion
 from priors.crbm.model import CRBMConfig  # noqa: E402
 from priors.crbm.prior import CRBMPrior

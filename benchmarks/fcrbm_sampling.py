@@ -33,7 +33,7 @@ def time_prior(prior, history: np.ndarray, known: np.ndarray, particles: int, fr
 
 
 def main() -> None:
-    from data_tools.load import load_training_clips
+    from data_tools.motion.load import load_training_clips
     from priors.crbm.model import CRBMConfig
     from priors.crbm.prior import CRBMPrior
     from priors.crbm.training import train_crbm

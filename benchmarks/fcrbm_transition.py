@@ -25,7 +25,7 @@ RUNS = ["02/02_03.amc", "09/09_01.amc", "09/09_02.amc", "16/16_35.amc"]
 def main() -> None:
     from matplotlib.figure import Figure
 
-    from data_tools.load import load_training_clips
+    from data_tools.motion.load import load_training_clips
     from priors.fcrbm.training import train_fcrbm
     from priors.settings import FCRBMConfig
     from priors.fcrbm.prior import generate, transition_styles

@@ -22,8 +22,8 @@ import torch
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from data_tools.asf_amc import asf_amc_clip  # noqa: E402
-from data_tools.retarget import retarget  # noqa: E402
+from data_tools.motion.asf_amc import asf_amc_clip  # noqa: E402
+from data_tools.motion.retarget import retarget  # noqa: E402
 from priors.gpdm.predict import prepare  # noqa: E402
 from priors.gpdm.model import GPDMConfig  # noqa: E402
 from priors.gpdm.training import train_gpdm

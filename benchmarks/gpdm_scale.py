@@ -36,7 +36,7 @@ import torch
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from data_tools.load import load_training_clips  # noqa: E402
+from data_tools.motion.load import load_training_clips  # noqa: E402
 from priors.gpdm.predict import prepare  # noqa: E402
 from priors.parts import HeightOffset  # noqa: E402
 from priors.gpdm.model import SPARSE_METHODS, GPDMConfig  # noqa: E402

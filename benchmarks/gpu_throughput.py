@@ -28,10 +28,10 @@ import torch
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from data_tools.asf_amc import asf_amc_clip  # noqa: E402
-from data_tools.retarget import retarget  # noqa: E402
-from data_tools.sequence import read_sequence  # noqa: E402
-from data_tools.synth import SynthConfig, synthesize  # noqa: E402
+from data_tools.motion.asf_amc import asf_amc_clip  # noqa: E402
+from data_tools.motion.retarget import retarget  # noqa: E402
+from data_tools.sequences.sequence import read_sequence  # noqa: E402
+from data_tools.synthesis.synth import SynthConfig, synthesize  # noqa: E402
 from likelihoods.edge_silhouette import EdgeSilhouetteLikelihood  # noqa: E402
 from tracker import train, track  # noqa: E402
 from tracker.core.arrays import torch_device  # noqa: E402

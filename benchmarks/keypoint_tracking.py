@@ -1,13 +1,13 @@
 """Tracking with 2-D keypoints on synthetic sequences with exact ground truth (run by hand).
 
-The keypoints come from the detector noise model (:mod:`data_tools.keypoints.simulate`; its defaults unless
+The keypoints come from the detector noise model (:mod:`data_tools.vision.keypoints.simulate`; its defaults unless
 ``--noise`` says otherwise, the detections drawn with ``--noise-seed``) at the sequence's true poses; the start is
 fitted to them (:func:`tracker.app.keypoint_start.initialise_from_keypoints`: the body measured, as a user's
 would be) and each likelihood tracks from it with ``--prior``. Printed per likelihood: the mean distance over
 the 12 limb joints (mm; mean ± std over the seeds), over all 15 markers, over the limb joints after one rigid
 alignment of the whole run (the measure with one camera, whose depth is the body's size), the worst frame, and
 seconds per frame; with two or more views first the robust triangulation of the same keypoints, median-filtered
-over 5 frames (:mod:`data_tools.keypoints.triangulate`), over the limb joints.
+over 5 frames (:mod:`data_tools.vision.keypoints.triangulate`), over the limb joints.
 
 The sequences of ``docs/results.md`` (CMU clips from ``../shared/mocap/cmu``)::
 
@@ -33,10 +33,10 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 import tracker  # noqa: E402
-from data_tools.keypoint_file import write_keypoints  # noqa: E402
-from data_tools.keypoints.simulate import DetectorNoise, simulate_sequence_keypoints  # noqa: E402
-from data_tools.keypoints.triangulate import median_filter, triangulate_keypoints  # noqa: E402
-from data_tools.sequence import read_sequence  # noqa: E402
+from data_tools.sequences.keypoint_file import write_keypoints  # noqa: E402
+from data_tools.sequences.sequence import read_sequence  # noqa: E402
+from data_tools.vision.keypoints.simulate import DetectorNoise, simulate_sequence_keypoints  # noqa: E402
+from data_tools.vision.keypoints.triangulate import median_filter, triangulate_keypoints  # noqa: E402
 from tracker.app.keypoint_start import initialise_from_keypoints  # noqa: E402
 from tracker.core.keypoints import KEYPOINT_INDEX  # noqa: E402
 

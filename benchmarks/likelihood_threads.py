@@ -30,7 +30,7 @@ def frames(tmp: Path):
         seq = tracker.load_sequence(bodytrack)
         yield "bodytrack frame (10 cones, 4 cameras)", seq, seq.frame(0, range(seq.n_views)), \
             np.asarray(seq.initial_poses)[-1]
-    from data_tools.synth import SynthConfig, synthesize
+    from data_tools.synthesis.synth import SynthConfig, synthesize
 
     synthesize(tracker.load_clip(SHARED / "mocap" / "cmu" / "07" / "07_11.amc"), tmp / "walk", SynthConfig(frames=12))
     seq = tracker.load_sequence(tmp / "walk")

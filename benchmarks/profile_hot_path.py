@@ -96,7 +96,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         folder = args.synthetic
         if folder is None:
-            from data_tools.synth import SynthConfig, synthesize
+            from data_tools.synthesis.synth import SynthConfig, synthesize
 
             folder = Path(tmp) / "walk"
             synthesize(tracker.load_clip(SHARED / "mocap" / "cmu" / "07" / "07_11.amc"), folder,

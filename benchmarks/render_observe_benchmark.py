@@ -19,10 +19,10 @@ sys.path.insert(0, str(REPO))
 
 from timing import mean_ms  # noqa: E402
 
-from data_tools.asf_amc import asf_amc_clip  # noqa: E402
-from data_tools.render import compose, make_room, person_mesh, render_background, render_person  # noqa: E402
-from data_tools.retarget import retarget  # noqa: E402
-from data_tools.sequence import read_sequence, write_image  # noqa: E402
+from data_tools.motion.asf_amc import asf_amc_clip  # noqa: E402
+from data_tools.motion.retarget import retarget  # noqa: E402
+from data_tools.sequences.sequence import read_sequence, write_image  # noqa: E402
+from data_tools.synthesis.render import compose, make_room, person_mesh, render_background, render_person  # noqa: E402
 from likelihoods.observations import observe  # noqa: E402
 from tracker.core.cameras import default_rig  # noqa: E402
 

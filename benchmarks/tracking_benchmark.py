@@ -23,10 +23,10 @@ sys.path.insert(0, str(REPO))
 
 from timing import best_ms  # noqa: E402
 
-from data_tools.asf_amc import asf_amc_clip  # noqa: E402
-from data_tools.retarget import retarget  # noqa: E402
-from data_tools.sequence import read_sequence  # noqa: E402
-from data_tools.synth import SynthConfig, synthesize  # noqa: E402
+from data_tools.motion.asf_amc import asf_amc_clip  # noqa: E402
+from data_tools.motion.retarget import retarget  # noqa: E402
+from data_tools.sequences.sequence import read_sequence  # noqa: E402
+from data_tools.synthesis.synth import SynthConfig, synthesize  # noqa: E402
 from likelihoods.edge_silhouette import EdgeSilhouetteLikelihood  # noqa: E402
 from priors.random_walk import ZeroVelocityPrior  # noqa: E402
 from tracker import track  # noqa: E402

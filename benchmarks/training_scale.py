@@ -21,7 +21,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from data_tools.load import load_training_clips  # noqa: E402
+from data_tools.motion.load import load_training_clips  # noqa: E402
 from priors.crbm.training import (history_noise_scale, make_windows, paces_vary, split_validation,  # noqa: E402
                                   train_crbm)
 from priors.fcrbm.training import train_fcrbm, training_windows  # noqa: E402

@@ -2,7 +2,7 @@
 
 Each ASF bone becomes a joint at the bone's start, whose rotation is the bone's (relative to its parent
 bone's); a leaf bone ends in an End Site at the bone's end (or a named end joint, or nothing). The result
-reads back (``data_tools.bvh``) to the same points as the ASF/AMC conversion.
+reads back (``data_tools.motion.bvh``) to the same points as the ASF/AMC conversion.
 
 As game and animation pipelines write them, a file may also bake joint orients into the offsets (each joint's
 frame turned so that its bone runs along its own +x: with every rotation zero the skeleton lies along x),
@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from data_tools.asf_amc import bone_rotations, read_amc, read_asf
-from data_tools.mocap import Y_UP_TO_Z_UP
+from data_tools.motion.asf_amc import bone_rotations, read_amc, read_asf
+from data_tools.motion.mocap import Y_UP_TO_Z_UP
 
 
 def write_bvh(out: Path, asf: Path, amc: Path, names: dict[str, str], *, root: str = "Hips", prefix: str = "",

@@ -11,7 +11,7 @@ REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("TRACKER_SHARED", REPO.parent / "shared"))
 MOCAP = SHARED / "mocap" / "cmu"
 BODYTRACK = SHARED / "bodytrack" / "sequenceB_1"
-#: Tests convert clips afresh and never write to the user's cache of converted clips (data_tools.cache); the
+#: Tests convert clips afresh and never write to the user's cache of converted clips (data_tools.motion.cache); the
 #: cache's own tests name their folder.
 os.environ["POSE_TRACKER_CACHE"] = "off"
 
@@ -61,8 +61,8 @@ def bodytrack_dir() -> Path:
 @pytest.fixture(scope="session")
 def walk_07_01(mocap_dir):
     """07_01 retargeted at 60 Hz (the realistic clip most tests use)."""
-    from data_tools.asf_amc import asf_amc_clip
-    from data_tools.retarget import retarget
+    from data_tools.motion.asf_amc import asf_amc_clip
+    from data_tools.motion.retarget import retarget
 
     return retarget(asf_amc_clip(mocap_dir / "07" / "07.asf", mocap_dir / "07" / "07_01.amc"), fps=60)
 
@@ -84,8 +84,8 @@ def rng() -> np.random.Generator:
 @pytest.fixture(scope="session")
 def walk_07_11(mocap_dir):
     """07_11 (the held-out walk) retargeted at 60 Hz: the clip synthetic-sequence tests render."""
-    from data_tools.asf_amc import asf_amc_clip
-    from data_tools.retarget import retarget
+    from data_tools.motion.asf_amc import asf_amc_clip
+    from data_tools.motion.retarget import retarget
 
     return retarget(asf_amc_clip(mocap_dir / "07" / "07.asf", mocap_dir / "07" / "07_11.amc"), fps=60)
 
@@ -93,7 +93,7 @@ def walk_07_11(mocap_dir):
 @pytest.fixture(scope="session")
 def synthetic_walk(walk_07_11, tmp_path_factory):
     """A 6-frame, 4-view synthetic sequence of 07_11 at the default noise, with the renderer's exact masks."""
-    from data_tools.synth import SynthConfig, synthesize
+    from data_tools.synthesis.synth import SynthConfig, synthesize
 
     out = synthesize(walk_07_11, tmp_path_factory.mktemp("seq") / "walk", SynthConfig(start=40, frames=6),
                      source="07_11.amc", keep_masks=True)
@@ -103,8 +103,8 @@ def synthetic_walk(walk_07_11, tmp_path_factory):
 @pytest.fixture(scope="session")
 def random_walk_std(mocap_dir):
     """Zero-velocity scale from the training walks 07_01 and 07_02 at 60 Hz (rms frame-to-frame change)."""
-    from data_tools.asf_amc import asf_amc_clip
-    from data_tools.retarget import retarget
+    from data_tools.motion.asf_amc import asf_amc_clip
+    from data_tools.motion.retarget import retarget
     from tracker.core.representation import step_rms
 
     asf = mocap_dir / "07" / "07.asf"
@@ -115,8 +115,8 @@ def random_walk_std(mocap_dir):
 @pytest.fixture(scope="session")
 def walk_32_frames(walk_07_11, tmp_path_factory):
     """The first 32 frames of the held-out walk 07_11 rendered into 4 views (default noise, seed 0)."""
-    from data_tools.sequence import read_sequence
-    from data_tools.synth import SynthConfig, synthesize
+    from data_tools.sequences.sequence import read_sequence
+    from data_tools.synthesis.synth import SynthConfig, synthesize
 
     out = synthesize(walk_07_11, tmp_path_factory.mktemp("seq32") / "walk", SynthConfig(frames=32))
     return read_sequence(out.root)
@@ -145,10 +145,10 @@ def rendered_walk(mocap_dir, tmp_path_factory):
     video per camera; returns the folder, the rendered sequence and the videos."""
     import cv2
 
-    from data_tools.asf_amc import asf_amc_clip
-    from data_tools.sequence import read_sequence
-    from data_tools.synth import SynthConfig, synthesize
-    from data_tools.retarget import retarget
+    from data_tools.motion.asf_amc import asf_amc_clip
+    from data_tools.motion.retarget import retarget
+    from data_tools.sequences.sequence import read_sequence
+    from data_tools.synthesis.synth import SynthConfig, synthesize
 
     walk = retarget(asf_amc_clip(mocap_dir / "07" / "07.asf", mocap_dir / "07" / "07_11.amc"), fps=15)
     folder = tmp_path_factory.mktemp("round_trip")

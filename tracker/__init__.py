@@ -50,7 +50,7 @@ _EXPORTS = {
     "random_walk_scale": "tracker.app.api", "show": "tracker.app.api",
     "TrackingResult": "tracker.app.tracking", "compare": "tracker.app.compare",
     "load_experiment": "tracker.app.experiment", "fetch": "tracker.app.fetching", "set_threads": "tracker.app.threads",
-    "SynthConfig": "data_tools.synth_settings", "sample_walks": "data_tools.samples",
+    "SynthConfig": "data_tools.synthesis.synth_settings", "sample_walks": "data_tools.samples",
     "marker_error": "tracker.core.metrics", "sequence_error": "tracker.core.metrics",
     "summarize_runs": "tracker.core.metrics",
     "register_prior": "tracker.engine.registry", "register_likelihood": "tracker.engine.registry",

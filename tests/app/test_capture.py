@@ -2,7 +2,7 @@
 keypoints and an overlay out, tracked near the known poses; a rerun skips what is done; one camera alone too.
 
 A body of cones is no person to a keypoint detector, so the detector is replaced here by the detector noise
-model on the rendered poses (:mod:`data_tools.keypoints.simulate`); the real detector's own tests run on the
+model on the rendered poses (:mod:`data_tools.vision.keypoints.simulate`); the real detector's own tests run on the
 real example (``tests/data_tools/test_keypoint_detection.py``)."""
 from __future__ import annotations
 
@@ -12,9 +12,9 @@ import json
 import numpy as np
 import pytest
 
-import data_tools.keypoints.detect as detect
-from data_tools.keypoints.simulate import simulate_sequence_keypoints
-from data_tools.rig_formats import write_rig
+import data_tools.vision.keypoints.detect as detect
+from data_tools.sequences.rig_formats import write_rig
+from data_tools.vision.keypoints.simulate import simulate_sequence_keypoints
 from tracker.app.capture import STEPS, capture
 from tracker.app.cli import main
 from tracker.core.errors import InputError

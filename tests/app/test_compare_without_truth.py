@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from data_tools.reference import POSE2SIM_MAP, compare_to_trc
-from data_tools.trc import write_trc
+from data_tools.motion.trc import write_trc
+from data_tools.sequences.reference import POSE2SIM_MAP, compare_to_trc
 from tracker.app.cli import main
 from tracker.core.body import MARKER_NAMES
 
@@ -25,7 +25,7 @@ MAPPED = [m for m in MARKER_NAMES if m in POSE2SIM_MAP]
 def folder(small_walk, tmp_path_factory) -> Path:
     """A rendered walk (2 views, 5 frames) with its ground truth removed, its first two poses as ``init.npz``
     and its true markers written as a Pose2Sim-style TRC (``ref.trc``) that starts one frame before it."""
-    from data_tools.sequence import read_sequence
+    from data_tools.sequences.sequence import read_sequence
 
     root = tmp_path_factory.mktemp("no_truth")
     shutil.copytree(small_walk, root / "seq")

@@ -3,8 +3,8 @@ person it tracks, and its line saying what the comparison shows (the whole demo 
 tests/app/test_overwrite.py)."""
 import pytest
 
-from data_tools.asf_amc import read_amc, read_asf
-from data_tools.cmu_trials import SKELETON_LENGTHS, TRIAL_FRAMES
+from data_tools.motion.asf_amc import read_amc, read_asf
+from data_tools.motion.cmu_trials import SKELETON_LENGTHS, TRIAL_FRAMES
 from data_tools.samples import CMU_ATTRIBUTION, sample_walks
 from tracker.app.demo import TRACK_SUBJECT, comparison_line
 

@@ -6,8 +6,8 @@ import json
 import numpy as np
 import pytest
 
-from data_tools.sequence import read_sequence
-from data_tools.synth import SynthConfig, synthesize
+from data_tools.sequences.sequence import read_sequence
+from data_tools.synthesis.synth import SynthConfig, synthesize
 from tracker.app.cli import main
 from tracker.app.initialise import scaled_shape
 from tracker.core.body import default_shape, fifteen_cone_model, stance_pose

@@ -7,9 +7,9 @@ import shutil
 import numpy as np
 import pytest
 
-from data_tools.keypoint_file import write_keypoints
-from data_tools.keypoints.simulate import simulate_sequence_keypoints
-from data_tools.sequence import read_sequence
+from data_tools.sequences.keypoint_file import write_keypoints
+from data_tools.sequences.sequence import read_sequence
+from data_tools.vision.keypoints.simulate import simulate_sequence_keypoints
 from tracker.app.keypoint_start import initialise_from_keypoints, keypoint_lengths
 from tracker.core.errors import InputError
 from tracker.core.keypoint_fit import fit_pose

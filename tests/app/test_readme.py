@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from data_tools.fetch import CMU_FOLDER, parse_trial
+from data_tools.motion.fetch import CMU_FOLDER, parse_trial
 from tracker.app.experiment import DATA_ROOT_ENV
 from tracker.app.fetching import experiment_needs
 

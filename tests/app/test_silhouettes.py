@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from data_tools.sequence import read_sequence, write_image, write_sequence_header
+from data_tools.sequences.sequence import read_sequence, write_image, write_sequence_header
 from tracker.app.silhouettes import keep_person, view_masks, write_sequence_masks
 from tracker.app.cli import main
 from tracker.core.cameras import CameraRig, look_at

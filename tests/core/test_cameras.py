@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from data_tools.calibration import read_bodytrack_calibration, read_cameras_json, write_cameras_json
+from data_tools.sequences.calibration import read_bodytrack_calibration, read_cameras_json, write_cameras_json
 from tracker.core.cameras import CameraRig, default_rig, look_at, make_camera, monocular_rig
 from tracker.core.errors import InputError
 from tracker.core.rotations import exp_map_to_matrix

@@ -9,10 +9,10 @@ import json
 import numpy as np
 import pytest
 
-from data_tools.asf_amc import asf_amc_clip, read_asf
-from data_tools.load import load_mocap, load_training_clips
-from data_tools.mocap import MocapClip, marker_positions
-from data_tools.retarget import retarget
+from data_tools.motion.asf_amc import asf_amc_clip, read_asf
+from data_tools.motion.load import load_mocap, load_training_clips
+from data_tools.motion.mocap import MocapClip, marker_positions
+from data_tools.motion.retarget import retarget
 from tests.bvh_writer import write_bvh
 from tests.conftest import SHARED, need_shared
 from tracker.app.cli import main

@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from data_tools.cache import cached_retarget, clip_key, entry_path
-from data_tools.corpus import is_label_source, label_source, survey
-from data_tools.load import expand_mocap, load_training_clips
+from data_tools.motion.cache import cached_retarget, clip_key, entry_path
+from data_tools.motion.corpus import is_label_source, label_source, survey
+from data_tools.motion.load import expand_mocap, load_training_clips
 from tests.conftest import SHARED, need_shared
 from tracker.app.cli import main
 from tracker.core.errors import InputError
@@ -223,7 +223,7 @@ def test_cache_hit_miss_on_changed_bytes_and_corrupt_entry(corpus, tmp_path):
 
     calls = []
     again = cached_retarget(lambda: calls.append(1), amc, skeleton=corpus / "a" / "07.asf", fps=60.0,
-                            reader_module="data_tools.load", folder=cache)
+                            reader_module="data_tools.motion.load", folder=cache)
     assert calls == [] and again.source == str(amc)  # a hit: nothing converted
     for name in ("poses", "markers", "model_markers"):
         assert np.array_equal(getattr(again, name), getattr(first, name))
@@ -346,9 +346,9 @@ def test_the_retarget_version_covers_every_module_a_conversion_runs(corpus):
     import subprocess
     import sys
 
-    from data_tools.cache import CONVERSION_MODULES
+    from data_tools.motion.cache import CONVERSION_MODULES
 
-    code = ("import sys; from data_tools.load import load_training_clips; "
+    code = ("import sys; from data_tools.motion.load import load_training_clips; "
             f"load_training_clips([{str(corpus / 'a' / '07_01.amc')!r}, {str(corpus / 'c' / '07_bvh_03.bvh')!r}],"
             " fps=30.0, cache=None); "
             "print(' '.join(m for m in sys.modules if m.split('.')[0] in ('data_tools', 'tracker', 'priors', "
@@ -356,6 +356,8 @@ def test_the_retarget_version_covers_every_module_a_conversion_runs(corpus):
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
     loaded = set(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
                                 check=True).stdout.split())
-    assert "data_tools.retarget" in loaded and "data_tools.bvh" in loaded
-    cache = {"data_tools.cache", "data_tools.files", "data_tools.fingerprints"}  # the cache itself: no numbers
-    assert loaded - set(CONVERSION_MODULES) - cache == {"data_tools", "tracker", "tracker.core"}
+    assert "data_tools.motion.retarget" in loaded and "data_tools.motion.bvh" in loaded
+    # the cache itself: no numbers
+    cache = {"data_tools.motion.cache", "data_tools.io.files", "data_tools.io.fingerprints"}
+    packages = {"data_tools", "data_tools.io", "data_tools.motion", "tracker", "tracker.core"}
+    assert loaded - set(CONVERSION_MODULES) - cache == packages

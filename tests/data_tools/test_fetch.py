@@ -18,8 +18,8 @@ from pathlib import Path
 
 import pytest
 
-from data_tools.cmu_trials import CMU_BONES, SKELETON_LENGTHS, TRIAL_FRAMES
-from data_tools.fetch import fetch_cmu, parse_trial
+from data_tools.motion.cmu_trials import CMU_BONES, SKELETON_LENGTHS, TRIAL_FRAMES
+from data_tools.motion.fetch import fetch_cmu, parse_trial
 from tracker.app.experiment import DATA_ROOT_ENV
 from tracker.app.fetching import experiment_needs, fetch
 from tracker.core.errors import InputError
@@ -261,7 +261,7 @@ def test_trial_names():
 
 
 def test_the_record_matches_the_shipped_sample():
-    from data_tools.asf_amc import read_amc, read_asf
+    from data_tools.motion.asf_amc import read_amc, read_asf
 
     skeleton = read_asf(SAMPLES / "07.asf")
     assert skeleton.order() == list(CMU_BONES)
@@ -272,7 +272,7 @@ def test_the_record_matches_the_shipped_sample():
 
 @pytest.mark.slow
 def test_the_record_matches_the_shared_copies(mocap_dir):
-    from data_tools.asf_amc import read_amc, read_asf
+    from data_tools.motion.asf_amc import read_amc, read_asf
 
     for subject, length in SKELETON_LENGTHS.items():
         skeleton = read_asf(mocap_dir / subject / f"{subject}.asf")

@@ -10,13 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import data_tools.person_segmentation as segmentation
-from data_tools.keypoint_file import read_keypoints, write_keypoints
-from data_tools.keypoints.detect import DETECTOR, detect_sequence_keypoints
-from data_tools.keypoints.layouts import LAYOUT_NAMES
-from data_tools.landmarks import reprojection_errors, triangulate
-from data_tools.sequence import read_sequence, write_image, write_sequence_header
-from data_tools.video import import_videos
+import data_tools.vision.person_segmentation as segmentation
+from data_tools.sequences.keypoint_file import read_keypoints, write_keypoints
+from data_tools.sequences.sequence import read_sequence, write_image, write_sequence_header
+from data_tools.vision.keypoints.detect import DETECTOR, detect_sequence_keypoints
+from data_tools.vision.keypoints.layouts import LAYOUT_NAMES
+from data_tools.vision.landmarks import reprojection_errors, triangulate
+from data_tools.vision.video import import_videos
 from tests.conftest import SHARED, need_shared
 from tracker.core.cameras import CameraRig, look_at
 from tracker.core.errors import InputError

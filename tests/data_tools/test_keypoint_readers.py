@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from tests.conftest import SHARED, need_shared
-from data_tools.keypoint_file import keypoints_path, read_keypoints
-from data_tools.keypoints.layouts import LAYOUT_NAMES, LAYOUTS
-from data_tools.keypoints.readers import import_keypoints, read_openpose_frame
-from data_tools.sequence import write_image, write_sequence_header
+from data_tools.sequences.keypoint_file import keypoints_path, read_keypoints
+from data_tools.sequences.sequence import write_image, write_sequence_header
+from data_tools.vision.keypoints.layouts import LAYOUT_NAMES, LAYOUTS
+from data_tools.vision.keypoints.readers import import_keypoints, read_openpose_frame
 from tracker.app.cli import main
 from tracker.core.cameras import CameraRig, look_at
 from tracker.core.errors import InputError
@@ -115,8 +115,8 @@ def test_openpose_json_of_each_layout_comes_back_in_body_keypoint_order(seq, tmp
 @pytest.mark.shared
 def test_real_pose2sim_files_are_body_25b(tmp_path):
     """Pose2Sim's BODY_25B files of the example (another take than its videos: pixels only, no image check)."""
-    from data_tools.rig_formats import read_rig
-    from data_tools.video import VideoInfo, fitted_camera
+    from data_tools.sequences.rig_formats import read_rig
+    from data_tools.vision.video import VideoInfo, fitted_camera
 
     pose = need_shared(EXAMPLE / "pose")
     rig = read_rig(EXAMPLE / "Calib_qualisys.toml")
@@ -286,8 +286,8 @@ def test_keypoints_command_writes_once_and_refuses_to_replace(seq, tmp_path, cap
 
 
 def test_keypoints_command_without_from_writes_what_the_detector_finds(seq, monkeypatch, capsys):
-    detect = pytest.importorskip("data_tools.keypoints.detect")
-    from data_tools.keypoint_file import SequenceKeypoints
+    detect = pytest.importorskip("data_tools.vision.keypoints.detect")
+    from data_tools.sequences.keypoint_file import SequenceKeypoints
 
     def fake(sequence, views=None, progress=None):
         points = np.full((sequence.n_frames, sequence.n_views, len(KEYPOINTS), 3), np.nan)
@@ -325,8 +325,8 @@ def test_keypoints_command_replaces_a_broken_keypoint_file(seq, tmp_path, capsys
 
 def test_keypoints_are_refused_for_a_layout_that_does_not_read_them(seq, tmp_path, monkeypatch):
     """Only this toolkit's own layout reads keypoints/keypoints.npz: another layout's would be ignored."""
-    import data_tools.keypoints.readers as readers
-    from data_tools.sequence import read_sequence
+    import data_tools.vision.keypoints.readers as readers
+    from data_tools.sequences.sequence import read_sequence
 
     np.save(tmp_path / "both.npy", np.stack([detections(np.random.default_rng(7), FIRST + T, "coco_17")
                                              for _ in CAMERAS], axis=1))
@@ -347,7 +347,7 @@ def test_an_array_of_the_wrong_shape_is_named_with_its_own_shape(seq, tmp_path):
 
 
 def test_keypoints_leave_the_caller_s_array_as_it_was():
-    from data_tools.keypoint_file import SequenceKeypoints
+    from data_tools.sequences.keypoint_file import SequenceKeypoints
 
     points = np.ones((2, 1, len(KEYPOINTS), 3))
     points[0, 0, 0, 2] = 0.0  # not found: its pixels become NaN in the keypoints, not in the array given

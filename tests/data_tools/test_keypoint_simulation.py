@@ -8,15 +8,15 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from data_tools.keypoint_file import read_keypoints, write_keypoints
-from data_tools.keypoints.simulate import (
+from data_tools.motion.trc import read_trc
+from data_tools.sequences.keypoint_file import read_keypoints, write_keypoints
+from data_tools.vision.keypoints.simulate import (
     DetectorNoise, simulate_detections, simulate_detector, simulate_sequence_keypoints,
 )
-from data_tools.keypoints.triangulate import (
+from data_tools.vision.keypoints.triangulate import (
     TRC_NAMES, default_max_error_px, median_filter, triangulate_keypoints, write_keypoints_trc,
 )
-from data_tools.landmarks import triangulate
-from data_tools.trc import read_trc
+from data_tools.vision.landmarks import triangulate
 from tests.data_tools.test_landmarks import distorted_rig
 from tracker.core.body import fifteen_cone_model
 from tracker.core.cameras import default_rig

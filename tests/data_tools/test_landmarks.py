@@ -7,13 +7,13 @@ import importlib.util
 import numpy as np
 import pytest
 
-from data_tools.landmarks import (
+from data_tools.sequences.sequence import read_sequence
+from data_tools.synthesis.synth import SynthConfig, synthesize
+from data_tools.vision.landmarks import (
     BLAZEPOSE, landmark_scale, measure, reprojection_errors, segment_lengths, sequence_landmarks,
     shape_from_landmarks, triangulate,
 )
-from data_tools.sequence import read_sequence
-from data_tools.synth import SynthConfig, synthesize
-from data_tools.video import import_videos
+from data_tools.vision.video import import_videos
 from tests.conftest import SHARED, need_shared
 from tests.app.test_silhouettes import sequence
 from tracker.app.cli import main
@@ -103,7 +103,7 @@ def test_landmark_proportions_without_the_package_are_refused_in_one_line(tmp_pa
 
 @pytest.mark.slow
 def test_initialise_builds_the_body_with_the_measured_limbs(tmp_path, walk_07_11, monkeypatch, capsys):
-    import data_tools.landmarks as landmarks
+    import data_tools.vision.landmarks as landmarks
 
     synthesize(walk_07_11, tmp_path / "seq", SynthConfig(views=4, frames=2, width=320, height=240, seed=1))
     truth = read_sequence(tmp_path / "seq")

@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
 
-from data_tools.asf_amc import asf_amc_clip, read_asf
-from data_tools.bvh import bvh_clip
-from data_tools.load import load_mocap
-from data_tools.mocap import frame_times, marker_positions
+from data_tools.motion.asf_amc import asf_amc_clip, read_asf
+from data_tools.motion.bvh import bvh_clip
+from data_tools.motion.load import load_mocap
+from data_tools.motion.mocap import frame_times, marker_positions
 from tests.conftest import SHARED_CLIPS
 from tracker.core.errors import InputError
 

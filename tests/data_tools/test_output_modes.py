@@ -6,7 +6,7 @@ import os
 
 import pytest
 
-from data_tools.files import current_umask, write_text_atomic
+from data_tools.io.files import current_umask, write_text_atomic
 
 
 @pytest.mark.parametrize("umask", [0o022, 0o077, 0o002])

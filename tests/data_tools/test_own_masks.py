@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from data_tools.sequence import read_sequence
+from data_tools.sequences.sequence import read_sequence
 from tracker.core.errors import InputError
 
 

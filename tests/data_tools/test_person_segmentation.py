@@ -7,8 +7,8 @@ import importlib.util
 import numpy as np
 import pytest
 
-from data_tools.sequence import read_sequence
-from data_tools.video import import_videos
+from data_tools.sequences.sequence import read_sequence
+from data_tools.vision.video import import_videos
 from tests.conftest import SHARED, need_shared
 from tests.app.test_silhouettes import sequence
 from tracker.app.cli import main
@@ -28,7 +28,7 @@ def test_a_missing_package_is_refused_in_one_line_naming_the_install(tmp_path, n
 def test_a_package_that_cannot_build_its_model_is_refused_in_one_line(tmp_path, monkeypatch, capsys):
     import types
 
-    import data_tools.person_segmentation as segmentation
+    import data_tools.vision.person_segmentation as segmentation
 
     def broken(**options):
         raise AttributeError("'FieldDescriptor' object has no attribute 'label'")  # as with protobuf 7

@@ -7,11 +7,11 @@ import json
 import numpy as np
 import pytest
 
-from data_tools.bvh import _positions, read_bvh
-from data_tools.bvh_export import TO_Y_UP, write_bvh
-from data_tools.reference import POSE2SIM_MAP, compare_to_reference, rigid_alignment
-from data_tools.sequence import write_image, write_sequence_header
-from data_tools.trc import read_trc, write_trc
+from data_tools.motion.bvh import _positions, read_bvh
+from data_tools.motion.bvh_export import TO_Y_UP, write_bvh
+from data_tools.motion.trc import read_trc, write_trc
+from data_tools.sequences.reference import POSE2SIM_MAP, compare_to_reference, rigid_alignment
+from data_tools.sequences.sequence import write_image, write_sequence_header
 from tests.conftest import SHARED, need_shared
 from tracker.app.cli import main
 from tracker.core.body import MARKER_NAMES, fifteen_cone_model

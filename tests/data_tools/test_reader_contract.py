@@ -8,7 +8,7 @@ import shutil
 
 import pytest
 
-from data_tools.asf_amc import read_asf
+from data_tools.motion.asf_amc import read_asf
 from data_tools.samples import sample_walks
 from tracker.core.errors import InputError
 from tracker.testing import MocapReaderContract
@@ -48,11 +48,12 @@ class TestZUpInchBvh(MocapReaderContract):
 
 
 def test_a_reader_registers_once_per_suffix_and_unknown_suffixes_list_the_registered(tmp_path):
-    from data_tools.load import load_mocap, registered_readers
-    from data_tools.readers import READERS, register_mocap_reader
+    from data_tools.motion.load import load_mocap, registered_readers
+    from data_tools.motion.readers import READERS, register_mocap_reader
 
     assert [r.suffix for r in registered_readers()][:2] == [".amc", ".bvh"]
-    with pytest.raises(InputError, match="already read by data_tools.load.read_bvh_file"):
+    with pytest.raises(InputError, match=r"^mocap files \.bvh are already read by data_tools\.motion\.load\."
+                                         r"read_bvh_file \(BVH\); .* cannot take the suffix$"):
         register_mocap_reader(".BVH", "another BVH")(lambda path, options: None)
     for bad in ("bvh", ".", ".tar.gz"):
         with pytest.raises(ValueError, match="one dot and a name"):
@@ -68,7 +69,7 @@ def test_a_reader_registers_once_per_suffix_and_unknown_suffixes_list_the_regist
 
 
 def test_a_skeleton_is_refused_for_a_format_that_carries_its_own(tmp_path):
-    from data_tools.load import load_mocap
+    from data_tools.motion.load import load_mocap
 
     bvh = tmp_path / "walk.bvh"
     bvh.write_text("HIERARCHY\n")

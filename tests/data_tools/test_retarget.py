@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from data_tools.clip_io import load_converted_clip, save_converted_clip
+from data_tools.motion.clip_io import load_converted_clip, save_converted_clip
 from tracker.core.kinematics import standing_height
 from tracker.core.errors import InputError
 from tracker.core.kinematics import markers
@@ -26,8 +26,8 @@ def test_retargeted_poses_are_valid_and_plausible(walk_07_01):
 
 
 def test_ground_truth_is_the_mocaps_own_joints(walk_07_01, mocap_dir):
-    from data_tools.load import load_mocap
-    from data_tools.mocap import marker_positions
+    from data_tools.motion.load import load_mocap
+    from data_tools.motion.mocap import marker_positions
 
     clip = load_mocap(mocap_dir / "07" / "07_01.amc")  # 120 Hz: 60 Hz is every second frame
     assert np.array_equal(walk_07_01.markers, marker_positions(clip)[::2, :15])

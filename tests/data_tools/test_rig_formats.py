@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from data_tools.rig_formats import FORMATS, calibration_format, read_rig, write_rig
+from data_tools.sequences.rig_formats import FORMATS, calibration_format, read_rig, write_rig
 from tests.conftest import SHARED, need_shared
 from tracker.core.cameras import CameraRig, look_at, make_camera
 from tracker.core.errors import InputError

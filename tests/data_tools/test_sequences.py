@@ -7,8 +7,8 @@ import cv2
 import numpy as np
 import pytest
 
-from data_tools.bodytrack import read_body_shape, read_pose_parameters, read_poses
-from data_tools.sequence import read_image, read_sequence, write_image
+from data_tools.sequences.bodytrack import read_body_shape, read_pose_parameters, read_poses
+from data_tools.sequences.sequence import read_image, read_sequence, write_image
 from tracker.app.cli import main
 from tracker.core.errors import InputError
 from tracker.core.kinematics import forward_kinematics, point_jacobians
@@ -180,7 +180,7 @@ def test_synth_frames_past_end_exit_2(mocap_dir, tmp_path):
 
 
 def test_tracking_views_of_different_image_sizes_is_refused_in_one_line(tmp_path):
-    from data_tools.calibration import write_cameras_json
+    from data_tools.sequences.calibration import write_cameras_json
     from tracker.core.cameras import look_at
 
     seq = tmp_path / "seq"

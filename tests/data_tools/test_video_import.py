@@ -6,9 +6,9 @@ import cv2
 import numpy as np
 import pytest
 
-from data_tools.rig_formats import read_rig, write_rig
-from data_tools.sequence import read_sequence
-from data_tools.video import import_videos, pair_videos
+from data_tools.sequences.rig_formats import read_rig, write_rig
+from data_tools.sequences.sequence import read_sequence
+from data_tools.vision.video import import_videos, pair_videos
 from tests.conftest import SHARED, need_shared
 from tracker.app.cli import main
 from tracker.core.cameras import CameraRig, look_at
@@ -114,7 +114,7 @@ def test_wrong_sizes_and_bad_files_are_one_line_with_status_2(tmp_path, capsys):
 
 
 def test_an_import_stopped_halfway_leaves_the_earlier_sequence_as_it_was(tmp_path, monkeypatch):
-    import data_tools.video as video
+    import data_tools.vision.video as video
 
     cams = rig()
     write_rig(cams, tmp_path / "rig.toml")
@@ -138,7 +138,7 @@ def test_an_import_stopped_halfway_leaves_the_earlier_sequence_as_it_was(tmp_pat
 
 def test_an_import_over_a_sequence_drops_its_keypoints(tmp_path):
     """Keypoints are per frame and camera like images and masks: another import's frames must not keep them."""
-    from data_tools.keypoint_file import SequenceKeypoints, keypoints_path, write_keypoints
+    from data_tools.sequences.keypoint_file import SequenceKeypoints, keypoints_path, write_keypoints
     from tracker.core.keypoints import KEYPOINTS
 
     cams = rig()

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from data_tools.rig_formats import write_rig
-from data_tools.sequence import read_sequence
-from data_tools.video import import_videos
+from data_tools.sequences.rig_formats import write_rig
+from data_tools.sequences.sequence import read_sequence
+from data_tools.vision.video import import_videos
 from tracker.app.cli import main
 
 from tests.conftest import ROUND_TRIP_FRAMES as FRAMES

@@ -85,7 +85,7 @@ def test_track_command_writes_design_outputs(walk_32_frames, tmp_path):
     with np.load(out / "estimates.npz") as z:
         assert z["poses"].shape == (6, 40) and z["markers"].shape == (6, 15, 3)
     assert (tmp_path / "o.mp4").stat().st_size > 1000
-    from data_tools.files import current_umask
+    from data_tools.io.files import current_umask
     assert (out / "result.json").stat().st_mode & 0o777 == 0o666 & ~current_umask()  # as any new file
 
 

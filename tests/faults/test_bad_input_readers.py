@@ -19,14 +19,14 @@ import cv2
 import numpy as np
 import pytest
 
-from data_tools.asf_amc import AsfSkeleton, asf_amc_clip, read_asf
-from data_tools.bodytrack import bodytrack_model, read_poses
-from data_tools.bvh import bvh_clip
-from data_tools.calibration import read_bodytrack_calibration, read_cameras_json
-from data_tools.clip_io import load_converted_clip
-from data_tools.retarget import retarget
+from data_tools.motion.asf_amc import AsfSkeleton, asf_amc_clip, read_asf
+from data_tools.motion.bvh import bvh_clip
+from data_tools.motion.clip_io import load_converted_clip
+from data_tools.motion.retarget import retarget
 from data_tools.samples import sample_walks
-from data_tools.sequence import (
+from data_tools.sequences.bodytrack import bodytrack_model, read_poses
+from data_tools.sequences.calibration import read_bodytrack_calibration, read_cameras_json
+from data_tools.sequences.sequence import (
     frame_path, read_groundtruth, read_image, read_mask, read_sequence, write_groundtruth, write_image,
     write_sequence_header,
 )
@@ -629,10 +629,10 @@ def test_output_paths_are_refused_before_any_work(tmp_path):
 
 @pytest.mark.slow
 def test_synth_replaces_a_folder_only_with_overwrite_and_whole(tmp_path):
-    from data_tools.retarget import retarget
-    from data_tools.load import load_mocap
+    from data_tools.motion.load import load_mocap
+    from data_tools.motion.retarget import retarget
     from data_tools.samples import sample_walks
-    from data_tools.synth import SynthConfig, synthesize
+    from data_tools.synthesis.synth import SynthConfig, synthesize
 
     asf, walks = sample_walks()
     clip = retarget(load_mocap(walks[0], asf), fps=60.0)
@@ -645,8 +645,8 @@ def test_synth_replaces_a_folder_only_with_overwrite_and_whole(tmp_path):
 
 
 def test_frame_rates_below_a_tenth_of_a_hertz_are_refused():
-    from data_tools.load import load_mocap
-    from data_tools.mocap import frame_times
+    from data_tools.motion.load import load_mocap
+    from data_tools.motion.mocap import frame_times
 
     clip = load_mocap(SAMPLE_AMCS[0], SAMPLE_ASF)
     refused(lambda: frame_times(clip.n_frames, clip.fps, 1e-300), "target frame rate", "within [0.1, 100000] Hz")

@@ -181,7 +181,7 @@ def test_synth_images_that_cannot_be_written_are_one_line_and_keep_the_earlier_s
 
 @pytest.mark.slow
 def test_convert_on_a_read_only_file_system_is_one_line(tmp_path, capsys, monkeypatch):
-    import data_tools.files as files
+    import data_tools.io.files as files
 
     monkeypatch.setattr(files.os, "replace", failing(errno.EROFS)(os.replace))
     refused(*run_cli(["convert", "--mocap", AMC, "--out", str(tmp_path / "c.npz")], capsys),
@@ -234,7 +234,7 @@ def test_compare_tables_that_cannot_be_written_are_one_line(tmp_path, monkeypatc
     from tracker.app.compare import compare
 
     path = write_experiment(tmp_path, priors=("zero-velocity",), seeds=1, tracking="particles = 10\nframes = 3")
-    import data_tools.files as files
+    import data_tools.io.files as files
 
     monkeypatch.setattr(files.os, "replace", failing(errno.EDQUOT, when=lambda tmp, dst: Path(dst).name ==
                                                      "table.md")(os.replace))
@@ -260,7 +260,7 @@ def test_results_that_cannot_be_written_leave_the_finished_run_resumable(seq, tm
 
 def test_an_unreadable_input_is_not_taken_for_a_failed_write(tmp_path):
     """Permission denied on a file the block read (outside the output's folder) keeps its own error."""
-    from data_tools.files import writing
+    from data_tools.io.files import writing
 
     (tmp_path / "out").mkdir()
     with pytest.raises(PermissionError):

@@ -11,7 +11,7 @@ import pytest
 
 import tracker
 from data_tools.samples import sample_walks
-from data_tools.sequence import frame_path, write_image
+from data_tools.sequences.sequence import frame_path, write_image
 from tests.faults.test_bad_input_readers import tiny_sequence
 from tests.faults.test_faults_disk import refused, run_cli, track_args
 from tracker.app import api
@@ -52,7 +52,7 @@ def interrupted_run(seq: Path, out: Path, capsys, monkeypatch) -> None:
 
 def test_an_unchanged_resume_reuses_the_cached_hashes_and_gives_the_uninterrupted_result(seq, tmp_path, capsys,
                                                                                           monkeypatch):
-    import data_tools.fingerprints as fingerprints
+    import data_tools.io.fingerprints as fingerprints
 
     assert run_cli(track_args(seq, tmp_path / "whole", "--checkpoint-every", "1"), capsys)[0] == 0
     out = tmp_path / "cut"

@@ -107,7 +107,7 @@ def test_a_frame_rate_mismatch_says_which_commands_fix_it():
 
 @pytest.mark.slow
 def test_a_borderline_retarget_residual_warns_and_points_to_the_advice(tmp_path, capsys, monkeypatch):
-    import data_tools.retarget as retargeting
+    import data_tools.motion.retarget as retargeting
 
     real = retargeting.retarget
 

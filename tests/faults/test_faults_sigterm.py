@@ -385,7 +385,7 @@ def test_a_stop_at_any_moment_of_a_temporary_files_life_leaves_nothing_behind(mo
     """Ctrl-C or SIGTERM (a KeyboardInterrupt in the main thread) while a file or folder is written beside its
     destination, at each step of the temporary's life: the destination keeps what it held and no temporary
     stays beside it."""
-    from data_tools import files
+    from data_tools.io import files
 
     target = tmp_path / ("seq" if directory else "result.json")
     if directory:

@@ -25,12 +25,16 @@ hypothesis = pytest.importorskip("hypothesis")
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from data_tools.asf_amc import asf_amc_clip  # noqa: E402
-from data_tools.bodytrack import PoseParameters, bodytrack_model, read_pose_parameters, read_poses  # noqa: E402
-from data_tools.bvh import bvh_clip  # noqa: E402
-from data_tools.calibration import read_bodytrack_calibration, read_cameras_json, write_cameras_json  # noqa: E402
-from data_tools.clip_io import load_converted_clip  # noqa: E402
-from data_tools.sequence import read_groundtruth, read_image, read_sequence  # noqa: E402
+from data_tools.motion.asf_amc import asf_amc_clip  # noqa: E402
+from data_tools.motion.bvh import bvh_clip  # noqa: E402
+from data_tools.motion.clip_io import load_converted_clip  # noqa: E402
+from data_tools.sequences.bodytrack import (  # noqa: E402
+    PoseParameters, bodytrack_model, read_pose_parameters, read_poses,
+)
+from data_tools.sequences.calibration import (  # noqa: E402
+    read_bodytrack_calibration, read_cameras_json, write_cameras_json,
+)
+from data_tools.sequences.sequence import read_groundtruth, read_image, read_sequence  # noqa: E402
 from tests.faults.test_bad_input_readers import (  # noqa: E402
     BODY_SHAPE_TXT, POSE_PARAMETERS_TXT, POSE_TXT, SAMPLE_ASF, TINY_BVH, amc_lines, cal_text, tiny_rig,
     tiny_sequence, time_limit,

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from data_tools.keypoints.simulate import DetectorNoise, simulate_detections
+from data_tools.vision.keypoints.simulate import DetectorNoise, simulate_detections
 from likelihoods.edge_silhouette import EdgeSilhouetteLikelihood
 from likelihoods.keypoints import KeypointConfig, KeypointLikelihood
 from tracker.core.keypoints import KEYPOINT_INDEX, keypoint_positions, swap_permutation

@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from data_tools.raster import rasterize
-from data_tools.sequence import read_sequence
-from data_tools.synth import SynthConfig, synthesize
+from data_tools.sequences.sequence import read_sequence
+from data_tools.synthesis.raster import rasterize
+from data_tools.synthesis.synth import SynthConfig, synthesize
 from likelihoods.observations import ObservationConfig, edge_map, observe, silhouette
 from tracker.app.visualize import model_masks
 
@@ -142,7 +142,7 @@ def test_missing_camera_is_black(walk_07_11, tmp_path):
 
 
 def test_turn_moves_the_walk_in_another_direction_with_the_same_body(walk_07_11):
-    from data_tools.synth import turned
+    from data_tools.synthesis.synth import turned
     from tracker.core.errors import InputError
     from tracker.core.kinematics import markers
 

@@ -56,7 +56,7 @@ def test_small_matmul_is_the_matrix_product_for_every_shape_the_kinematics_uses(
 
 @pytest.mark.parametrize("device", DEVICES)
 def test_torch_kinematics_equal_the_compiled_kinematics(device, rng, bodytrack_dir):
-    from data_tools.bodytrack import bodytrack_model
+    from data_tools.sequences.bodytrack import bodytrack_model
 
     for model in (fifteen_cone_model(), bodytrack_model(bodytrack_dir)[0]):
         poses = _random_poses(model, rng, 300)

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from data_tools.asf_amc import asf_amc_clip
+from data_tools.motion.asf_amc import asf_amc_clip
 from data_tools.samples import sample_walks
 from tracker.core.body import fifteen_cone_model
 from tracker.core.cameras import default_rig
@@ -33,7 +33,7 @@ def walking_poses(frames: int = 8) -> np.ndarray:
 @pytest.fixture(scope="module", autouse=True)
 def registered():
     """The plugin's entries, registered when :mod:`.toy_plugin` was imported, removed after this module."""
-    from data_tools.readers import READERS
+    from data_tools.motion.readers import READERS
     from tracker.engine.registry import LIKELIHOODS, PRIORS
 
     yield
@@ -94,7 +94,7 @@ def test_the_command_line_converts_a_file_of_the_plugins_format(tmp_path):
     import subprocess
     import sys
 
-    from data_tools.clip_io import load_converted_clip
+    from data_tools.motion.clip_io import load_converted_clip
 
     asf, amcs = sample_walks()
     clip = asf_amc_clip(asf, amcs[0])

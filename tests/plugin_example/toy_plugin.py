@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from data_tools.load import apply_joint_map
-from data_tools.mocap import Y_UP_TO_Z_UP, MocapClip
-from data_tools.readers import ReadOptions, register_mocap_reader
+from data_tools.motion.load import apply_joint_map
+from data_tools.motion.mocap import Y_UP_TO_Z_UP, MocapClip
+from data_tools.motion.readers import ReadOptions, register_mocap_reader
 from tracker.core.errors import InputError
 from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood
 from tracker.engine.prior import MotionPrior

@@ -21,8 +21,8 @@ CRBM_PARAMS = CRBM.PARAMS
 @pytest.fixture(scope="module")
 def walks(mocap_dir):
     """The four training walks of subject 7 at 60 Hz (07_11 stays held out)."""
-    from data_tools.asf_amc import asf_amc_clip
-    from data_tools.retarget import retarget
+    from data_tools.motion.asf_amc import asf_amc_clip
+    from data_tools.motion.retarget import retarget
 
     asf = mocap_dir / "07" / "07.asf"
     return [retarget(asf_amc_clip(asf, mocap_dir / "07" / f"07_{i}.amc"), fps=60).poses

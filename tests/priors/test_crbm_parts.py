@@ -23,8 +23,8 @@ TRIPLES = exp_map_triples(fifteen_cone_model())
 
 @pytest.fixture(scope="module")
 def walk_07_01(mocap_dir):
-    from data_tools.asf_amc import asf_amc_clip
-    from data_tools.retarget import retarget
+    from data_tools.motion.asf_amc import asf_amc_clip
+    from data_tools.motion.retarget import retarget
 
     torch.set_num_threads(1)
     return retarget(asf_amc_clip(mocap_dir / "07" / "07.asf", mocap_dir / "07" / "07_01.amc"), fps=60).poses

@@ -21,8 +21,8 @@ from tracker.core.errors import InputError
 @pytest.fixture(scope="module")
 def walks():
     """The shipped subject-7 walks at 60 Hz (no shared data needed)."""
-    from data_tools.load import load_mocap
-    from data_tools.retarget import retarget
+    from data_tools.motion.load import load_mocap
+    from data_tools.motion.retarget import retarget
     from data_tools.samples import sample_walks
 
     asf, files = sample_walks()

@@ -27,8 +27,8 @@ def s2(mocap_dir):
 @pytest.fixture(scope="module")
 def clips(s2):
     """Subject 2: a walk and a run at 60 Hz."""
-    from data_tools.asf_amc import asf_amc_clip
-    from data_tools.retarget import retarget
+    from data_tools.motion.asf_amc import asf_amc_clip
+    from data_tools.motion.retarget import retarget
 
     return [retarget(asf_amc_clip(s2 / "02.asf", s2 / f), fps=60).poses for f in ("02_01.amc", "02_03.amc")]
 
@@ -314,7 +314,7 @@ def test_train_and_track_through_the_cli(s2, walk_32_frames, tmp_path, capsys):
 @pytest.mark.slow
 def test_cross_faded_sequence_changes_activity(s2, tmp_path):
     import tracker
-    from data_tools.transition import cross_fade
+    from data_tools.motion.transition import cross_fade
 
     walk = tracker.load_clip(s2 / "02_01.amc", fps=30)
     run = tracker.load_clip(s2 / "02_03.amc", fps=30)

@@ -82,8 +82,8 @@ def test_a_short_history_reads_as_training_masks_it():
 
 @pytest.fixture(scope="module")
 def walks(mocap_dir):
-    from data_tools.asf_amc import asf_amc_clip
-    from data_tools.retarget import retarget
+    from data_tools.motion.asf_amc import asf_amc_clip
+    from data_tools.motion.retarget import retarget
 
     asf = mocap_dir / "07" / "07.asf"
     return [retarget(asf_amc_clip(asf, mocap_dir / "07" / f"07_{i}.amc"), fps=60).poses for i in ("01", "02")]

@@ -80,7 +80,7 @@ def test_fcrbm_and_deep_crbm_progress_counts_the_cut_epochs(clips):
 
 
 def test_clips_a_labels_pattern_leaves_out_take_the_unlabelled_label(tmp_path):
-    from data_tools.corpus import label_source
+    from data_tools.motion.corpus import label_source
 
     source = label_source("dataset-2_{content}_{style}_{take}#style")
     clips = [tmp_path / "dataset-2_walk_elderly_001.bvh", tmp_path / "07_01.amc"]

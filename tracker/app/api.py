@@ -24,10 +24,10 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping, Sequence as 
 
 import numpy as np
 
-from data_tools.corpus import is_label_source, label_source
-from data_tools.load import load_retargeted, load_training_clips
-from data_tools.retarget import RetargetResult
-from data_tools.sequence import Sequence, read_sequence
+from data_tools.motion.corpus import is_label_source, label_source
+from data_tools.motion.load import load_retargeted, load_training_clips
+from data_tools.motion.retarget import RetargetResult
+from data_tools.sequences.sequence import Sequence, read_sequence
 from tracker.app import schema
 from tracker.app.schema import (FILTER_OPTIONS, KEYPOINT_LIKELIHOOD, RECORDED_SETTINGS, SILHOUETTE_LIKELIHOOD,
                                 TRACK_SETTINGS)
@@ -51,7 +51,7 @@ from tracker.engine.recording import DEFAULT_RECORD, FrameStep
 from tracker.engine.registry import PRIORS, LikelihoodContext, PriorContext, TrainingData, resolve_options
 
 if TYPE_CHECKING:  # the renderer (trimesh) is imported by synthesize, not by every command
-    from data_tools.synth import SynthConfig
+    from data_tools.synthesis.synth import SynthConfig
 
 SeedLike = int | np.random.SeedSequence | np.random.Generator
 
@@ -95,8 +95,8 @@ def read_clip(mocap: str | Path, skeleton: str | Path | None = None, fps: float 
     """``(clip, retargeted)``: a mocap file read (its reader's notes logged) and retargeted at ``fps`` Hz, afresh
     (:func:`load_clip` takes it from the cache of converted clips); a mean retarget residual above
     :data:`RESIDUAL_WARNING_MM` is warned of, naming the likely cause."""
-    from data_tools.load import load_mocap
-    from data_tools.retarget import retarget
+    from data_tools.motion.load import load_mocap
+    from data_tools.motion.retarget import retarget
     from tracker.app.plugins import load_plugins
 
     load_plugins()  # the mocap readers of installed plugins (entry points) register on import
@@ -120,18 +120,18 @@ def synthesize(mocap: str | Path | RetargetResult, out: str | Path, *, skeleton:
                overwrite_flag: str = "overwrite=True", **settings) -> Sequence:
     """Render a mocap clip (a file, or a clip from :func:`load_clip`) into a synthetic multi-view sequence
     folder ``out`` and return it. ``settings`` are the rendering settings of
-    :data:`~data_tools.synth_settings.SYNTH_OPTIONS` (``cameras``, ``frames``, ``seed``, ``noise``, ...; or all
-    of them as a ``config``). A non-empty ``out`` is refused unless ``overwrite`` (``overwrite_flag``: how the
+    :data:`~data_tools.synthesis.synth_settings.SYNTH_OPTIONS` (``cameras``, ``frames``, ``seed``, ``noise``, ...;
+    or all of them as a ``config``). A non-empty ``out`` is refused unless ``overwrite`` (``overwrite_flag``: how the
     refusal says so). (``views=N``, the former name of ``cameras``, still works and logs a deprecation warning:
     :func:`track`'s ``views`` are camera indices.)
 
     With ``then`` (a second clip) the person changes activity: the clip until frame ``switch_at`` (at the
     output rate, before ``start``/``frames`` cut the result), cross-faded over ``fade`` frames into ``then``
-    (:func:`data_tools.transition.cross_fade`; e.g. a walk into a run of the same subject). ``joint_map`` and
+    (:func:`data_tools.motion.transition.cross_fade`; e.g. a walk into a run of the same subject). ``joint_map`` and
     ``then_joint_map`` name the files' joints as :func:`load_clip`'s does."""
-    from data_tools.files import check_output_folder
-    from data_tools.synth import SynthConfig, synthesize as render_sequence
-    from data_tools.transition import cross_fade
+    from data_tools.io.files import check_output_folder
+    from data_tools.motion.transition import cross_fade
+    from data_tools.synthesis.synth import SynthConfig, synthesize as render_sequence
 
     # before any work; the refusal says how the caller asks to replace the folder
     check_output_folder(out, empty=not overwrite, replaceable=("cameras.json", "meta.json"),
@@ -192,8 +192,8 @@ def show(sequence: Sequence | str | Path, *, frame: int = 0, poses: str | Path |
     every frame; returns one line per file written."""
     import cv2
 
-    from data_tools.estimates import read_poses_file
-    from data_tools.files import atomic_path
+    from data_tools.io.files import atomic_path
+    from data_tools.sequences.estimates import read_poses_file
     from tracker.app.visualize import overlay_grid, write_video
 
     seq = sequence if isinstance(sequence, Sequence) else load_sequence(sequence)
@@ -305,7 +305,7 @@ def train(prior: str, mocap: str | Path | Iterable[str | Path] | Iterable[Retarg
     ``resume=True`` continues from it to the model an uninterrupted run gives.
     A prior's ``labels`` option (the FCRBM's) takes, besides one label per clip in clip order, a pattern over
     file names or a sidecar file with ``#KEY`` (``"dataset-2_{content}_{style}_{take}#style"``,
-    :mod:`data_tools.corpus`): each clip's label is read from its file.
+    :mod:`data_tools.motion.corpus`): each clip's label is read from its file.
     """
     entry = prior_entry(prior)
     if entry.train is None:

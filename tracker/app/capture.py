@@ -3,11 +3,12 @@
 The steps, each with its defaults, each skipped when a rerun finds it done (with the same settings) and no
 step it follows from had to run again:
 
-1. **import** the videos (:func:`data_tools.video.import_videos`, shrunk by ``downscale``) into ``out/sequence``;
-   with ``views``, only those cameras (indices into the calibration's cameras, in its order);
+1. **import** the videos (:func:`data_tools.vision.video.import_videos`, shrunk by ``downscale``) into
+   ``out/sequence``; with ``views``, only those cameras (indices into the calibration's cameras, in its order);
 2. **silhouettes** of the person (:func:`tracker.app.silhouettes.write_sequence_masks`, the method of
    :func:`tracker.app.silhouettes.default_method`);
-3. **keypoints** detected in every frame and view (:func:`data_tools.keypoints.detect.detect_sequence_keypoints`);
+3. **keypoints** detected in every frame and view
+   (:func:`data_tools.vision.keypoints.detect.detect_sequence_keypoints`);
 4. **start**: the body's size and first poses from the keypoints (:func:`tracker.app.keypoint_start.
    initialise_from_keypoints`), written to ``out/init.npz`` and the body shape into the sequence's ``meta.json``;
 5. **track** with the prior (default the recommended ``mixture``: the shipped neural prior with zero-velocity)
@@ -66,8 +67,8 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
     ``prior``, ``seed`` and ``particles`` go to ``track``; ``downscale`` and ``frames`` (``"A:B"``) to the
     import. ``on_step(step, line)`` hears one line per finished step. A rerun skips the steps whose settings
     are unchanged; a folder holding a capture of other videos or views is refused without ``overwrite``."""
-    from data_tools.files import write_text_atomic
-    from data_tools.video import pair_videos, probe_video
+    from data_tools.io.files import write_text_atomic
+    from data_tools.vision.video import pair_videos, probe_video
 
     from tracker.app.plugins import prior_entry
 
@@ -78,7 +79,7 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
     videos = [Path(v) for v in videos]
     for v in videos:
         probe_video(v)  # every video readable before anything is written
-    from data_tools.rig_formats import read_rig
+    from data_tools.sequences.rig_formats import read_rig
 
     rig = read_rig(calibration)
     paired = pair_videos(rig.names, videos)
@@ -130,7 +131,7 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
     mapping = {rig.names[v]: str(paired[v]) for v in chosen}
 
     def do_import() -> str:
-        from data_tools.video import import_videos
+        from data_tools.vision.video import import_videos
 
         imported = import_videos(calibration, paired, seq_dir, downscale=downscale, frames=frames, mapping=mapping)
         first = imported.rig[0]
@@ -138,7 +139,7 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
                 f"{first.width}x{first.height} -> {seq_dir}")
 
     step("import", (seq_dir / "meta.json").is_file(), do_import)
-    from data_tools.sequence import read_sequence
+    from data_tools.sequences.sequence import read_sequence
 
     seq = read_sequence(seq_dir)
 
@@ -152,9 +153,9 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
     step("silhouettes", (seq_dir / "masks").is_dir(), do_masks, needs=("import",))
 
     def do_keypoints() -> str:
-        from data_tools.keypoint_file import write_keypoints
-        from data_tools.keypoints.detect import detect_sequence_keypoints
-        from data_tools.keypoints.readers import found_share
+        from data_tools.sequences.keypoint_file import write_keypoints
+        from data_tools.vision.keypoints.detect import detect_sequence_keypoints
+        from data_tools.vision.keypoints.readers import found_share
 
         found = detect_sequence_keypoints(read_sequence(seq_dir, keypoints=False))  # (replaced, whatever it was)
         write_keypoints(seq_dir, found)
@@ -166,8 +167,8 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
     init_path = out / "init.npz"
 
     def do_start() -> str:
-        from data_tools.files import atomic_path
-        from data_tools.sequence import write_meta
+        from data_tools.io.files import atomic_path
+        from data_tools.sequences.sequence import write_meta
         from tracker.app.keypoint_start import initialise_from_keypoints
 
         start = initialise_from_keypoints(seq)
@@ -202,9 +203,9 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
          needs=("silhouettes", "keypoints", "start"))
 
     def do_export() -> str:
-        from data_tools.bvh_export import write_bvh
-        from data_tools.keypoints.triangulate import median_filter, triangulate_keypoints, write_keypoints_trc
-        from data_tools.trc import write_trc
+        from data_tools.motion.bvh_export import write_bvh
+        from data_tools.motion.trc import write_trc
+        from data_tools.vision.keypoints.triangulate import median_filter, triangulate_keypoints, write_keypoints_trc
         from tracker.app.visualize import overlay_frames, write_video
         from tracker.core.kinematics import markers
 

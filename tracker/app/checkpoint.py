@@ -2,7 +2,7 @@
 in one ``.npz`` written atomically, so an interrupted run resumes to the result an uninterrupted one gives.
 
 The file also holds a fingerprint of the run's settings and of its inputs (the content hash of every file of
-the sequence and of every model file, and the package version: :mod:`data_tools.fingerprints`); resuming with
+the sequence and of every model file, and the package version: :mod:`data_tools.io.fingerprints`); resuming with
 other settings, or after an input changed, is refused with one line naming what changed.
 """
 from __future__ import annotations
@@ -14,8 +14,8 @@ from typing import Any, Iterable, Iterator
 
 import numpy as np
 
-from data_tools.checks import load_npz
-from data_tools.files import atomic_path, write_text_atomic, writing
+from data_tools.io.checks import load_npz
+from data_tools.io.files import atomic_path, write_text_atomic, writing
 from tracker.core.errors import InputError
 from tracker.engine.filter import FilterState
 from tracker.engine.recording import STAGES, Recording
@@ -51,9 +51,9 @@ def save_checkpoint(path: str | Path, state: FilterState, recording: Recording, 
 def input_fingerprint(sequence: str | Path, models: Iterable[str | Path], cache: Path | None = None) -> dict:
     """What a run read, by content: each file of the ``sequence`` folder, each model file (files that do not
     exist, e.g. models given in memory, are left out), and the package version. ``cache`` keeps the file
-    hashes for the next run (:func:`data_tools.fingerprints.cached_file_hashes`)."""
+    hashes for the next run (:func:`data_tools.io.fingerprints.cached_file_hashes`)."""
     import tracker
-    from data_tools.fingerprints import model_fingerprint, sequence_fingerprint
+    from data_tools.io.fingerprints import model_fingerprint, sequence_fingerprint
 
     return {"sequence": sequence_fingerprint(sequence, cache),
             "models": model_fingerprint([m for m in models if Path(m).is_file()], cache),
@@ -64,7 +64,7 @@ def check_inputs(saved: dict | None, now: dict | None, path: str | Path) -> None
     """Refuse to resume from the checkpoint ``path`` when an input in its fingerprint ``saved`` differs from
     ``now`` (:func:`input_fingerprint`): one line naming the changed files, model files or version. A
     checkpoint written without a fingerprint of its inputs is not checked."""
-    from data_tools.fingerprints import changed_files
+    from data_tools.io.fingerprints import changed_files
 
     if not saved or now is None:
         return
@@ -168,7 +168,7 @@ def load_checkpoint(path: str | Path, fingerprint: dict, recording: Recording,
 
 def _training_files(sources: Iterable[str], skeletons: Iterable[str | Path] | None) -> list[Path]:
     """The files a training reads: its clips and their skeletons (given, or the ASF found beside each AMC)."""
-    from data_tools.load import find_skeleton
+    from data_tools.motion.load import find_skeleton
 
     clips = [Path(s) for s in sources if Path(s).is_file()]
     given = [Path(s) for s in skeletons or []]
@@ -185,7 +185,7 @@ def training_checkpoint(checkpoint: str | Path | None, sources: Iterable[str],
     read-only, no permission) is one line too, and the previous one is kept. The hashes are removed when the
     training finishes."""
     import tracker
-    from data_tools.fingerprints import changed_files, model_fingerprint
+    from data_tools.io.fingerprints import changed_files, model_fingerprint
 
     if checkpoint is None or not (saving or resume):
         yield

@@ -11,7 +11,7 @@ from tracker.app.experiment_spec import ClipSpec
 from tracker.core.errors import InputError
 
 if TYPE_CHECKING:
-    from data_tools.retarget import RetargetResult
+    from data_tools.motion.retarget import RetargetResult
 
 
 def load_clips(mocap: str | Path | Iterable[str | Path], skeletons: Iterable[str | Path] | None = None,
@@ -22,7 +22,7 @@ def load_clips(mocap: str | Path | Iterable[str | Path], skeletons: Iterable[str
     at ``fps`` Hz, as :func:`tracker.load_clip` does each. ``skeletons`` and ``joint_maps``: one for all files or
     one per file (as :func:`tracker.train` takes them). ``cache``: the folder of converted clips, so that each
     file is retargeted once (True: the user's cache folder, ``$POSE_TRACKER_CACHE``; None or False: none)."""
-    from data_tools.load import load_training_clips
+    from data_tools.motion.load import load_training_clips
     from tracker.app.plugins import load_plugins
 
     load_plugins()

@@ -25,8 +25,8 @@ from typing import Callable
 
 import numpy as np
 
-from data_tools.files import atomic_path, first_missing, undone_unless_started, write_text_atomic, writing
-from data_tools.fingerprints import CACHE_NAME, config_hash, file_hash, sequence_hash
+from data_tools.io.files import atomic_path, first_missing, undone_unless_started, write_text_atomic, writing
+from data_tools.io.fingerprints import CACHE_NAME, config_hash, file_hash, sequence_hash
 from tracker.app.backends import BACKENDS, run_all, warm_joblib_workers
 from tracker.app.clips import load_clip_specs
 from tracker.app.experiment import load_experiment
@@ -110,7 +110,7 @@ def check_grid(exp: Experiment, sequence_paths: dict[str, Path], models: dict[st
     """Views in range, enough frames, a start (ground truth or ``init``) and a usable ``reference`` for every
     sequence, and every prior (with its models) fits every sequence: one line naming the experiment file and the
     entry otherwise."""
-    from data_tools.reference import check_reference
+    from data_tools.sequences.reference import check_reference
     from tracker.app.api import build_prior, load_sequence
     from tracker.app.tracking import check_frames
 
@@ -148,25 +148,25 @@ def check_grid(exp: Experiment, sequence_paths: dict[str, Path], models: dict[st
 def read_init(path: str | Path, seq) -> np.ndarray:
     """A sequence's first poses ``n x D`` (rad, mm) from a poses .npz (``init``, as ``initialise`` writes it),
     checked against the sequence's body model."""
-    from data_tools.estimates import read_poses_file
+    from data_tools.sequences.estimates import read_poses_file
 
     return read_poses_file(path, "first poses (init)", seq.model)
 
 
 def reference_offset_of(spec, seq) -> int:
     """The reference frame of a run's frame 0 for the sequence ``spec`` (its ``reference_offset``, else the
-    default of ``compare-trc``: :func:`data_tools.reference.reference_offset`)."""
-    from data_tools.reference import reference_offset
+    default of ``compare-trc``: :func:`data_tools.sequences.reference.reference_offset`)."""
+    from data_tools.sequences.reference import reference_offset
 
     return reference_offset(seq.meta) if spec.reference_offset is None else spec.reference_offset
 
 
 def score_references(exp: Experiment, results: list[dict], runs_dir: Path) -> None:
     """Add to each run's result (``results``, in place) of a sequence with a ``reference`` its distances to that
-    reconstruction (``"reference"``: :meth:`~data_tools.reference.ReferenceComparison.to_dict`), as
+    reconstruction (``"reference"``: :meth:`~data_tools.sequences.reference.ReferenceComparison.to_dict`), as
     ``compare-trc`` measures them: the run's markers, one rigid alignment, per joint, per frame and mean (mm)."""
-    from data_tools.checks import load_npz
-    from data_tools.reference import compare_to_trc
+    from data_tools.io.checks import load_npz
+    from data_tools.sequences.reference import compare_to_trc
     from tracker.app.api import load_sequence
 
     specs = {s.name: s for s in exp.sequences if s.reference is not None}
@@ -276,7 +276,7 @@ def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str
     if backend not in BACKENDS:
         raise InputError(f"unknown backend {backend!r}; choose from {', '.join(BACKENDS)}")
     exp = load_experiment(experiment, data_root=data_root)
-    from data_tools.files import check_not_inside, check_output_folder
+    from data_tools.io.files import check_not_inside, check_output_folder
 
     ours = (Path(out) / "experiment.json").is_file()  # an earlier compare output: continued, finished runs kept
     out = check_output_folder(out, empty=not (overwrite or ours))

@@ -78,7 +78,7 @@ def comparison_line(errors_mm: dict[str, list[float]], tracked: str) -> str:
 
 
 def run_demo(out: Path, frames: int = 90, overwrite: bool = False) -> int:
-    from data_tools.files import check_output_folder, write_text_atomic
+    from data_tools.io.files import check_output_folder, write_text_atomic
     from tracker.app.visualize import error_plot, overlay_frames, write_video
 
     out = check_output_folder(out, replaceable=(DEMO_MARK,))

@@ -35,7 +35,7 @@ File layout (every key is checked, unknown ones refused)::
     turn = 90                                # degrees about the vertical: the walk in another direction
     joint_map = "mixamo_map.toml"            # a BVH whose joint names are not recognised (docs/guide/motion_capture.md)
     [[sequence]]                             # ... or two clips cross-faded: a change of activity
-    name = "subject 2 walk then run"         # (data_tools.transition; switch_at at the experiment's fps)
+    name = "subject 2 walk then run"         # (data_tools.motion.transition; switch_at at the experiment's fps)
     mocap = "mocap/cmu/02/02_01.amc"
     then = "mocap/cmu/02/02_03.amc"
     switch_at = 120
@@ -101,7 +101,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from data_tools.synth_settings import SYNTH_OPTIONS, SynthConfig
+from data_tools.synthesis.synth_settings import SYNTH_OPTIONS, SynthConfig
 from tracker.app.experiment_spec import (ClipSpec, Experiment, LikelihoodSpec, PriorSpec,  # noqa: F401 (re-exported)
                                          SequenceSpec, TrainSpec)
 from tracker.app.run_grid import RunSpec, expand_runs, row_label, run_seed  # noqa: F401 (re-exported)
@@ -132,7 +132,7 @@ DATA_ROOT_ENV = "POSE_TRACKER_DATA_ROOT"
 #: A sequence folder's keys (``path = ...``) besides its name: where its first poses come from, and a reference
 #: reconstruction to measure the runs against.
 FOLDER_KEYS = {"path", "init", "reference", "reference_offset"}
-#: A rendered sequence's keys that describe a change of activity (data_tools.transition) or how its clips are
+#: A rendered sequence's keys that describe a change of activity (data_tools.motion.transition) or how its clips are
 #: read (joint maps), not the rendering.
 TRANSITION_KEYS = {"then", "then_skeleton", "switch_at", "fade", "joint_map", "then_joint_map"}
 #: A rendered sequence's rendering settings: those of ``pose-tracker synth`` (the frame rate is the experiment's),
@@ -188,11 +188,11 @@ class _Where:
 
 
 def _clips(w: "_Where", value: Any, entry: str) -> list[ClipSpec]:
-    """The training clips of one entry: a path, folder or glob pattern (:func:`~data_tools.load.expand_mocap`:
+    """The training clips of one entry: a path, folder or glob pattern (:func:`~data_tools.motion.load.expand_mocap`:
     every mocap file a folder holds, recursively, or the pattern matches, in sorted order), or
     ``{ path = "...", start = 0, frames = 600, joint_map = "map.toml" }`` (its settings apply to every file)."""
-    from data_tools.load import expand_mocap, is_pattern
-    from data_tools.skeleton_points import read_joint_map
+    from data_tools.motion.load import expand_mocap, is_pattern
+    from data_tools.motion.skeleton_points import read_joint_map
 
     settings: dict = {}
     if isinstance(value, dict):
@@ -265,10 +265,10 @@ def _trainings(w: "_Where", prior: str, value: Any, entry: str) -> list[TrainSpe
 
 
 def _read_labels(w: "_Where", options: dict, mocap: tuple[ClipSpec, ...], entry: str) -> dict:
-    """``options`` with a ``labels`` pattern or sidecar file (:mod:`data_tools.corpus`; a sidecar is a data path)
+    """``options`` with a ``labels`` pattern or sidecar file (:mod:`data_tools.motion.corpus`; a sidecar is a data path)
     read into one label per clip, in clip order: the labels themselves then identify the trained model, so that
     an edited sidecar trains anew, and a clip without its label is refused as the file is read."""
-    from data_tools.corpus import is_label_source, label_source
+    from data_tools.motion.corpus import is_label_source, label_source
 
     if not is_label_source(options.get("labels")):
         return options
@@ -444,7 +444,7 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
     top = {o.name: o.default if doc.get(o.name) is None else _checked(w, o, doc[o.name]) for o in EXPERIMENT_OPTIONS}
     seed, seeds, fps = top["seed"], top["seeds"], top["fps"]
     grid = _tracking(w, doc.get("tracking", {}))
-    from data_tools.skeleton_points import read_joint_map
+    from data_tools.motion.skeleton_points import read_joint_map
     sequences = []
     for i, s in enumerate(doc.get("sequence", [])):
         entry = f"[[sequence]] {i + 1}"

@@ -1,7 +1,7 @@
 """Getting the data an experiment file names: ``pose-tracker fetch`` and :func:`fetch`.
 
 ``fetch(["07_01", "16_15"], data_root="data")`` downloads CMU trials by subject and trial number
-(:mod:`data_tools.fetch`); ``fetch(experiment="exp.toml")`` downloads every CMU trial the file names into the
+(:mod:`data_tools.motion.fetch`); ``fetch(experiment="exp.toml")`` downloads every CMU trial the file names into the
 file's data root, the folder ``compare`` reads it from (``data_root`` given here, else the environment variable
 ``POSE_TRACKER_DATA_ROOT``, else the file's own ``data_root``, created when missing).
 """
@@ -14,8 +14,8 @@ import sys
 from pathlib import Path
 from typing import Any, Sequence
 
-from data_tools.cmu_trials import NOT_DOWNLOADABLE
-from data_tools.fetch import DEFAULT_TIMEOUT, CmuTrial, fetch_cmu, parse_trial
+from data_tools.motion.cmu_trials import NOT_DOWNLOADABLE
+from data_tools.motion.fetch import DEFAULT_TIMEOUT, CmuTrial, fetch_cmu, parse_trial
 from tracker.app.experiment import DATA_ROOT_ENV
 from tracker.core.errors import InputError
 

@@ -87,7 +87,7 @@ def initialise(seq, frame: int = 0, *, near: np.ndarray | None = None, seed: int
 
     ``near``: an approximate first pose ``(D,)`` of the default model to search around instead of the stances
     (its position and heading are searched too). ``shape``: the person's measured body shape (for example
-    :func:`data_tools.landmarks.shape_from_landmarks`), kept as it is (scale 1) instead of searching the
+    :func:`data_tools.vision.landmarks.shape_from_landmarks`), kept as it is (scale 1) instead of searching the
     default adult's scale. The sequence needs silhouettes (``masks/``) or plates.
     """
     from tracker.app.plugins import likelihood_entry

@@ -1,8 +1,8 @@
 """The body's size and first poses from 2-D keypoints, for sequences that have them (``seq/keypoints/``).
 
 1. **Size** (two or more views): the keypoints of the first :data:`MEASURE_FRAMES` frames triangulated robustly
-   (:mod:`data_tools.keypoints.triangulate`), the upper arm, forearm, thigh, shank and trunk measured as
-   medians over frames, and the body made with them (:func:`data_tools.landmarks.shape_from_landmarks`: the
+   (:mod:`data_tools.vision.keypoints.triangulate`), the upper arm, forearm, thigh, shank and trunk measured as
+   medians over frames, and the body made with them (:func:`data_tools.vision.landmarks.shape_from_landmarks`: the
    default adult at the measured scale, the limbs as measured). With one view nothing can be measured: the
    sequence's own body shape (``meta.json``) or the default adult is kept.
 2. **Where and which way**: with two or more views, the pelvis above the triangulated hips' midpoint and the
@@ -145,7 +145,7 @@ def initialise_from_keypoints(seq, views=None, known_frames: int = 2, shape: Bod
     """The body's size and the first ``known_frames`` poses of ``seq`` (a sequence with keypoints) from its
     keypoints in the cameras ``views`` (default all); the module docstring says how. ``shape`` keeps a body
     shape of your own instead of measuring one."""
-    from data_tools.keypoints.triangulate import triangulate_keypoints
+    from data_tools.vision.keypoints.triangulate import triangulate_keypoints
 
     if seq.keypoints is None:
         raise InputError("the sequence has no keypoints (pose-tracker keypoints SEQ detects them)", seq.root)
@@ -160,7 +160,7 @@ def initialise_from_keypoints(seq, views=None, known_frames: int = 2, shape: Bod
         frames = min(max(MEASURE_FRAMES, known_frames), seq.n_frames)
         points = triangulate_keypoints(rig, detections[:frames]).points
         if shape is None:
-            from data_tools.landmarks import shape_from_landmarks
+            from data_tools.vision.landmarks import shape_from_landmarks
 
             lengths = keypoint_lengths(points, seq.root)
             shape = shape_from_landmarks(lengths, seq.root)

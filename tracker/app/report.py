@@ -13,7 +13,7 @@ A sequence without ground truth (an imported video) has no marker error: it is l
 its own, with what can be said without one: the seconds per frame, the spread between seeds (how far apart the
 runs of different seeds put the markers, :func:`seed_spread`) and, where the experiment names a reference
 reconstruction, each run's mean distance to it after one rigid alignment
-(:func:`data_tools.reference.compare_to_reference`, as ``compare-trc`` prints it).
+(:func:`data_tools.sequences.reference.compare_to_reference`, as ``compare-trc`` prints it).
 
 The tables are built once as data (:class:`tracker.app.report_tables.Report`), which :func:`markdown` writes as
 ``table.md`` and :mod:`tracker.app.report_html` as the tables of ``report.html``.
@@ -27,7 +27,7 @@ from typing import Callable
 
 import numpy as np
 
-from data_tools.files import atomic_path, write_text_atomic
+from data_tools.io.files import atomic_path, write_text_atomic
 from tracker.app.report_tables import Cell, Code, Report, Table, Text
 from tracker.core.metrics import METRICS as CORE_METRICS, summarize_runs
 
@@ -100,7 +100,7 @@ def seed_spread(markers: list[np.ndarray]) -> float:
 
 def _tracked_markers(result: dict, runs_dir: Path) -> np.ndarray:
     """A run's markers ``T x 15 x 3`` (mm) in its tracked frames, from its ``estimates.npz``."""
-    from data_tools.checks import load_npz
+    from data_tools.io.checks import load_npz
 
     markers = load_npz(runs_dir / result["run"]["key"] / "estimates.npz", "estimates", ("markers",))["markers"]
     return markers[result["tracked_frames"]]

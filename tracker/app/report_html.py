@@ -17,7 +17,7 @@ closest to its row's mean over seeds (the lowest seed index on a tie): its estim
 under it a still of the last frame in every view of the view set, each side's estimate over the frames.
 
 A sequence without ground truth (an imported video) ranks its rows by their distance to the reference
-reconstruction the experiment names for it (:mod:`data_tools.reference`), and without one shows its first two
+reconstruction the experiment names for it (:mod:`data_tools.sequences.reference`), and without one shows its first two
 rows, unranked, over its own frames.
 """
 from __future__ import annotations
@@ -37,7 +37,7 @@ from typing import Callable, Iterator
 
 import numpy as np
 
-from data_tools.files import write_text_atomic
+from data_tools.io.files import write_text_atomic
 from tracker.app.report_tables import Code, Report, Table, Text, cell_marks
 from tracker.core.errors import InputError
 
@@ -250,7 +250,7 @@ def _sides(pick: Pick) -> list[tuple[str, Side]]:
 
 def _poses(pick: Pick, seq, runs_dir: Path) -> list[np.ndarray]:
     """The estimated poses ``T x D`` of the two runs shown."""
-    from data_tools.estimates import read_poses_file
+    from data_tools.sequences.estimates import read_poses_file
 
     return [read_poses_file(runs_dir / s.run["run"]["key"] / "estimates.npz", "estimates", seq.model)
             for s in (pick.best, pick.worst)]
@@ -312,7 +312,7 @@ def render_video(pick: Pick, seq, runs_dir: Path, labels: list[str], fps: float,
     video settings, the package version) and reused from there: x264 does not always encode the same frames
     into the same bytes, and a rerun is to write the same page."""
     import tracker
-    from data_tools.fingerprints import config_hash
+    from data_tools.io.fingerprints import config_hash
     from tracker.app.visualize import write_video
 
     frames, count, step = comparison_frames(pick, seq, runs_dir, labels)

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from data_tools.fingerprints import config_hash, file_hash
+from data_tools.io.fingerprints import config_hash, file_hash
 from tracker.app.experiment_spec import Experiment, LikelihoodSpec, PriorSpec
 
 

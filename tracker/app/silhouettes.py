@@ -1,7 +1,7 @@
 """The person's silhouettes from the video itself, for sequences without a background plate (imported videos).
 
 Method ``person`` (for a person who may stand still): a person-segmentation model,
-:func:`data_tools.person_segmentation.person_masks` (MediaPipe's BlazePose, an optional package).
+:func:`data_tools.vision.person_segmentation.person_masks` (MediaPipe's BlazePose, an optional package).
 
 Method ``median`` (for a person who moves): per camera, the per-pixel median of up to :data:`PLATE_FRAMES` frames spread over the
 sequence is the background plate, and each frame's silhouette is the toolkit's own background subtraction against
@@ -41,7 +41,7 @@ def default_method(seq) -> str:
 
     if importlib.util.find_spec("mediapipe") is None:
         return "median"
-    from data_tools.person_segmentation import person_masks
+    from data_tools.vision.person_segmentation import person_masks
 
     found = all(next(person_masks([seq.image(0, v)])).any() for v in range(seq.n_views))
     return "person" if found else "median"
@@ -72,7 +72,7 @@ def view_masks(frame: Callable[[int], np.ndarray], n_frames: int, method: str) -
     if method not in METHODS:
         raise InputError(f"unknown silhouette method {method!r}: choose from {', '.join(METHODS)}")
     if method == "person":
-        from data_tools.person_segmentation import person_masks
+        from data_tools.vision.person_segmentation import person_masks
 
         for mask in person_masks(frame(k) for k in range(n_frames)):
             yield keep_person(mask, radius=0)  # the model's masks are clean; an opening would cut thin arms
@@ -91,7 +91,7 @@ def write_sequence_masks(seq, method: str, progress: Callable[[Iterable], Iterab
     found is refused (one line naming the camera and frame), and nothing is left half written."""
     import shutil
 
-    from data_tools.sequence import FRAME_NAME, write_image
+    from data_tools.sequences.sequence import FRAME_NAME, write_image
 
     root = seq.root
     tmp = root / "masks.partial"

@@ -18,9 +18,9 @@ from typing import Any, Callable, Iterable, Mapping, Sequence as Seq
 
 import numpy as np
 
-from data_tools.estimates import write_estimates
-from data_tools.files import atomic_path, write_text_atomic
-from data_tools.sequence import Sequence
+from data_tools.io.files import atomic_path, write_text_atomic
+from data_tools.sequences.estimates import write_estimates
+from data_tools.sequences.sequence import Sequence
 from tracker.core.errors import InputError
 from tracker.core.kinematics import markers as model_markers
 from tracker.core.metrics import METRICS, PCK_THRESHOLD_MM, frame_metrics, marker_error
@@ -151,7 +151,7 @@ class TrackingResult:
         ``out`` is refused unless ``overwrite`` (then the files of this result replace those there), and so is
         the sequence's own folder or a folder inside it; a failed write (no space left, read-only, no permission)
         is one line naming the file and the cause. The run's checkpoint is removed once everything is written."""
-        from data_tools.files import check_not_inside, check_output_folder
+        from data_tools.io.files import check_not_inside, check_output_folder
 
         out = check_output_folder(out, empty=not overwrite, overwrite_flag="overwrite=True")
         if self.settings.get("sequence"):
@@ -295,7 +295,7 @@ def run_tracking(seq: Sequence, prior: MotionPrior, likelihood: Likelihood, conf
         raise InputError("no checkpoint to resume from", checkpoint)
     if checkpoint is not None:  # what the run reads, by content: a resume refuses inputs that changed since
         from tracker.app.checkpoint import input_fingerprint
-        from data_tools.fingerprints import CACHE_NAME
+        from data_tools.io.fingerprints import CACHE_NAME
 
         inputs = input_fingerprint(seq.root, fingerprint.get("prior_models", ()), Path(checkpoint).parent / CACHE_NAME)
     if resume:

@@ -13,7 +13,7 @@ import logging
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
-from data_tools.files import atomic_path, check_not_inside, check_output_file, first_missing, undone_unless_started
+from data_tools.io.files import atomic_path, check_not_inside, check_output_file, first_missing, undone_unless_started
 
 log = logging.getLogger(__name__)
 
@@ -43,7 +43,7 @@ def train_into(out: str | Path, prior: str, mocap: str | Path | Iterable[str | P
     """Train ``prior`` on ``mocap`` as :func:`tracker.train` does and write the model to ``out`` (see the
     module's text); returns the model. An existing ``out`` is refused unless ``overwrite`` (``overwrite_flag``:
     how the refusal says so); a stop raises :class:`TrainingStopped` after keeping what a resume needs."""
-    from data_tools.load import load_training_clips
+    from data_tools.motion.load import load_training_clips
     from tracker.app import api
     from tracker.app.plugins import prior_entry
 
@@ -52,7 +52,7 @@ def train_into(out: str | Path, prior: str, mocap: str | Path | Iterable[str | P
     check_not_inside(out, {f"training file {i + 1}": f for i, f in enumerate([*files, *(skeletons or [])])})
     entry = prior_entry(prior)
     if entry.train is not None:  # a labels pattern or file is checked before any clip is read
-        from data_tools.corpus import is_label_source, label_source
+        from data_tools.motion.corpus import is_label_source, label_source
 
         if is_label_source(options.get("labels")):
             label_source(options["labels"]).training_keys()

@@ -190,7 +190,7 @@ def overlay_grid(seq, pose: np.ndarray | None, frame: int, views: list[int], tex
                  thickness: int = 1, truth: np.ndarray | None = None, estimate_name: str | None = None
                  ) -> np.ndarray:
     """One RGB grid image of frame ``frame`` in the chosen views of ``seq`` (a
-    :class:`data_tools.sequence.Sequence`): the model at ``pose`` in left/right/centre colours and, when
+    :class:`data_tools.sequences.sequence.Sequence`): the model at ``pose`` in left/right/centre colours and, when
     given, the ground-truth pose ``truth`` as a thin outline over it (visible where the two coincide); each view is labelled with its
     camera, and a legend strip under the grid names the colours, ``estimate_name`` and ``text``."""
     rig = seq.rig.subset(views)
@@ -228,7 +228,7 @@ def write_video(path, frames, fps: float, crf: int = 20) -> None:
 
     import av
 
-    from data_tools.files import atomic_path
+    from data_tools.io.files import atomic_path
     from tracker.core.errors import InputError
 
     path = Path(path)
@@ -268,7 +268,7 @@ def error_plot(path, curves: dict[str, tuple[np.ndarray, np.ndarray]], title: st
     from matplotlib.figure import Figure
     from matplotlib.ticker import MaxNLocator
 
-    from data_tools.files import atomic_path
+    from data_tools.io.files import atomic_path
 
     beside = len(curves) > 3
     fig = Figure(figsize=(9.5 if beside else 7, 3.5), dpi=120)
@@ -296,7 +296,7 @@ def summary_plot(path, summary: dict, title: str, truth: list[tuple[int, int, st
     from matplotlib.figure import Figure
     from matplotlib.ticker import MaxNLocator
 
-    from data_tools.files import atomic_path
+    from data_tools.io.files import atomic_path
 
     rows = np.asarray(summary["per_frame"], float)
     frames = summary["first_frame"] + np.arange(len(rows))

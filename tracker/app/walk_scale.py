@@ -42,8 +42,8 @@ SHIPPED_RATES: tuple[float, ...] = (60.0, 50.0, 30.0, 25.0)
 def derive_walk_scale(fps: float) -> np.ndarray:
     """The random-walk scale ``(D,)`` (mm or rad per frame) of the shipped subject-7 walks retargeted at
     ``fps`` Hz: their per-dof RMS frame-to-frame change. Takes seconds (it retargets both walks)."""
-    from data_tools.load import load_mocap
-    from data_tools.retarget import retarget
+    from data_tools.motion.load import load_mocap
+    from data_tools.motion.retarget import retarget
     from data_tools.samples import sample_walks
     from tracker.core.representation import step_rms
 

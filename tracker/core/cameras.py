@@ -1,5 +1,5 @@
 """Calibrated cameras: pinhole with Bouguet / OpenCV distortion, batched projection, built-in rigs (file formats live in
-:mod:`data_tools.calibration`).
+:mod:`data_tools.sequences.calibration`).
 
 Convention
 ----------

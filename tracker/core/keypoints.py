@@ -1,7 +1,7 @@
 """The body model's keypoints: the points a 2-D keypoint detector marks, placed on the 15-cone model.
 
 A detector (BlazePose, OpenPose, RTMPose, ...) marks joints and a few face points in each image. Every
-layout's points are mapped to the one set :data:`KEYPOINTS` (``data_tools.keypoints.layouts``), and each of
+layout's points are mapped to the one set :data:`KEYPOINTS` (``data_tools.vision.keypoints.layouts``), and each of
 these lies at a fixed place on a link of the body model (:func:`keypoint_table`), so that a pose gives them
 all by forward kinematics (:func:`keypoint_positions`):
 

@@ -20,7 +20,7 @@ it), fills the factory methods, and pytest runs every ``test_*`` method of the c
 - :class:`LikelihoodContract`: a :class:`~tracker.engine.likelihood.Likelihood` scores a batch as it scores each
   pose alone, gives one finite or ``-inf`` number per pose, refuses poses and frames of the wrong shape, and
   (where it has two paths, e.g. a compiled CPU loop and an array path for GPUs) gives the same numbers on both;
-- :class:`MocapReaderContract`: a mocap reader (:mod:`data_tools.readers`) is found by its suffix and reads its
+- :class:`MocapReaderContract`: a mocap reader (:mod:`data_tools.motion.readers`) is found by its suffix and reads its
   files as named points in millimetres, z up, at the file's frame rate, and refuses a bad file in one line.
 
 The contracts need pytest only when their tests run; importing this package (or the toolkit) imports no test

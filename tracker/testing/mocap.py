@@ -1,9 +1,9 @@
-"""The mocap-reader contract (:mod:`data_tools.readers`) as a base class of tests.
+"""The mocap-reader contract (:mod:`data_tools.motion.readers`) as a base class of tests.
 
 A subclass sets :attr:`MocapReaderContract.suffix`, :attr:`~MocapReaderContract.reader_name`,
 :attr:`~MocapReaderContract.fps` and :attr:`~MocapReaderContract.frames`, and fills
 :meth:`MocapReaderContract.make_file` with a file of a person standing or walking upright (most frames); every
-``test_*`` method then checks that the file, read as a user reads it (:func:`data_tools.load.load_mocap`,
+``test_*`` method then checks that the file, read as a user reads it (:func:`data_tools.motion.load.load_mocap`,
 which finds the reader by the suffix), gives:
 
 - names: one unique name per point, and the body's 15 markers and fit points found from them;
@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from data_tools.load import load_mocap, reader_for
-from data_tools.mocap import MocapClip, marker_positions
+from data_tools.motion.load import load_mocap, reader_for
+from data_tools.motion.mocap import MocapClip, marker_positions
 from tracker.core.body import MARKER_NAMES
 from tracker.core.errors import InputError
 
@@ -52,7 +52,7 @@ class MocapReaderContract:
         raise NotImplementedError(f"{type(self).__name__} must implement make_file(folder) -> Path")
 
     def read(self, path: Path) -> MocapClip:
-        """``path`` read as a user reads it (default :func:`~data_tools.load.load_mocap` of the path alone)."""
+        """``path`` read as a user reads it (default :func:`~data_tools.motion.load.load_mocap` of the path alone)."""
         return load_mocap(path)
 
     def make_bad_file(self, folder: Path) -> Path:
