@@ -68,7 +68,7 @@ def reader_for(path: str | Path) -> MocapReader:
     registered readers when none reads it."""
     path = Path(path)
     suffix = path.suffix.lower()
-    reader = READERS.get(suffix)
+    reader = READERS.find(suffix)
     if reader is None:
         known = ", ".join(r.described() for r in READERS.values())
         raise InputError(f"unknown mocap format {repr(suffix) if suffix else '(no suffix)'}: the registered "
@@ -189,7 +189,7 @@ def load_training_clips(files, skeletons=None, fps: float | None = 60.0, joint_m
     results = []
     for i, f in enumerate(files):
         skel = None if not skeletons else skeletons[0 if len(skeletons) == 1 else i]
-        reader = READERS.get(f.suffix.lower())  # (an unknown suffix is refused by load_mocap, after a missing file)
+        reader = READERS.find(f.suffix.lower())  # (an unknown suffix is refused by load_mocap, after a missing file)
         if skel is not None and reader is not None and reader.skeleton is None:
             skel = None
         results.append(load_retargeted(f, skel, fps, joint_map=maps[i], cache=cache))
@@ -206,7 +206,7 @@ def load_retargeted(path: str | Path, skeleton: str | Path | None = None, fps: f
     from data_tools.motion.retarget import retarget
 
     path = Path(path)
-    reader = READERS.get(path.suffix.lower())
+    reader = READERS.find(path.suffix.lower())
     if reader is None or not path.is_file() or (skeleton and reader.skeleton is None):
         load_mocap(path, skeleton, mm_per_unit, joint_map=joint_map)  # the one-line refusal
     found = not skeleton and reader.skeleton is not None

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Mapping
 
-from tracker.core.errors import InputError
+from tracker.engine.registry import Registry
 
 if TYPE_CHECKING:
     from data_tools.motion.mocap import MocapClip
@@ -57,12 +57,10 @@ class MocapReader:
         return f"{self.suffix} ({self.name}{with_skeleton})"
 
 
-#: The registered readers by suffix.
-READERS: dict[str, MocapReader] = {}
-
-
-def _origin(read: Callable) -> str:
-    return f"{getattr(read, '__module__', '?')}.{getattr(read, '__qualname__', '?')}"
+#: The registered readers by suffix (the engine's :class:`~tracker.engine.registry.Registry`, keyed by suffix).
+READERS: Registry[MocapReader] = Registry(
+    "mocap reader", key="suffix", function="read",
+    taken="mocap files {key} are already read by {old} ({entry.name}); {new} cannot take the suffix")
 
 
 def register_mocap_reader(suffix: str, name: str, *, summary: str = "", skeleton: str | None = None):
@@ -75,10 +73,6 @@ def register_mocap_reader(suffix: str, name: str, *, summary: str = "", skeleton
         raise ValueError(f"a mocap reader's suffix is one dot and a name, e.g. '.bvh'; got {suffix!r}")
 
     def decorate(read):
-        old = READERS.get(key)
-        if old is not None and _origin(old.read) != _origin(read):
-            raise InputError(f"mocap files {key} are already read by {_origin(old.read)} ({old.name}); "
-                             f"{_origin(read)} cannot take the suffix")
-        READERS[key] = MocapReader(key, name, read, summary, skeleton)
+        READERS.add(MocapReader(key, name, read, summary, skeleton))
         return read
     return decorate

@@ -50,8 +50,10 @@ class TestZUpInchBvh(MocapReaderContract):
 def test_a_reader_registers_once_per_suffix_and_unknown_suffixes_list_the_registered(tmp_path):
     from data_tools.motion.load import load_mocap, registered_readers
     from data_tools.motion.readers import READERS, register_mocap_reader
+    from tracker.engine.registry import Registry
 
     assert [r.suffix for r in registered_readers()][:2] == [".amc", ".bvh"]
+    assert isinstance(READERS, Registry)  # the engine's one registry mechanism, keyed by suffix
     with pytest.raises(InputError, match=r"^mocap files \.bvh are already read by data_tools\.motion\.load\."
                                          r"read_bvh_file \(BVH\); .* cannot take the suffix$"):
         register_mocap_reader(".BVH", "another BVH")(lambda path, options: None)

@@ -39,7 +39,7 @@ def registered():
     yield
     PRIORS.entries.pop("toy-damped-walk", None)
     LIKELIHOODS.entries.pop("toy-marker-mask", None)
-    READERS.pop(".toypts", None)
+    READERS.entries.pop(".toypts", None)
 
 
 class TestToyDampedWalk(PriorContract):

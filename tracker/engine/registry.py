@@ -376,17 +376,29 @@ def _origin(build: Callable) -> str:
 
 @dataclass
 class Registry(Generic[E]):
-    """Entries by name; a name registers once (re-registering the same builder, as a re-import does, is fine)."""
+    """Entries by name; a name registers once (re-registering the same function, as a re-import does, is fine).
+
+    ``key`` is the attribute of an entry that names it and ``function`` the attribute holding the function whose
+    origin (module and name) tells a re-registration from a second function taking a taken name. ``taken`` is
+    the refusal of the latter, formatted with ``kind``, ``key``, ``old`` and ``new`` (the two functions' origins)
+    and ``entry`` (the registered entry). The plugin tables key builders by name; the mocap readers
+    (:mod:`data_tools.motion.readers`) key read functions by file suffix.
+    """
 
     kind: str
     entries: dict[str, E] = field(default_factory=dict)
+    key: str = "name"
+    function: str = "build"
+    taken: str = "a {kind} named {key!r} is already registered by {old}; {new} cannot take the name"
 
     def add(self, entry: E) -> E:
-        old = self.entries.get(entry.name)  # type: ignore[attr-defined]
-        if old is not None and _origin(old.build) != _origin(entry.build):  # type: ignore[attr-defined]
-            raise InputError(f"a {self.kind} named {entry.name!r} is already registered by "  # type: ignore
-                             f"{_origin(old.build)}; {_origin(entry.build)} cannot take the name")  # type: ignore
-        self.entries[entry.name] = entry  # type: ignore[attr-defined]
+        key = getattr(entry, self.key)
+        old = self.entries.get(key)
+        if old is not None:
+            before, after = _origin(getattr(old, self.function)), _origin(getattr(entry, self.function))
+            if before != after:
+                raise InputError(self.taken.format(kind=self.kind, key=key, old=before, new=after, entry=old))
+        self.entries[key] = entry
         return entry
 
     def get(self, name: str) -> E:
@@ -394,8 +406,16 @@ class Registry(Generic[E]):
             raise InputError(f"unknown {self.kind} {name!r}; available: {', '.join(self.names())}")
         return self.entries[name]
 
+    def find(self, name: str) -> E | None:
+        """The entry registered as ``name``, None when there is none."""
+        return self.entries.get(name)
+
     def names(self) -> list[str]:
         return list(self.entries)
+
+    def values(self) -> list[E]:
+        """Every entry, in the order they registered."""
+        return list(self.entries.values())
 
 
 PRIORS: Registry[PriorEntry] = Registry("prior")
