@@ -24,18 +24,33 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
 
+from tracker.app.schema import setting
 from tracker.core.errors import InputError
+from tracker.engine.registry import Option
 
-#: What ``capture`` does by default.
-DEFAULT_PRIOR = "mixture"
-DEFAULT_DOWNSCALE = 4.0
-DEFAULT_PARTICLES = 1000
+#: The settings of a capture, declared once: ``pose-tracker capture``'s flags and :func:`capture`'s keywords (and
+#: defaults) derive from them; ``particles`` and ``seed`` are tracking's own settings.
+CAPTURE_OPTIONS: tuple[Option, ...] = (
+    Option("views", int, None, "cameras to use, as indices into the calibration's (e.g. 0,2 or 1 alone; default "
+           "all)", minimum=0, many=True),
+    Option("prior", str, "mixture", "motion prior (default mixture: the shipped neural prior with zero-velocity)"),
+    setting("particles"),
+    replace(setting("seed"), help="random seed of the tracking"),
+    Option("downscale", float, 4.0, "shrink every frame by F before everything else", minimum=1.0, maximum=64.0),
+    Option("frames", str, None, "video frames A to B-1 (default: all the videos share)"),
+)
+
+
+def _default(name: str):
+    return next(o.default for o in CAPTURE_OPTIONS if o.name == name)
+
+
 STEPS = ("import", "silhouettes", "keypoints", "start", "track", "export")
 
 
@@ -58,8 +73,8 @@ def _same(path: Path, settings: dict) -> bool:
 
 
 def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Path, *,
-            views: Sequence[int] | None = None, prior: str = DEFAULT_PRIOR, seed: int = 0,
-            particles: int = DEFAULT_PARTICLES, downscale: float = DEFAULT_DOWNSCALE,
+            views: Sequence[int] | str | None = None, prior: str = _default("prior"), seed: int = _default("seed"),
+            particles: int = _default("particles"), downscale: float = _default("downscale"),
             frames: str | None = None, overwrite: bool = False,
             on_step: Callable[[str, str], None] | None = None) -> CaptureResult:
     """Run the steps of the module docstring on ``videos`` (one per camera of ``calibration``, paired by sorted
@@ -69,12 +84,13 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
     are unchanged; a folder holding a capture of other videos or views is refused without ``overwrite``."""
     from data_tools.io.files import write_text_atomic
     from data_tools.vision.video import pair_videos, probe_video
-
     from tracker.app.plugins import prior_entry
 
     prior_entry(prior)  # an unknown prior is refused before any work
-    if particles < 1:
-        raise InputError(f"particles must be at least 1, got {particles}")
+    given = {"views": views, "prior": prior, "particles": particles, "seed": seed, "downscale": downscale,
+             "frames": frames}
+    checked = {o.name: o.parse(given[o.name], "capture") for o in CAPTURE_OPTIONS}
+    views, particles, seed, downscale = checked["views"], checked["particles"], checked["seed"], checked["downscale"]
     out = Path(out)
     videos = [Path(v) for v in videos]
     for v in videos:
@@ -144,21 +160,18 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
     seq = read_sequence(seq_dir)
 
     def do_masks() -> str:
-        from tracker.app.silhouettes import default_method, write_sequence_masks
+        from tracker.app.preparation import write_silhouettes
 
-        method = default_method(seq)
-        fractions = write_sequence_masks(seq, method)
-        return f"{method} masks, the person {100 * float(np.mean(fractions)):.1f}% of each image"
+        written = write_silhouettes(seq, overwrite=True)
+        return f"{written.method} masks, the person {100 * float(np.mean(written.person_share)):.1f}% of each image"
 
     step("silhouettes", (seq_dir / "masks").is_dir(), do_masks, needs=("import",))
 
     def do_keypoints() -> str:
-        from data_tools.sequences.keypoint_file import write_keypoints
-        from data_tools.vision.keypoints.detect import detect_sequence_keypoints
         from data_tools.vision.keypoints.readers import found_share
+        from tracker.app.preparation import write_sequence_keypoints
 
-        found = detect_sequence_keypoints(read_sequence(seq_dir, keypoints=False))  # (replaced, whatever it was)
-        write_keypoints(seq_dir, found)
+        found = write_sequence_keypoints(seq_dir, overwrite=True)  # (replaced, whatever it was)
         share = found_share(found)  # of the keypoints the detector's layout has, as the keypoints command says
         return f"{found.source.get('detector')}: {100 * share:.0f}% of keypoints found"
 
@@ -167,18 +180,10 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
     init_path = out / "init.npz"
 
     def do_start() -> str:
-        from data_tools.io.files import atomic_path
-        from data_tools.sequences.sequence import write_meta
-        from tracker.app.keypoint_start import initialise_from_keypoints
+        from tracker.app.preparation import initialise_sequence
 
-        start = initialise_from_keypoints(seq)
-        meta = dict(seq.meta)
-        meta["body_shape"] = start.shape.to_dict()
-        write_meta(seq_dir, meta)
-        with atomic_path(init_path) as tmp:
-            with open(tmp, "wb") as f:
-                np.savez(f, poses=start.poses)
-        return f"standing height {start.height:.0f} mm, first pose fitted (cost {start.cost:.1f})"
+        start = initialise_sequence(seq_dir, init_path, evidence="keypoints", overwrite=True)
+        return f"{start.lines[0].split(';')[0]}, {start.summary}"
 
     step("start", init_path.is_file(), do_start, needs=("keypoints",))
     seq = read_sequence(seq_dir)
@@ -203,16 +208,17 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
          needs=("silhouettes", "keypoints", "start"))
 
     def do_export() -> str:
-        from data_tools.motion.bvh_export import write_bvh
-        from data_tools.motion.trc import write_trc
-        from data_tools.vision.keypoints.triangulate import median_filter, triangulate_keypoints, write_keypoints_trc
+        from data_tools.vision.keypoints.triangulate import (
+            median_filter,
+            triangulate_keypoints,
+            write_keypoints_trc,
+        )
+        from tracker.app.exporting import export_poses
         from tracker.app.visualize import overlay_frames, write_video
-        from tracker.core.kinematics import markers
 
         poses = np.load(run_dir / "estimates.npz")["poses"]
         fps = seq.fps or 60.0
-        write_trc(out / "poses.trc", seq.model.marker_names, markers(seq.model, poses), fps)
-        write_bvh(out / "poses.bvh", seq.model, poses, fps)
+        export_poses(seq, poses, bvh=out / "poses.bvh", trc=out / "poses.trc")
         written = ["poses.trc", "poses.bvh"]
         if seq.n_views >= 2:
             points = median_filter(triangulate_keypoints(seq.rig, seq.keypoints.points).points)

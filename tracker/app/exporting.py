@@ -16,8 +16,8 @@ def export_poses(seq, poses, *, bvh: str | Path | None = None, trc: str | Path |
     """Write ``poses`` ``T x D`` of the sequence ``seq``'s body model at its frame rate: as BVH at ``bvh`` (y up,
     lengths in ``unit``: ``m``, ``cm`` or ``mm``) and the body's markers as TRC at ``trc`` (y up, metres);
     returns one line per file written."""
-    from data_tools.bvh_export import write_bvh
-    from data_tools.trc import write_trc
+    from data_tools.motion.bvh_export import write_bvh
+    from data_tools.motion.trc import write_trc
     from tracker.core.kinematics import markers
 
     fps = seq.fps or 60.0
@@ -37,8 +37,8 @@ def export_run(run: str | Path, *, bvh: str | Path | None = None, trc: str | Pat
     """Write the poses of the tracked run in the folder ``run`` (``estimates.npz``, ``result.json``) as
     :func:`export_poses` does; ``sequence`` is the tracked sequence (default the one ``result.json`` names: its
     body shape and frame rate). Existing files are refused unless ``overwrite``."""
-    from data_tools.estimates import read_poses_file
-    from data_tools.files import check_output_file
+    from data_tools.io.files import check_output_file
+    from data_tools.sequences.estimates import read_poses_file
     from tracker.app.run_folder import finished_run, run_sequence
 
     if not bvh and not trc:
@@ -53,10 +53,10 @@ def export_run(run: str | Path, *, bvh: str | Path | None = None, trc: str | Pat
 
 def compare_run_to_trc(run: str | Path, reference: str | Path, offset: int | None = None):
     """The distance of the tracked run in ``run`` to the reference reconstruction ``reference`` (a TRC file)
-    after one rigid alignment (:func:`data_tools.reference.compare_to_trc`); ``offset`` is the reference frame
+    after one rigid alignment (:func:`data_tools.sequences.reference.compare_to_trc`); ``offset`` is the reference frame
     of the run's first frame (default: the first video frame the sequence was imported from, else 0)."""
-    from data_tools.checks import load_npz
-    from data_tools.reference import compare_to_trc, reference_offset
+    from data_tools.io.checks import load_npz
+    from data_tools.sequences.reference import compare_to_trc, reference_offset
     from tracker.app.run_folder import finished_run, run_sequence
 
     estimates, result = finished_run(run)

@@ -34,9 +34,9 @@ class Silhouettes:
 
 def write_silhouettes(sequence, method: str | None = None, *, overwrite: bool = False) -> Silhouettes:
     """Write ``masks/<camera>/NNNNNN.png`` into ``sequence`` (a folder of this toolkit's layout, or a loaded
-    :class:`~data_tools.sequence.Sequence`) by ``method`` (:mod:`tracker.app.silhouettes`; default
+    :class:`~data_tools.sequences.sequence.Sequence`) by ``method`` (:mod:`tracker.app.silhouettes`; default
     :func:`~tracker.app.silhouettes.default_method`). A sequence that has masks is refused unless ``overwrite``."""
-    from data_tools.sequence import OWN, read_sequence
+    from data_tools.sequences.sequence import OWN, read_sequence
     from tracker.app.silhouettes import default_method, write_sequence_masks
 
     seq = read_sequence(sequence) if isinstance(sequence, (str, Path)) else sequence
@@ -57,26 +57,26 @@ def write_sequence_keypoints(sequence: str | Path, *, sources: Sequence[str] | N
     their keypoint layout where the point count does not tell it) or, without ``sources``, detected in the
     sequence's images (``progress(done, total)`` over the images). A sequence that has keypoints is refused
     unless ``overwrite``."""
-    from data_tools.keypoint_file import keypoints_path, write_keypoints
+    from data_tools.sequences.keypoint_file import keypoints_path, write_keypoints
 
     path = keypoints_path(sequence)
     if path.exists() and not overwrite:
         raise InputError("the sequence already has keypoints (pass --overwrite to replace them)", path)
     if sources:
-        from data_tools.keypoints.readers import import_keypoints
+        from data_tools.vision.keypoints.readers import import_keypoints
 
         return import_keypoints(sequence, sources, layout)
     if layout:
         raise InputError("--layout names the layout of files read with --from; the detector knows its own")
     try:
-        from data_tools.keypoints.detect import detect_sequence_keypoints
+        from data_tools.vision.keypoints.detect import detect_sequence_keypoints
     except ModuleNotFoundError as exc:
-        if exc.name != "data_tools.keypoints.detect":
+        if exc.name != "data_tools.vision.keypoints.detect":
             raise
         raise InputError("this installation has no keypoint detector: read keypoints from another tool with "
                          "--from PATH ...") from None
-    from data_tools.keypoints.readers import check_keypoint_layout
-    from data_tools.sequence import read_sequence
+    from data_tools.sequences.sequence import read_sequence
+    from data_tools.vision.keypoints.readers import check_keypoint_layout
 
     seq = read_sequence(sequence, keypoints=False)  # the file this replaces may be broken
     check_keypoint_layout(seq)
@@ -113,8 +113,8 @@ def initialise_sequence(sequence: str | Path, out: str | Path, *, evidence: str 
     the poses file ``near`` where given, with ``proportions`` ``"scale"`` (the default adult's, scaled) or
     ``"landmarks"`` (the person's own, from BlazePose's landmarks)). An existing ``out`` is refused unless
     ``overwrite`` (``overwrite_flag``: how the refusal says so)."""
-    from data_tools.files import check_output_file
-    from data_tools.sequence import OWN, read_sequence, write_meta
+    from data_tools.io.files import check_output_file
+    from data_tools.sequences.sequence import OWN, read_sequence, write_meta
 
     out = check_output_file(out, "--out", (".npz",), new=not overwrite, overwrite_flag=overwrite_flag)
     if frames < 1:
@@ -145,13 +145,13 @@ def initialise_sequence(sequence: str | Path, out: str | Path, *, evidence: str 
 
 def _start_from_silhouettes(seq, out: Path, near, proportions: str, frames: int, seed: int) -> Start:
     """The start :func:`tracker.app.initialise.initialise` finds on the first frame's silhouettes."""
-    from data_tools.estimates import read_poses_file
+    from data_tools.sequences.estimates import read_poses_file
     from tracker.app.initialise import initialise, limb_lengths
 
     near_pose = None if near is None else read_poses_file(near, "--near", seq.model)[0]
     shape, lines = None, []
     if proportions == "landmarks":
-        from data_tools.landmarks import measure, sequence_landmarks, shape_from_landmarks
+        from data_tools.vision.landmarks import measure, sequence_landmarks, shape_from_landmarks
 
         measured = measure(seq.rig, sequence_landmarks(seq), seq.root)
         shape = shape_from_landmarks(measured.lengths, seq.root)
@@ -167,7 +167,7 @@ def _start_from_silhouettes(seq, out: Path, near, proportions: str, frames: int,
 
 def write_poses(path: str | Path, poses: np.ndarray) -> None:
     """``poses`` ``F x D`` written to ``path`` (.npz, ``poses``) whole, or ``path`` left as it was."""
-    from data_tools.files import atomic_path
+    from data_tools.io.files import atomic_path
 
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:

@@ -170,8 +170,10 @@ def run_in_folder(request: TrackRequest, out: str | Path, *, overwrite: bool = F
                   resume_command: str | None = None) -> TrackingResult:
     """Run ``request`` into ``out`` (:func:`track_into`; ``resume``: continue the run kept there, as
     :func:`resume_tracking`). ``on_start(frames)`` is told, once every input is checked, how many frames the
-    run tracks; ``on_frame(step, error_mm)`` sees each as :func:`tracker.track`'s does. ``invocation`` is what ``result.json`` records as the call (default the call of
-    :func:`tracker.track` the request makes); ``overwrite_flag`` how a refusal says to replace the folder."""
+    run tracks; ``on_frame(step, error_mm)`` sees each as :func:`tracker.track`'s does. ``invocation`` is what
+    ``result.json`` records as the call (default the call of :func:`tracker.track` the request makes);
+    ``overwrite_flag`` and ``resume_command`` how a refusal says to replace the folder and to continue its run
+    (default: as Python says them)."""
     from tracker.app import api
 
     out = Path(out)

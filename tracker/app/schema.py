@@ -26,8 +26,9 @@ from tracker.core.errors import InputError
 from tracker.engine.config import FILTER_OPTIONS, MAX_PARTICLES, TRACK_ANNEALING_LAYERS
 from tracker.engine.registry import Option
 
-__all__ = ["FILTER_OPTIONS", "MAX_PARTICLES", "TRACK_ANNEALING_LAYERS", "KEYPOINT_LIKELIHOOD", "SILHOUETTE_LIKELIHOOD", "RUN_OPTIONS", "TRACK_SETTINGS",
-           "EXPERIMENT_SETTINGS", "GRID_AXES", "RECORDED_SETTINGS", "setting", "defaults", "check", "add_flags", "add_option_flags"]
+__all__ = ["FILTER_OPTIONS", "MAX_PARTICLES", "TRACK_ANNEALING_LAYERS", "KEYPOINT_LIKELIHOOD", "SILHOUETTE_LIKELIHOOD",
+           "RUN_OPTIONS", "TRACK_SETTINGS", "EXPERIMENT_SETTINGS", "GRID_AXES", "RECORDED_SETTINGS", "setting",
+           "defaults", "check", "add_flags", "add_option_flags"]
 
 #: The largest seed (numpy's generators take any non-negative integer; results name it as an int64).
 MAX_SEED = 2 ** 63 - 1

@@ -13,7 +13,7 @@ from typing import Sequence
 
 import numpy as np
 
-from data_tools.checks import MAX_FPS, MAX_MM_PER_UNIT, MIN_FPS, MIN_MM_PER_UNIT
+from data_tools.io.checks import MAX_FPS, MAX_MM_PER_UNIT, MIN_FPS, MIN_MM_PER_UNIT
 from tracker.app.plugins import likelihood_entry, prior_entry
 from tracker.app.schema import KEYPOINT_LIKELIHOOD, argument_type, setting
 from tracker.core.errors import InputError

@@ -6,7 +6,7 @@ import logging
 from pathlib import Path
 from typing import Sequence
 
-from data_tools.files import atomic_path, check_not_inside, check_output_file
+from data_tools.io.files import atomic_path, check_not_inside, check_output_file
 from tracker.app.commands.arguments import JOINT_MAP_HELP, fps_type, length_unit_type
 
 log = logging.getLogger(__name__)
@@ -33,7 +33,7 @@ def add_parser(sub, parents: list, argv: Sequence[str]) -> argparse.ArgumentPars
 
 
 def run(args: argparse.Namespace) -> int:
-    from data_tools.clip_io import save_converted_clip
+    from data_tools.motion.clip_io import save_converted_clip
     from tracker.app.api import read_clip
 
     out = check_output_file(args.out, "the output", (".npz",), new=not args.overwrite)

@@ -39,7 +39,7 @@ def _shown(path: str) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from data_tools.corpus import survey
+    from data_tools.motion.corpus import survey
     from tracker.app.plugins import load_plugins
 
     load_plugins()  # the readers of installed plugins

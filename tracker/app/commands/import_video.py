@@ -49,8 +49,8 @@ def add_parser(sub, parents: list, argv: Sequence[str]) -> argparse.ArgumentPars
 
 
 def run(args: argparse.Namespace) -> int:
-    from data_tools.files import check_output_folder
-    from data_tools.video import import_videos
+    from data_tools.io.files import check_output_folder
+    from data_tools.vision.video import import_videos
 
     check_output_folder(args.out, empty=not args.overwrite, replaceable=("cameras.json",))
     calibration = args.calibration[0] if len(args.calibration) == 1 else args.calibration

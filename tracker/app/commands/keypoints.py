@@ -5,7 +5,7 @@ import argparse
 import logging
 from typing import Sequence
 
-from data_tools.keypoints.layouts import LAYOUTS
+from data_tools.vision.keypoints.layouts import LAYOUTS
 
 log = logging.getLogger(__name__)
 
@@ -57,8 +57,8 @@ def _count_bar(desc: str, unit: str):
 
 
 def run(args: argparse.Namespace) -> int:
-    from data_tools.keypoint_file import keypoints_path
-    from data_tools.keypoints.readers import found_share
+    from data_tools.sequences.keypoint_file import keypoints_path
+    from data_tools.vision.keypoints.readers import found_share
     from tracker.app.preparation import write_sequence_keypoints
 
     keypoints = write_sequence_keypoints(args.sequence, sources=args.sources, layout=args.layout,

@@ -5,7 +5,7 @@ import argparse
 import logging
 from typing import Sequence
 
-from data_tools.files import check_output_file
+from data_tools.io.files import check_output_file
 from tracker.app.commands.arguments import non_negative_int
 from tracker.app.console import progress_bar
 from tracker.core.errors import InputError

@@ -5,7 +5,7 @@ import argparse
 import logging
 from typing import Sequence
 
-from data_tools.person_segmentation import INSTALL as SEGMENTATION_INSTALL
+from data_tools.vision.person_segmentation import INSTALL as SEGMENTATION_INSTALL
 
 log = logging.getLogger(__name__)
 

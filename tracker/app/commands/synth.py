@@ -5,8 +5,8 @@ import argparse
 import logging
 from typing import Sequence
 
-from data_tools.files import check_output_folder
-from data_tools.synth_settings import SYNTH_OPTIONS, synth_option
+from data_tools.io.files import check_output_folder
+from data_tools.synthesis.synth_settings import SYNTH_OPTIONS, synth_option
 from tracker.app.commands.arguments import JOINT_MAP_HELP, DeprecatedAlias, length_unit_type, positive_int
 from tracker.app.console import progress_bar
 from tracker.app.schema import add_option_flags, argument_type
@@ -47,7 +47,7 @@ def add_parser(sub, parents: list, argv: Sequence[str]) -> argparse.ArgumentPars
 
 
 def run(args: argparse.Namespace) -> int:
-    from data_tools.synth_settings import SYNTH_OPTIONS
+    from data_tools.synthesis.synth_settings import SYNTH_OPTIONS
     from tracker.app.api import synthesize
 
     check_output_folder(args.out, empty=not args.overwrite, replaceable=("cameras.json", "meta.json"))
