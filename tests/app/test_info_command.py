@@ -26,3 +26,13 @@ def test_info_of_a_missing_folder_is_one_line(tmp_path, capsys):
     assert main(["info", str(tmp_path / "none")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "sequence folder does not exist" in err[0]
+
+
+def test_the_extending_guides_command_is_the_shipped_module():
+    """The guide's worked example of a command is ``tracker/app/commands/info.py``, character for character."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    blocks = re.findall(r"```python\n(.*?)```", (root / "docs" / "guide" / "extending.md").read_text(), re.S)
+    assert (root / "tracker" / "app" / "commands" / "info.py").read_text() in blocks

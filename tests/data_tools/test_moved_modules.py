@@ -85,3 +85,20 @@ def test_a_script_is_told_the_new_path_and_the_toolkit_imports_none_of_the_old()
                          cwd=Path(__file__).resolve().parents[2])
     assert run.returncode == 0, run.stderr
     assert "DeprecationWarning: data_tools.files is now data_tools.io.files" in run.stderr
+
+
+def test_the_toolkit_imports_data_tools_by_its_layers():
+    """No module of the toolkit, its benchmarks or its tests imports a former path (this file aside): the
+    aliases are for users' scripts, one version long."""
+    import re
+
+    root = Path(__file__).resolve().parents[2]
+    pattern = re.compile(r"^\s*(?:from|import)\s+(" + "|".join(re.escape(old) for old in MOVED) + r")(?![\w])",
+                         re.M)
+    found = []
+    for folder in ("tracker", "priors", "likelihoods", "data_tools", "benchmarks", "tests", "examples"):
+        for path in (root / folder).rglob("*.py"):
+            if path.resolve() == Path(__file__).resolve():
+                continue
+            found += [f"{path.relative_to(root)}: {m.group(1)}" for m in pattern.finditer(path.read_text())]
+    assert not found, found
