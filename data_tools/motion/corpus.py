@@ -264,3 +264,30 @@ def survey(items: str | Path | Iterable[str | Path], labels: str | Path | None =
             entry.refused = exc.reason
         out.append(entry)
     return out
+
+
+@dataclass(frozen=True)
+class SurveyTotals:
+    """What a survey found, summed: the ``clips`` read, their ``frames`` and ``seconds``, how many clips at each
+    frame ``rates`` (Hz -> count, by rate), and how many files were ``refused``."""
+
+    clips: int
+    frames: int
+    seconds: float
+    rates: dict[float, int]
+    refused: int
+
+    def as_dict(self) -> dict:
+        return {"clips": self.clips, "frames": self.frames, "seconds": round(self.seconds, 3),
+                "rates": {f"{r:g}": n for r, n in self.rates.items()}, "refused": self.refused}
+
+
+def survey_totals(entries: Iterable[CorpusEntry]) -> SurveyTotals:
+    """The totals of :func:`survey`'s entries."""
+    entries = list(entries)
+    clips = [e for e in entries if e.refused is None]
+    rates: dict[float, int] = {}
+    for e in clips:
+        rates[e.fps] = rates.get(e.fps, 0) + 1
+    return SurveyTotals(len(clips), sum(e.frames for e in clips), sum(e.seconds for e in clips),
+                        dict(sorted(rates.items())), len(entries) - len(clips))

@@ -39,35 +39,29 @@ def _shown(path: str) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from data_tools.motion.corpus import survey
+    from data_tools.motion.corpus import survey, survey_totals
     from tracker.app.plugins import load_plugins
 
     load_plugins()  # the readers of installed plugins
     entries = survey(args.paths, args.labels)
     clips = [e for e in entries if e.refused is None]
     refused = [e for e in entries if e.refused is not None]
-    frames = sum(e.frames for e in clips)
-    seconds = sum(e.seconds for e in clips)
-    rates: dict[float, int] = {}
-    for e in clips:
-        rates[e.fps] = rates.get(e.fps, 0) + 1
-    by_rate = ", ".join(f"{n} at {r:g} Hz" for r, n in sorted(rates.items()))
+    totals = survey_totals(entries)
     if args.json:
         print(json.dumps({"clips": [{**e.as_dict(), "file": _shown(e.path)} for e in clips],
                           "refused": [{"file": _shown(e.path), "reason": e.refused} for e in refused],
-                          "total": {"clips": len(clips), "frames": frames, "seconds": round(seconds, 3),
-                                    "rates": {f"{r:g}": n for r, n in sorted(rates.items())},
-                                    "refused": len(refused)}}, indent=1))
-    else:
-        rows = [(_shown(e.path), str(e.frames), f"{e.fps:g}", f"{e.seconds:.1f}", e.naming, e.unit, e.up,
-                 " ".join(f"{k}={v}" for k, v in e.labels.items())) for e in clips]
-        head = ("file", "frames", "Hz", "seconds", "naming", "length unit", "up", "labels")
-        widths = [max(len(r[i]) for r in [head, *rows]) for i in range(len(head))]
-        for row in [head, *rows]:
-            print("  ".join(c.rjust(w) if i in (1, 2, 3) else c.ljust(w)
-                            for i, (c, w) in enumerate(zip(row, widths))).rstrip())
-        for e in refused:
-            print(f"refused {_shown(e.path)}: {e.refused}")
-        print(f"total: {len(clips)} clip(s), {frames} frames, {seconds / 60:.1f} min ({by_rate or 'none'}); "
-              f"{len(refused)} refused")
+                          "total": totals.as_dict()}, indent=1))
+        return 2 if refused else 0
+    rows = [(_shown(e.path), str(e.frames), f"{e.fps:g}", f"{e.seconds:.1f}", e.naming, e.unit, e.up,
+             " ".join(f"{k}={v}" for k, v in e.labels.items())) for e in clips]
+    head = ("file", "frames", "Hz", "seconds", "naming", "length unit", "up", "labels")
+    widths = [max(len(r[i]) for r in [head, *rows]) for i in range(len(head))]
+    for row in [head, *rows]:
+        print("  ".join(c.rjust(w) if i in (1, 2, 3) else c.ljust(w)
+                        for i, (c, w) in enumerate(zip(row, widths))).rstrip())
+    for e in refused:
+        print(f"refused {_shown(e.path)}: {e.refused}")
+    by_rate = ", ".join(f"{n} at {r:g} Hz" for r, n in totals.rates.items())
+    print(f"total: {totals.clips} clip(s), {totals.frames} frames, {totals.seconds / 60:.1f} min "
+          f"({by_rate or 'none'}); {totals.refused} refused")
     return 2 if refused else 0
