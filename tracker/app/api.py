@@ -80,9 +80,6 @@ def load_clip(mocap: str | Path, skeleton: str | Path | None = None, fps: float 
     file's own rate; other rates are interpolated). ``joint_map`` (a JSON or TOML file, or a mapping of body
     points to the file's joint names) is for skeletons whose names are not recognised
     (docs/guide/motion_capture.md). Converted clips are cached (:func:`load_clips`)."""
-    from tracker.app.plugins import load_plugins
-
-    load_plugins()  # the mocap readers of installed plugins (entry points) register on import
     return load_retargeted(mocap, skeleton, fps, length_unit, joint_map)
 
 
@@ -97,9 +94,7 @@ def read_clip(mocap: str | Path, skeleton: str | Path | None = None, fps: float 
     :data:`RESIDUAL_WARNING_MM` is warned of, naming the likely cause."""
     from data_tools.motion.load import load_mocap
     from data_tools.motion.retarget import retarget
-    from tracker.app.plugins import load_plugins
 
-    load_plugins()  # the mocap readers of installed plugins (entry points) register on import
     clip = load_mocap(mocap, skeleton, length_unit, joint_map=joint_map)
     name = Path(mocap).name
     for note in clip.notes:

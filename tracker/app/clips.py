@@ -23,9 +23,6 @@ def load_clips(mocap: str | Path | Iterable[str | Path], skeletons: Iterable[str
     one per file (as :func:`tracker.train` takes them). ``cache``: the folder of converted clips, so that each
     file is retargeted once (True: the user's cache folder, ``$POSE_TRACKER_CACHE``; None or False: none)."""
     from data_tools.motion.load import load_training_clips
-    from tracker.app.plugins import load_plugins
-
-    load_plugins()
     return load_training_clips(mocap, skeletons, fps, joint_maps, cache=Path(cache) if isinstance(cache, (str, Path))
                                else cache)
 

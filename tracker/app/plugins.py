@@ -13,6 +13,7 @@ from importlib.metadata import entry_points
 from pathlib import Path
 
 from tracker.core.errors import InputError
+from data_tools.motion.readers import READERS
 from tracker.engine.registry import LIKELIHOODS, PRIORS, LikelihoodEntry, PriorEntry
 
 #: Entry-point group through which an installed package adds priors or likelihoods.
@@ -39,27 +40,27 @@ def load_plugins() -> None:
     _loaded = True
 
 
+#: The registries fill themselves from the plugins before their first lookup, wherever it comes from.
+PRIORS.fill = LIKELIHOODS.fill = READERS.fill = load_plugins
+
+
 def prior_entry(name: str) -> PriorEntry:
     """The registered prior ``name`` (an :class:`InputError` naming the available ones if none is)."""
-    load_plugins()
     return PRIORS.get(name)
 
 
 def likelihood_entry(name: str) -> LikelihoodEntry:
     """The registered likelihood ``name`` (an :class:`InputError` naming the available ones if none is)."""
-    load_plugins()
     return LIKELIHOODS.get(name)
 
 
 def available_priors() -> list[str]:
     """Names of the registered priors (built-in and plugins)."""
-    load_plugins()
     return PRIORS.names()
 
 
 def available_likelihoods() -> list[str]:
     """Names of the registered likelihoods."""
-    load_plugins()
     return LIKELIHOODS.names()
 
 

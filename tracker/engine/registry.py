@@ -390,6 +390,18 @@ class Registry(Generic[E]):
     key: str = "name"
     function: str = "build"
     taken: str = "a {kind} named {key!r} is already registered by {old}; {new} cannot take the name"
+    #: What fills the registry before its first lookup: the application sets the one function that imports the
+    #: plugins (:func:`tracker.app.plugins.load_plugins`), so that no caller has to remember to.
+    fill: Callable[[], None] | None = None
+    _filling: bool = field(default=False, repr=False)
+
+    def _filled(self) -> None:
+        if self.fill is not None and not self._filling:
+            self._filling = True
+            try:
+                self.fill()
+            finally:
+                self._filling = False
 
     def add(self, entry: E) -> E:
         key = getattr(entry, self.key)
@@ -402,19 +414,23 @@ class Registry(Generic[E]):
         return entry
 
     def get(self, name: str) -> E:
+        self._filled()
         if name not in self.entries:
             raise InputError(f"unknown {self.kind} {name!r}; available: {', '.join(self.names())}")
         return self.entries[name]
 
     def find(self, name: str) -> E | None:
         """The entry registered as ``name``, None when there is none."""
+        self._filled()
         return self.entries.get(name)
 
     def names(self) -> list[str]:
+        self._filled()
         return list(self.entries)
 
     def values(self) -> list[E]:
         """Every entry, in the order they registered."""
+        self._filled()
         return list(self.entries.values())
 
 

@@ -40,9 +40,6 @@ def _shown(path: str) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from data_tools.motion.corpus import survey, survey_totals
-    from tracker.app.plugins import load_plugins
-
-    load_plugins()  # the readers of installed plugins
     entries = survey(args.paths, args.labels)
     clips = [e for e in entries if e.refused is None]
     refused = [e for e in entries if e.refused is not None]
