@@ -11,6 +11,7 @@ This module imports no renderer, so help texts and experiment files read it chea
 """
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, fields
 from typing import Any, Mapping
 
@@ -18,7 +19,7 @@ from data_tools.io.checks import MAX_FPS, MAX_IMAGE_SIDE, MAX_VIEWS, MIN_FPS
 from tracker.core.errors import InputError
 from tracker.engine.registry import Option
 
-__all__ = ["SYNTH_OPTIONS", "SynthConfig", "synth_option", "FIELD_OF"]
+__all__ = ["SYNTH_OPTIONS", "SynthConfig", "synth_option", "FIELD_OF", "renamed_views"]
 
 SYNTH_OPTIONS: tuple[Option, ...] = (
     Option("cameras", int, 4, "number of cameras", minimum=1, maximum=MAX_VIEWS),
@@ -41,6 +42,19 @@ SYNTH_OPTIONS: tuple[Option, ...] = (
 
 #: The :class:`SynthConfig` field of each option whose field is named otherwise.
 FIELD_OF: Mapping[str, str] = {"cameras": "views"}
+
+
+def renamed_views(settings: Mapping[str, Any], owner: str) -> dict[str, Any]:
+    """``settings`` with ``views``, the former name of ``cameras`` (a number of cameras: tracking's ``views`` are
+    camera indices), renamed, and a deprecation warning naming ``owner``; both given is an :class:`InputError`."""
+    settings = dict(settings)
+    if "views" in settings:
+        if "cameras" in settings:
+            raise InputError("give the number of cameras once: cameras, not both cameras and views")
+        logging.getLogger(__name__).warning(f"{owner}: views is deprecated and will be removed: use cameras (the "
+                                            "number of cameras to render; tracking's views are camera indices)")
+        settings["cameras"] = settings.pop("views")
+    return settings
 
 
 def synth_option(name: str) -> Option:
@@ -82,17 +96,19 @@ class SynthConfig:
             value = getattr(self, name)
             if option.type is bool and not isinstance(value, bool):  # true or false, not a number
                 raise InputError(f"synth setting: {option.name} must be true or false, got {value!r}")
+            if value is None and option.default is not None:  # only the settings whose default is "none" take None
+                raise InputError(f"synth setting: {option.name} must be given (default {option.default!r}), got None")
             object.__setattr__(self, name, option.parse(value, "synth setting"))
 
     @classmethod
     def of(cls, settings: Mapping[str, Any], owner: str = "synth setting") -> "SynthConfig":
-        """The settings given by option name (``cameras``, ``lighting_change``, ...; the rest default); an
-        unknown name is an :class:`InputError` naming ``owner`` and the settings there are."""
-        known = {o.name for o in SYNTH_OPTIONS}
-        unknown = sorted(set(settings) - known)
+        """The settings given by option name (``cameras``, ``lighting_change``, ...; the rest, and those given as
+        None, default); an unknown name is an :class:`InputError` naming ``owner`` and the settings there are."""
+        known = [o.name for o in SYNTH_OPTIONS]
+        unknown = sorted(set(settings) - set(known))
         if unknown:
             raise InputError(f"unknown {owner} {', '.join(map(repr, unknown))} (the settings: {', '.join(known)})")
-        return cls(**{FIELD_OF.get(k, k): v for k, v in settings.items()})
+        return cls(**{FIELD_OF.get(k, k): v for k, v in settings.items() if v is not None})  # None: the default
 
     def as_options(self) -> dict[str, Any]:
         """The settings by option name (``cameras``, not ``views``)."""

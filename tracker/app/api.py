@@ -127,16 +127,12 @@ def synthesize(mocap: str | Path | RetargetResult, out: str | Path, *, skeleton:
     from data_tools.io.files import check_output_folder
     from data_tools.motion.transition import cross_fade
     from data_tools.synthesis.synth import SynthConfig, synthesize as render_sequence
+    from data_tools.synthesis.synth_settings import renamed_views
 
     # before any work; the refusal says how the caller asks to replace the folder
     check_output_folder(out, empty=not overwrite, replaceable=("cameras.json", "meta.json"),
                         overwrite_flag=overwrite_flag)
-    if "views" in settings:
-        log.warning("synthesize(views=N) is deprecated and will be removed: use cameras=N (a number of cameras; "
-                    "track's views are camera indices)")
-        if "cameras" in settings:
-            raise InputError("give the number of cameras once: cameras, not both cameras and views")
-        settings["cameras"] = settings.pop("views")
+    settings = {k: v for k, v in renamed_views(settings, "synthesize").items() if v is not None}  # None: default
     if config is not None and settings:
         raise InputError(f"give the rendering settings in config or as keywords, not both ({', '.join(settings)})")
     config = config or SynthConfig.of(settings)

@@ -93,7 +93,6 @@ This module reads the file into the experiment's spec (:mod:`tracker.app.experim
 """
 from __future__ import annotations
 
-import logging
 import os
 import shlex
 import sys
@@ -101,7 +100,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from data_tools.synthesis.synth_settings import SYNTH_OPTIONS, SynthConfig
+from data_tools.synthesis.synth_settings import SYNTH_OPTIONS, SynthConfig, renamed_views
 from tracker.app.experiment_spec import (ClipSpec, Experiment, LikelihoodSpec, PriorSpec,  # noqa: F401 (re-exported)
                                          SequenceSpec, TrainSpec)
 from tracker.app.run_grid import RunSpec, expand_runs, row_label, run_seed  # noqa: F401 (re-exported)
@@ -472,12 +471,10 @@ def load_experiment(path: str | Path, data_root: str | Path | None = None) -> Ex
                 raise w.error(entry, f"{', '.join(folder_only)} apply to sequence folders (path = ...), not to "
                                      "rendered sequences, which start from their ground truth")
             synth = {k: v for k, v in s.items() if k not in ("name", "mocap", "skeleton")}
-            if "views" in synth:  # the former name of cameras (a number of cameras; [tracking] views are indices)
-                if "cameras" in synth:
-                    raise w.error(entry, "give the number of cameras once: cameras, not both cameras and views")
-                logging.getLogger(__name__).warning(f"{path}: {entry}: views is deprecated and will be removed: "
-                                                    "use cameras (the number of cameras to render)")
-                synth["cameras"] = synth.pop("views")
+            try:
+                synth = renamed_views(synth, f"{path}: {entry}")
+            except InputError as exc:
+                raise w.error(entry, exc.reason) from None
             try:  # every rendering setting checked now, not when the runner reaches this sequence
                 rendering = SynthConfig.of({"fps": float(fps), **{k: v for k, v in synth.items()
                                                                   if k not in TRANSITION_KEYS}})

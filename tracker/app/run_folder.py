@@ -93,26 +93,56 @@ class TrackRequest:
         """The request :meth:`as_json` wrote; anything else is an :class:`InputError` naming ``path``."""
         if data.get("format") != REQUEST_FORMAT:
             raise InputError(f"not a saved track request of this version (format {data.get('format')!r})", path)
+        kinds = {"sequence": str, "prior": str, "models": list, "likelihood": (str, type(None)),
+                 "settings": dict, "options": dict, "init": (str, type(None)), "train_mocap": (list, type(None)),
+                 "video": (str, type(None)), "plugins": list}
+        fields = {k: v for k, v in data.items() if k != "format"}
+        wrong = sorted(k for k, v in fields.items() if k not in kinds or not isinstance(v, kinds[k]))
+        missing = sorted({"sequence", "prior"} - set(fields))
+        if wrong or missing:
+            raise InputError(f"saved track request is malformed ({', '.join(wrong + missing)})", path)
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in fields.items()})
+
+    @classmethod
+    def from_earlier(cls, saved: Mapping[str, Any], path: Path) -> "TrackRequest":
+        """The request of a file an earlier version kept: the command line's parsed arguments (``model``,
+        ``plugin``, ``views`` as text, each option under its own name, None where not given)."""
+        from tracker.app.schema import TRACK_SETTINGS
+
+        fields = {"sequence", "prior", "model", "likelihood", "views", "init", "train_mocap", "video", "plugin",
+                  "overwrite", "out", "command", "resume", "threads", "quiet", "verbose", "argv"}
         try:
-            return cls(**{k: tuple(v) if k in ("models", "plugins") or (k == "train_mocap" and v is not None)
-                          else v for k, v in data.items() if k != "format"})
-        except TypeError as exc:
-            raise InputError(f"saved track request is malformed ({exc})", path) from None
+            views = saved.get("views")
+            if isinstance(views, str):
+                views = [int(v) for v in views.split(",") if v.strip()]
+            settings = {k: saved[k] for k in TRACK_SETTINGS if k != "views" and saved.get(k) is not None}
+            options = {k: v for k, v in saved.items() if k not in fields and k not in TRACK_SETTINGS and v is not None}
+            return cls.of(saved["sequence"], saved["prior"], models=saved.get("model") or (),
+                          likelihood=saved.get("likelihood"), init=saved.get("init"),
+                          train_mocap=saved.get("train_mocap"), video=saved.get("video"),
+                          plugins=saved.get("plugin") or (), views=views, **settings, **options)
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise InputError(f"saved track arguments are malformed ({type(exc).__name__}: {exc})", path) from None
 
     def differences(self, other: "TrackRequest") -> list[str]:
-        """The names (request fields, settings and options) in which ``other`` asks for something else."""
+        """The names (request fields, settings and options) in which ``other`` asks for something else; a setting
+        left out counts as its default (:mod:`tracker.app.schema`), so that the command line's request, which
+        names every setting, and Python's, which names those given, agree where they ask for the same run."""
+        from tracker.app.schema import defaults
+
         def flat(r: TrackRequest) -> dict:
             d = r.as_json()
-            return {**{k: v for k, v in d.items() if k not in ("settings", "options")}, **d["settings"],
-                    **d["options"]}
+            settings = {**defaults(), **{k: v for k, v in d["settings"].items() if v is not None}}
+            return {**{k: v for k, v in d.items() if k not in ("settings", "options")},
+                    **json.loads(json.dumps(settings)), **d["options"]}
 
         a, b = flat(self), flat(other)
         return sorted(k for k in set(a) | set(b) if a.get(k) != b.get(k))
 
 
-def saved_request(out: str | Path, earlier: Callable[[dict], TrackRequest] | None = None) -> TrackRequest | None:
-    """The request of the unfinished run in ``out`` (None where none is kept), its plugins imported. A file an
-    earlier version kept (the command line's parsed arguments) is read by ``earlier``, where given."""
+def saved_request(out: str | Path) -> TrackRequest | None:
+    """The request of the unfinished run in ``out`` (None where none is kept), its plugins imported; also one an
+    earlier version kept (:meth:`TrackRequest.from_earlier`)."""
     from data_tools.io.textfiles import read_json
     from tracker.app.plugins import import_plugin
 
@@ -122,10 +152,13 @@ def saved_request(out: str | Path, earlier: Callable[[dict], TrackRequest] | Non
     data = read_json(path, "saved track request")
     if not isinstance(data, dict):
         raise InputError("saved track request is not a JSON object", path)
-    for spec in data.get("plugins", data.get("plugin", [])):  # before the request's prior is looked up
+    plugins = data.get("plugins", data.get("plugin", []))
+    if not isinstance(plugins, list) or not all(isinstance(p, str) for p in plugins):
+        raise InputError("saved track request is malformed (plugins)", path)
+    for spec in plugins:  # before the request's prior is looked up
         import_plugin(spec)
-    if "format" not in data and earlier is not None:
-        return earlier(data)
+    if "format" not in data:
+        return TrackRequest.from_earlier(data, path)
     return TrackRequest.from_json(data, path)
 
 

@@ -103,7 +103,7 @@ def _track_request(args: argparse.Namespace):
 
 
 def _resumed_request(args: argparse.Namespace):
-    """The request kept in the folder of ``--resume`` (also one an earlier version kept: its parsed arguments)."""
+    """The request kept in the folder of ``--resume``; ``--resume`` takes no other arguments."""
     from tracker.app.run_folder import saved_request
 
     program = argparse.ArgumentParser()
@@ -113,8 +113,7 @@ def _resumed_request(args: argparse.Namespace):
              and v not in (None, False, [], defaults.get(k))]
     if given:
         raise InputError(f"--resume takes no other arguments (got {', '.join('--' + g for g in given)})")
-    return saved_request(args.resume, earlier=lambda saved: _track_request(argparse.Namespace(
-        **{**defaults, **saved, "plugin": saved.get("plugin", [])})))
+    return saved_request(args.resume)
 
 
 def run(args: argparse.Namespace) -> int:
