@@ -456,7 +456,7 @@ def read_sequence(root: str | Path, keypoints: bool = True) -> Sequence:
     False leaves its ``keypoints/keypoints.npz`` unread (for what replaces that file, which may be broken)."""
     root = Path(root)
     if not root.is_dir():
-        raise InputError("sequence folder does not exist", root)
+        raise InputError("not a sequence folder: a file" if root.exists() else "sequence folder does not exist", root)
     if (root / "cameras.json").exists():
         return _read_own(root, keypoints)
     if (root / "CALIB").is_dir():

@@ -20,14 +20,24 @@ from tracker.engine.registry import LIKELIHOODS, PRIORS, LikelihoodEntry, PriorE
 ENTRY_POINT_GROUP = "pose_tracker.plugins"
 _BUILTIN_PACKAGES = ("priors", "likelihoods")
 _loaded = False
+_loading = False
 
 
 def load_plugins() -> None:
     """Import the modules each built-in plugin package lists in ``BUILTIN_MODULES`` (the ones that register its
     priors or likelihoods) and every ``pose_tracker.plugins`` entry point (once per process)."""
-    global _loaded
-    if _loaded:
+    global _loaded, _loading
+    if _loaded or _loading:  # a plugin module that looks a name up while it is imported: the table is filling
         return
+    _loading = True
+    try:
+        _import_plugins()
+    finally:
+        _loading = False
+    _loaded = True
+
+
+def _import_plugins() -> None:
     for package in _BUILTIN_PACKAGES:
         for module in importlib.import_module(package).BUILTIN_MODULES:
             importlib.import_module(module)
@@ -37,7 +47,6 @@ def load_plugins() -> None:
         except Exception as exc:  # noqa: BLE001 -- a broken third-party plugin must not take the tool down
             raise InputError(f"plugin entry point {ep.name} ({ep.value}) failed to load: "
                              f"{type(exc).__name__}: {exc}") from None
-    _loaded = True
 
 
 #: The registries fill themselves from the plugins before their first lookup, wherever it comes from.

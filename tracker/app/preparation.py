@@ -32,10 +32,12 @@ class Silhouettes:
     person_share: tuple[float, ...]
 
 
-def write_silhouettes(sequence, method: str | None = None, *, overwrite: bool = False) -> Silhouettes:
+def write_silhouettes(sequence, method: str | None = None, *, overwrite: bool = False,
+                      overwrite_flag: str = "overwrite=True") -> Silhouettes:
     """Write ``masks/<camera>/NNNNNN.png`` into ``sequence`` (a folder of this toolkit's layout, or a loaded
     :class:`~data_tools.sequences.sequence.Sequence`) by ``method`` (:mod:`tracker.app.silhouettes`; default
-    :func:`~tracker.app.silhouettes.default_method`). A sequence that has masks is refused unless ``overwrite``."""
+    :func:`~tracker.app.silhouettes.default_method`). A sequence that has masks is refused unless ``overwrite``
+    (``overwrite_flag``: how the refusal says so)."""
     from data_tools.sequences.sequence import OWN, read_sequence
     from tracker.app.silhouettes import default_method, write_sequence_masks
 
@@ -43,7 +45,7 @@ def write_silhouettes(sequence, method: str | None = None, *, overwrite: bool = 
     if seq.layout != OWN:
         raise InputError("silhouettes are written into sequence folders of this toolkit's layout only", seq.root)
     if seq.mask_paths is not None and not overwrite:
-        raise InputError("the sequence already has masks/ (pass --overwrite to replace them)", seq.root)
+        raise InputError(f"the sequence already has masks/ (pass {overwrite_flag} to replace them)", seq.root)
     method = method or default_method(seq)  # (runs the person model: after the refusals)
     shares = write_sequence_masks(seq, method)
     return Silhouettes(seq.root, method, tuple(seq.rig.names), seq.n_frames, tuple(float(f) for f in shares))
@@ -51,17 +53,18 @@ def write_silhouettes(sequence, method: str | None = None, *, overwrite: bool = 
 
 def write_sequence_keypoints(sequence: str | Path, *, sources: Sequence[str] | None = None,
                              layout: str | None = None, overwrite: bool = False,
-                             progress: Callable[[int, int], None] | None = None):
+                             progress: Callable[[int, int], None] | None = None,
+                             overwrite_flag: str = "overwrite=True"):
     """Write ``keypoints/keypoints.npz`` into ``sequence`` (a folder) and return the keypoints: read from another
     tool's files (``sources``: one per camera in the sequence's camera order, or ``CAMERA=PATH`` each; ``layout``
     their keypoint layout where the point count does not tell it) or, without ``sources``, detected in the
     sequence's images (``progress(done, total)`` over the images). A sequence that has keypoints is refused
-    unless ``overwrite``."""
+    unless ``overwrite`` (``overwrite_flag``: how the refusal says so)."""
     from data_tools.sequences.keypoint_file import keypoints_path, write_keypoints
 
     path = keypoints_path(sequence)
     if path.exists() and not overwrite:
-        raise InputError("the sequence already has keypoints (pass --overwrite to replace them)", path)
+        raise InputError(f"the sequence already has keypoints (pass {overwrite_flag} to replace them)", path)
     if sources:
         from data_tools.vision.keypoints.readers import import_keypoints
 
@@ -116,9 +119,13 @@ def initialise_sequence(sequence: str | Path, out: str | Path, *, evidence: str 
     from data_tools.io.files import check_output_file
     from data_tools.sequences.sequence import OWN, read_sequence, write_meta
 
-    out = check_output_file(out, "--out", (".npz",), new=not overwrite, overwrite_flag=overwrite_flag)
-    if frames < 1:
-        raise InputError(f"--frames must be at least 1, got {frames}")
+    out = check_output_file(out, "the poses file", (".npz",), new=not overwrite, overwrite_flag=overwrite_flag)
+    if isinstance(frames, bool) or not isinstance(frames, int) or frames < 1:
+        raise InputError(f"frames must be an integer of at least 1, got {frames!r}")
+    if evidence not in (None, "keypoints", "silhouettes"):
+        raise InputError(f"evidence must be keypoints or silhouettes, got {evidence!r}")
+    if proportions not in ("scale", "landmarks"):
+        raise InputError(f"proportions must be scale or landmarks, got {proportions!r}")
     seq = read_sequence(sequence)
     if seq.layout != OWN:
         raise InputError("initialise writes the fitted shape into meta.json: this toolkit's layout only",
@@ -126,7 +133,7 @@ def initialise_sequence(sequence: str | Path, out: str | Path, *, evidence: str 
     evidence = evidence or ("keypoints" if seq.keypoints is not None else "silhouettes")
     if evidence == "keypoints":
         if near is not None or proportions != "scale":
-            raise InputError("--near and --proportions apply to a start from silhouettes (--evidence silhouettes)")
+            raise InputError("near and proportions apply to a start from silhouettes (evidence silhouettes)")
         from tracker.app.keypoint_start import initialise_from_keypoints
 
         fitted = initialise_from_keypoints(seq, known_frames=frames)

@@ -428,6 +428,19 @@ class Registry(Generic[E]):
         self._filled()
         return list(self.entries)
 
+    def __contains__(self, name: object) -> bool:
+        self._filled()
+        return name in self.entries
+
+    def __getitem__(self, name: str) -> E:
+        """The entry registered as ``name`` (a ``KeyError`` where there is none, as a dict's)."""
+        self._filled()
+        return self.entries[name]
+
+    def __len__(self) -> int:
+        self._filled()
+        return len(self.entries)
+
     def values(self) -> list[E]:
         """Every entry, in the order they registered."""
         self._filled()

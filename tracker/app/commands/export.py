@@ -32,7 +32,6 @@ def add_parser(sub, parents: list, argv: Sequence[str]) -> argparse.ArgumentPars
 def run(args: argparse.Namespace) -> int:
     from tracker.app.exporting import export_run
 
-    for line in export_run(args.run, bvh=args.bvh, trc=args.trc, unit=args.unit, sequence=args.sequence,
-                           overwrite=args.overwrite, overwrite_flag="--overwrite"):
-        print(line)
+    export_run(args.run, bvh=args.bvh, trc=args.trc, unit=args.unit, sequence=args.sequence, overwrite=args.overwrite,
+               overwrite_flag="--overwrite", on_written=print)
     return 0

@@ -62,7 +62,8 @@ def run(args: argparse.Namespace) -> int:
     from tracker.app.preparation import write_sequence_keypoints
 
     keypoints = write_sequence_keypoints(args.sequence, sources=args.sources, layout=args.layout,
-                                         overwrite=args.overwrite, progress=_count_bar("keypoints", "image"))
+                                         overwrite=args.overwrite, progress=_count_bar("keypoints", "image"),
+                                         overwrite_flag="--overwrite")
     source = keypoints.source
     detector = " ".join(str(s) for s in (source.get("detector", "detector"), source.get("version")) if s)
     layout = f", {source['layout']} layout" if source.get("layout") else ""

@@ -36,7 +36,7 @@ def add_parser(sub, parents: list, argv: Sequence[str]) -> argparse.ArgumentPars
 def run(args: argparse.Namespace) -> int:
     from tracker.app.preparation import write_silhouettes
 
-    written = write_silhouettes(args.sequence, args.method, overwrite=args.overwrite)
+    written = write_silhouettes(args.sequence, args.method, overwrite=args.overwrite, overwrite_flag="--overwrite")
     for cam, share in zip(written.cameras, written.person_share):
         log.info(f"{cam}: the person covers {100 * share:.1f}% of the image on average")
     print(f"{len(written.cameras)} cameras x {written.frames} frames of silhouettes ({written.method}) -> "
