@@ -29,13 +29,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from likelihoods.ground_contact import GroundContact, GroundContactConfig
 from tracker.core.arrays import device as device_of, is_cpu, namespace, torch_device
 from tracker.core.body import BodyModel
 from tracker.core.cameras import CameraRig
 from tracker.core.cones import contour_corners
 from tracker.core.errors import InputError
 from tracker.core.workers import share
-from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood
+from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood, SumOfLikelihoods
 from tracker.engine.registry import LikelihoodContext, Option, register_likelihood
 
 if TYPE_CHECKING:  # the image code (OpenCV, numba) loads when a likelihood is built, not when it registers
@@ -432,9 +433,17 @@ def _uncovered(u, v, foreground: list):
     options=(Option("sharpness", float, EdgeSilhouetteConfig.sharpness, "likelihood sharpness", minimum=0.0,
                     strict=True, maximum=1e6),
              Option("bidirectional", bool, False,
-                    "also penalise foreground the model does not cover (for monocular tracking)")))
-def build_edge_silhouette(context: LikelihoodContext, options: dict) -> EdgeSilhouetteLikelihood:
+                    "also penalise foreground the model does not cover (for monocular tracking)"),
+             Option("ground_std", float, 0.0, "ground contact, for one camera: spread of the lowest foot's height "
+                    "about the known frames' (likelihoods.ground_contact; 20 measured best with one view), 0 off",
+                    minimum=0.0, maximum=1e6, unit="mm"),
+             Option("root_height_std", float, 0.0, "ground contact, for one camera: spread of the root's height "
+                    "about the known frames' (60 measured best with one view), 0 off", minimum=0.0, maximum=1e6,
+                    unit="mm")))
+def build_edge_silhouette(context: LikelihoodContext, options: dict) -> Likelihood:
     config = EdgeSilhouetteConfig(sharpness=options["sharpness"], bidirectional=options["bidirectional"])
     # On the CPU the compiled path (faster there than torch); "cpu:0" too.
     device = None if is_cpu(context.device) else context.device
-    return EdgeSilhouetteLikelihood(context.body_model, context.rig, config, device=device, threads=context.threads)
+    images = EdgeSilhouetteLikelihood(context.body_model, context.rig, config, device=device, threads=context.threads)
+    ground = GroundContactConfig(ground_std=options["ground_std"], root_height_std=options["root_height_std"])
+    return SumOfLikelihoods([images, GroundContact(context.body_model, ground)]) if ground.active else images

@@ -186,7 +186,7 @@ def test_the_api_and_experiment_files_count_cameras_too(tmp_path, caplog):
 
     with caplog.at_level(logging.WARNING):
         seq = tracker.synthesize(WALKS[1], tmp_path / "s", skeleton=ASF, views=1, frames=2, width=64, height=48)
-    assert seq.n_views == 1 and "use cameras=N" in caplog.text
+    assert seq.n_views == 1 and "synthesize: views is deprecated" in caplog.text and "use cameras" in caplog.text
     caplog.clear()
     experiment = tmp_path / "e.toml"
     for key, warned in (("cameras", False), ("views", True)):

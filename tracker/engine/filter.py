@@ -143,6 +143,7 @@ class ParticleFilter:
         if len(recent) < N:  # pad the oldest slots with the earliest known pose
             recent = np.concatenate([np.repeat(recent[:1], N - len(recent), axis=0), recent])
         history = np.repeat(recent[None], P, axis=0)
+        self.likelihood.start(known)
         prior_state = self.prior.start(known, P, self.rng)
         weights = self.weighing.start_weights(prior_state)
         return FilterState(history, prior_state, weights, recent.copy(), min(len(known), N))
@@ -277,6 +278,9 @@ class ParticleFilter:
         small, and a parallel BLAS call leaves its threads spinning on the cores the likelihood's threads need).
         """
         recording = record if isinstance(record, Recording) else Recording(record)
-        state = self.start(known) if state is None else state
+        if state is None:
+            state = self.start(known)
+        else:  # a stopped run continued: the likelihood sees the known poses as at the start
+            self.likelihood.start(known)
         return run_frames(self.step, state, frames, self.likelihood, recording, on_frame, on_state,
                           workers).result()

@@ -86,6 +86,11 @@ class Likelihood(ABC):
         """The likelihood's settings as plain JSON values, recorded in ``result.json`` (none by default)."""
         return {}
 
+    def start(self, known: np.ndarray) -> None:
+        """Sees the known poses ``n0 x D`` the filter starts from, before the first frame and again when a stopped
+        run continues: a likelihood that scores against them (the floor's height) keeps what it needs. Nothing by
+        default."""
+
 
 class SumOfLikelihoods(Likelihood):
     """Independent evidence multiplied: the log-likelihoods of ``parts`` (each scoring the same views) added,
@@ -105,6 +110,10 @@ class SumOfLikelihoods(Likelihood):
 
     def settings(self) -> dict:
         return {p.name: p.settings() for p in self.parts}
+
+    def start(self, known: np.ndarray) -> None:
+        for part in self.parts:
+            part.start(known)
 
 
 class _PreparedSum(FrameLikelihood):
