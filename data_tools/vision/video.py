@@ -28,6 +28,7 @@ from data_tools.io.files import fresh_beside
 from data_tools.sequences.calibration import checked_camera
 from data_tools.sequences.rig_formats import read_rig
 from data_tools.sequences.sequence import FRAME_NAME, _stderr_silenced, write_image, write_sequence_header
+from data_tools.vision.import_settings import import_option
 from tracker.core.cameras import Camera, CameraRig
 from tracker.core.errors import InputError
 
@@ -229,7 +230,8 @@ def staged_folder(out: Path) -> Iterator[Path]:
 
 
 def import_videos(calibration: str | Path | Sequence[str | Path], videos: Sequence[str | Path], out: str | Path, *,
-                  downscale: float = 1.0, frames: tuple[int, int | None] | str | None = None,
+                  downscale: float = import_option("downscale").default,
+                  frames: tuple[int, int | None] | str | None = None,
                   mapping: Mapping[str, str] | None = None,
                   progress: Callable[[Iterable], Iterable] | None = None) -> ImportResult:
     """Turn one video per calibrated camera into a sequence folder ``out`` that ``track`` reads.
@@ -239,8 +241,7 @@ def import_videos(calibration: str | Path | Sequence[str | Path], videos: Sequen
     ``"A:B"``, required when the videos' counts differ; ``mapping`` pairs cameras with videos by name
     (:func:`pair_videos`). The folder has no background plates: add silhouettes (``masks/``) before tracking.
     """
-    if not 1.0 <= float(downscale) <= 64.0:
-        raise InputError(f"downscale must be between 1 and 64, got {downscale}")
+    downscale = import_option("downscale").parse(downscale, "import")
     if isinstance(frames, str):
         frames = parse_frame_range(frames)
     videos = [Path(v) for v in videos]

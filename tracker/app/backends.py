@@ -9,9 +9,23 @@ from typing import Callable, Iterator
 
 from tracker.app.run_grid import RunSpec
 from tracker.core.errors import InputError
+from tracker.engine.registry import Option
 
 #: The backends ``compare --backend`` offers.
 BACKENDS = ("joblib", "dask", "ray")
+#: Where and how widely an experiment runs, declared once: ``compare``'s flags and :func:`tracker.compare`'s
+#: keywords (and defaults) derive from them.
+EXECUTION_OPTIONS: tuple[Option, ...] = (
+    Option("jobs", int, 1, "parallel runs", minimum=1),
+    Option("backend", str, "joblib", "joblib (this machine), dask or ray (a local cluster, or --address)",
+           choices=BACKENDS),
+    Option("address", str, None, "scheduler address of an existing Dask or Ray cluster"),
+)
+
+
+def execution_default(name: str):
+    """The default of the execution setting ``name``."""
+    return next(o.default for o in EXECUTION_OPTIONS if o.name == name)
 
 
 def _ready() -> bool:

@@ -30,6 +30,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from data_tools.vision.import_settings import import_option
 from tracker.app.schema import setting
 from tracker.core.errors import InputError
 from tracker.engine.registry import Option
@@ -42,7 +43,7 @@ CAPTURE_OPTIONS: tuple[Option, ...] = (
     Option("prior", str, "mixture", "motion prior (default mixture: the shipped neural prior with zero-velocity)"),
     setting("particles"),
     replace(setting("seed"), help="random seed of the tracking"),
-    Option("downscale", float, 4.0, "shrink every frame by F before everything else", minimum=1.0, maximum=64.0),
+    replace(import_option("downscale"), default=4.0, help="shrink every frame by F before everything else"),
     Option("frames", str, None, "video frames A to B-1 (default: all the videos share)"),
 )
 

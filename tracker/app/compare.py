@@ -27,7 +27,7 @@ import numpy as np
 
 from data_tools.io.files import atomic_path, first_missing, undone_unless_started, write_text_atomic, writing
 from data_tools.io.fingerprints import CACHE_NAME, config_hash, file_hash, sequence_hash
-from tracker.app.backends import BACKENDS, run_all, warm_joblib_workers
+from tracker.app.backends import EXECUTION_OPTIONS, execution_default, run_all, warm_joblib_workers
 from tracker.app.clips import load_clip_specs
 from tracker.app.experiment import load_experiment
 from tracker.app.experiment_spec import Experiment
@@ -247,10 +247,11 @@ def _execute_run(spec: RunSpec, final: Path, tmp: Path) -> dict:
 
 # -- the whole experiment -------------------------------------------------------------------------------------
 
-def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str = "joblib",
-            address: str | None = None, threads: int | None = None, say: Callable[[str], None] | None = None,
-            progress: bool = True, data_root: str | Path | None = None, videos: bool = True,
-            overwrite: bool = False, command: str | None = None) -> dict:
+def compare(experiment: str | Path, out: str | Path, jobs: int = execution_default("jobs"),
+            backend: str = execution_default("backend"), address: str | None = execution_default("address"),
+            threads: int | None = None, say: Callable[[str], None] | None = None, progress: bool = True,
+            data_root: str | Path | None = None, videos: bool = True, overwrite: bool = False,
+            command: str | None = None) -> dict:
     """Run an experiment (validated whole first), skipping finished runs; write and return its tables.
 
     ``out`` is a new or empty folder, or an earlier compare output (it holds ``experiment.json``), which is
@@ -271,10 +272,8 @@ def compare(experiment: str | Path, out: str | Path, jobs: int = 1, backend: str
     from tracker.app.report import write_report
     from tracker.app.threads import share_of_cores
 
-    if jobs < 1:
-        raise InputError(f"--jobs must be at least 1, got {jobs}")
-    if backend not in BACKENDS:
-        raise InputError(f"unknown backend {backend!r}; choose from {', '.join(BACKENDS)}")
+    given = {"jobs": jobs, "backend": backend, "address": address}
+    jobs, backend, address = (o.parse(given[o.name], "compare") for o in EXECUTION_OPTIONS)
     exp = load_experiment(experiment, data_root=data_root)
     from data_tools.io.files import check_not_inside, check_output_folder
 

@@ -58,17 +58,6 @@ JOINT_MAP_HELP = ("JSON or TOML file naming the file's joint for each body point
 UNNAMED_LIKELIHOOD = KEYPOINT_LIKELIHOOD
 
 
-def downscale_type(text: str) -> float:
-    """A video's downscale factor, 1 to 64."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not 1.0 <= value <= 64.0:
-        raise argparse.ArgumentTypeError(f"must be between 1 and 64, got {text}")
-    return value
-
-
 class DeprecatedAlias(argparse.Action):
     """An old spelling of a flag, kept for one version: it sets the new flag's value and logs a warning."""
 

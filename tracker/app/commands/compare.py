@@ -7,8 +7,9 @@ import shlex
 from pathlib import Path
 from typing import Sequence
 
-from tracker.app.commands.arguments import positive_int
+from tracker.app.backends import EXECUTION_OPTIONS
 from tracker.app.console import close_bars, interrupted_status, invoked_as, shows_progress
+from tracker.app.schema import add_option_flags
 
 log = logging.getLogger(__name__)
 
@@ -30,10 +31,7 @@ def add_parser(sub, parents: list, argv: Sequence[str]) -> argparse.ArgumentPars
                         "is continued (finished runs are skipped)")
     e.add_argument("--overwrite", action="store_true",
                    help="write into a non-empty output folder that is not a compare output")
-    e.add_argument("--jobs", type=positive_int, default=1, help="parallel runs (default 1)")
-    e.add_argument("--backend", default="joblib", choices=["joblib", "dask", "ray"],
-                   help="joblib (this machine, default), dask or ray (a local cluster, or --address)")
-    e.add_argument("--address", default=None, help="scheduler address of an existing Dask or Ray cluster")
+    add_option_flags(e, EXECUTION_OPTIONS, {"jobs": "JOBS", "address": "ADDRESS"})
     e.add_argument("--data-root", default=None, metavar="DIR",
                    help="folder the experiment's data paths are relative to, in place of the file's data_root "
                         "(default: $POSE_TRACKER_DATA_ROOT, else the file's data_root)")
@@ -48,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
 
     command = shlex.join([*invoked_as().split(), *args.argv])  # as typed, recorded in report.html
     try:
-        summary = compare(args.experiment, args.out, jobs=args.jobs, backend=args.backend, address=args.address,
+        summary = compare(args.experiment, args.out, **{o.name: getattr(args, o.name) for o in EXECUTION_OPTIONS},
                           threads=args.threads, data_root=args.data_root, overwrite=args.overwrite,
                           videos=args.videos, progress=shows_progress(), command=command)
     except KeyboardInterrupt:  # Ctrl-C or SIGTERM: every finished run is kept, and the same command continues

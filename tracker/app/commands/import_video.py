@@ -5,7 +5,8 @@ import argparse
 import logging
 from typing import Sequence
 
-from tracker.app.commands.arguments import downscale_type
+from data_tools.vision.import_settings import IMPORT_OPTIONS
+from tracker.app.schema import add_option_flags
 
 log = logging.getLogger(__name__)
 
@@ -38,10 +39,7 @@ def add_parser(sub, parents: list, argv: Sequence[str]) -> argparse.ArgumentPars
     v.add_argument("--calibration", action="append", required=True, metavar="FILE",
                    help="calibration file (repeat for OpenCV intrinsics + extrinsics files)")
     v.add_argument("--out", required=True, help="output sequence folder")
-    v.add_argument("--downscale", type=downscale_type, default=1.0, metavar="F",
-                   help="shrink every frame by F (1 to 64, default 1), intrinsics scaled to match")
-    v.add_argument("--frames", metavar="A:B",
-                   help="video frames A to B-1 (required when the videos' frame counts differ)")
+    add_option_flags(v, IMPORT_OPTIONS, {"downscale": "F", "frames": "A:B"})
     v.add_argument("--map", type=camera_video_pairs, metavar="CAM=VIDEO,...",
                    help="pair cameras with videos by name (cameras left out are not imported)")
     v.add_argument("--overwrite", action="store_true", help="replace an existing sequence folder at --out")
