@@ -28,6 +28,19 @@ def stop_after(frames: int):
     return on_frame
 
 
+def stop_in_the_shell(sequence, out, monkeypatch) -> None:
+    """``pose-tracker track`` of :data:`SETTINGS`' run into ``out``, stopped (Ctrl-C) at its first frame."""
+    from tracker.app import api
+
+    argv = ["track", str(sequence), "--prior", "constant-velocity", "--particles", "30", "--annealing-layers", "1",
+            "--seed", "3", "--checkpoint-every", "1", "--out", str(out)]
+    real = api.track
+    monkeypatch.setattr(api, "track", lambda *a, on_frame=None, **k: real(
+        *a, on_frame=lambda s, e: (on_frame(s, e), stop_after(1)(s, e)), **k))
+    assert cli.main(argv) == 130
+    monkeypatch.undo()
+
+
 def test_python_stops_and_continues_a_run_to_the_uninterrupted_numbers(synthetic_walk, tmp_path):
     whole = tracker.track_into(tmp_path / "whole", synthetic_walk.root, "constant-velocity", **SETTINGS)
     assert not (tmp_path / "whole" / REQUEST_FILE).exists()
@@ -43,15 +56,7 @@ def test_python_stops_and_continues_a_run_to_the_uninterrupted_numbers(synthetic
 
 
 def test_python_continues_a_run_the_command_line_started(synthetic_walk, tmp_path, monkeypatch, capsys):
-    from tracker.app import api
-
-    argv = ["track", str(synthetic_walk.root), "--prior", "constant-velocity", "--particles", "30",
-            "--annealing-layers", "1", "--seed", "3", "--checkpoint-every", "1", "--out", str(tmp_path / "cut")]
-    real = api.track
-    monkeypatch.setattr(api, "track", lambda *a, on_frame=None, **k: real(
-        *a, on_frame=lambda s, e: (on_frame(s, e), stop_after(1)(s, e)), **k))
-    assert cli.main(argv) == 130
-    monkeypatch.undo()
+    stop_in_the_shell(synthetic_walk.root, tmp_path / "cut", monkeypatch)
     request = TrackRequest.from_json(json.loads((tmp_path / "cut" / REQUEST_FILE).read_text()),
                                      tmp_path / "cut" / REQUEST_FILE)
     assert request.prior == "constant-velocity" and request.settings["particles"] == 30
@@ -84,15 +89,7 @@ def test_a_stop_before_the_first_frame_leaves_nothing(synthetic_walk, tmp_path, 
 
 def test_the_same_request_from_python_continues_a_run_the_shell_stopped(synthetic_walk, tmp_path, monkeypatch):
     """The command line names every setting, Python only those given: the same run asked either way is one."""
-    from tracker.app import api
-
-    argv = ["track", str(synthetic_walk.root), "--prior", "constant-velocity", "--particles", "30",
-            "--annealing-layers", "1", "--seed", "3", "--checkpoint-every", "1", "--out", str(tmp_path / "cut")]
-    real = api.track
-    monkeypatch.setattr(api, "track", lambda *a, on_frame=None, **k: real(
-        *a, on_frame=lambda s, e: (on_frame(s, e), stop_after(1)(s, e)), **k))
-    assert cli.main(argv) == 130
-    monkeypatch.undo()
+    stop_in_the_shell(synthetic_walk.root, tmp_path / "cut", monkeypatch)
     tracker.track_into(tmp_path / "cut", synthetic_walk.root, "constant-velocity", **SETTINGS)  # continues it
     tracker.track_into(tmp_path / "whole", synthetic_walk.root, "constant-velocity", **SETTINGS)
     assert np.array_equal(poses(tmp_path / "cut"), poses(tmp_path / "whole"))

@@ -144,16 +144,17 @@ def synthesize(mocap: str | Path | RetargetResult, out: str | Path, *, skeleton:
     clip = mocap if isinstance(mocap, RetargetResult) else read_clip(mocap, skeleton, config.fps, length_unit,
                                                                       joint_map)[1]
     source = str(mocap) if not isinstance(mocap, RetargetResult) else clip.source
+    name = Path(source).name
     if then is not None:
         second = then if isinstance(then, RetargetResult) else read_clip(then, then_skeleton, config.fps,
                                                                           length_unit, then_joint_map)[1]
         clip, change = cross_fade(clip, second, switch_at, fade)
-        log.info(f"transition: {Path(source).name} until frame {change.fade_start}, cross-faded into "
+        log.info(f"transition: {name} until frame {change.fade_start}, cross-faded into "
                  f"{Path(getattr(then, 'source', then)).name} (from its frame {change.second_start}) by frame "
                  f"{change.switch}")
         source = clip.source
     written = render_sequence(clip, out, config, source=source, progress=progress, overwrite=overwrite)
-    log.info(f"{Path(str(mocap) if not isinstance(mocap, RetargetResult) else mocap.source).name}: "
+    log.info(f"{name}: "
              f"{written.n_frames} frames x {config.views} cameras at {clip.fps:g} fps -> {written.root} "
              f"({written.render_seconds / written.n_frames * 1000:.0f} ms per frame to render and write)")
     return read_sequence(out)
