@@ -10,7 +10,9 @@
    mocap's, with a weak pull of joint angles toward zero (1 mm per radian; 20
    for the elbow twists) that only decides dofs the points cannot see (twist of
    the head about its own axis, for example). Poses are kept inside the joint limits. Frames whose fit
-   is worse than their neighbour's are refitted starting from the neighbour.
+   is worse than their neighbour's are refitted starting from the neighbour, and frames still fitted badly
+   (an arm raised above the shoulder, whose fit from the rest pose stops at the shoulder's limits) are restarted
+   from a grid of shoulder angles.
 3. The ground-truth markers are the mocap's own joints, not the refitted model's.
 """
 from __future__ import annotations
@@ -270,12 +272,21 @@ def _fill(n_frames: int, read: np.ndarray, poses: np.ndarray) -> np.ndarray:
 
 def _fit_frames(model: BodyModel, points: np.ndarray) -> np.ndarray:
     """Poses ``T x 40`` fitted to the fit points ``T x 19 x 3`` (frames in time order), refitted from their
-    neighbours' solutions where that does better, root orientations continuous."""
+    neighbours' solutions where that does better, frames still fitted badly restarted with the arms raised
+    (:func:`_restart_arms`), root orientations continuous."""
     init = np.zeros((len(points), model.n_dofs))
     init[:, :6] = _root_from_points(points)
     poses, cost = fit_poses(model, points, init)
-    # Refit frames from their neighbours' solutions where that does better
-    # (escapes the occasional local minimum of the rest-pose start).
+    _refit_from_neighbours(model, points, poses, cost)
+    if _restart_arms(model, points, poses, cost):
+        _refit_from_neighbours(model, points, poses, cost)
+    poses[:, 3:6] = continuous_exp_maps(poses[:, 3:6])
+    return poses
+
+
+def _refit_from_neighbours(model: BodyModel, points: np.ndarray, poses: np.ndarray, cost: np.ndarray) -> None:
+    """Refit every frame from its neighbours' solutions, keeping what does better (escapes the occasional local
+    minimum of the rest-pose start); ``poses`` ``T x D`` and ``cost`` ``(T,)`` updated in place."""
     for _ in range(3):
         improved = False
         for shift in (1, -1):
@@ -288,5 +299,49 @@ def _fit_frames(model: BodyModel, points: np.ndarray) -> np.ndarray:
                 poses[better], cost[better] = cand[better], c2[better]
         if not improved:
             break
-    poses[:, 3:6] = continuous_exp_maps(poses[:, 3:6])
-    return poses
+
+
+#: A frame whose root-mean-square residual over the fit points (mm) stays above this is restarted with the arms
+#: raised (:func:`_restart_arms`): a well-read frame fits within 1-2 mm, and an arm raised above the shoulder from
+#: the rest pose's start ends in a local minimum with the shoulder at its joint limits, tens of mm off.
+ARM_RESTART_MM = 5.0
+#: Starting values per shoulder angle for :func:`_restart_arms`: this many, evenly spread inside the joint's limits.
+_ARM_START_VALUES = 3
+#: Iterations from every start before the most promising starts of each frame (this many) are fitted fully.
+_ARM_SCREEN_ITERATIONS, _ARM_KEPT_STARTS = 8, 3
+
+
+def _restart_arms(model: BodyModel, points: np.ndarray, poses: np.ndarray, cost: np.ndarray) -> bool:
+    """Refit the frames fitted worse than :data:`ARM_RESTART_MM` from the root alone (every joint angle zero) with
+    one shoulder, then the other, started at each point of a grid inside its limits (``3^3`` starts per
+    shoulder); keep the best fit where it does better. ``poses`` ``T x D`` and ``cost`` ``(T,)`` updated in
+    place; returns whether a frame improved."""
+    bad = np.flatnonzero(np.sqrt(cost / len(FIT_POINTS)) > ARM_RESTART_MM)
+    if bad.size == 0:
+        return False
+    improved = False
+    names = list(model.dof_names)
+    for side in ("left", "right"):
+        index = [names.index(f"{side}_shoulder_{axis}") for axis in "xyz"]
+        margin = 0.1  # rad, inside the limits
+        grid = np.stack(np.meshgrid(*[np.linspace(model.lower[i] + margin, model.upper[i] - margin, _ARM_START_VALUES)
+                                      for i in index], indexing="ij"), axis=-1).reshape(-1, 3)
+        starts = np.zeros((bad.size, len(grid), model.n_dofs))
+        starts[:, :, :6] = poses[bad, None, :6]
+        starts[:, :, index] = grid
+        # A few iterations from every start pick each frame's most promising ones, which are then fitted fully.
+        fitted, fitted_cost = fit_poses(model, np.repeat(points[bad], len(grid), axis=0),
+                                        starts.reshape(-1, model.n_dofs), iterations=_ARM_SCREEN_ITERATIONS)
+        keep = min(_ARM_KEPT_STARTS, len(grid))
+        best = np.argsort(fitted_cost.reshape(bad.size, len(grid)), axis=1)[:, :keep]
+        polished, polished_cost = fit_poses(model, np.repeat(points[bad], keep, axis=0),
+                                            fitted.reshape(bad.size, len(grid), -1)[np.arange(bad.size)[:, None],
+                                                                                    best].reshape(-1, model.n_dofs))
+        which = polished_cost.reshape(bad.size, keep).argmin(axis=1)
+        chosen = polished.reshape(bad.size, keep, -1)[np.arange(bad.size), which]
+        chosen_cost = polished_cost.reshape(bad.size, keep)[np.arange(bad.size), which]
+        better = chosen_cost < cost[bad] * (1 - 1e-6) - 1e-6
+        if better.any():
+            improved = True
+            poses[bad[better]], cost[bad[better]] = chosen[better], chosen_cost[better]
+    return improved
