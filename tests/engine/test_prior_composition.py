@@ -1,18 +1,19 @@
 """A registry entry answers for its prior: how many model files it takes (one check for the API, experiment files
 and the mixture), what it is built from (``resolve``), and, for a prior made of other priors, the files its
 options name and how its components are written (the mixture's ``Composition``)."""
-import subprocess
-import sys
-import warnings
 from pathlib import Path
 
 import pytest
 
 from tracker.app.plugins import prior_entry
 from tracker.core.errors import InputError
-from tracker.engine.registry import PRIORS, GivenComponent, PriorEntry, ResolvedPrior, register_prior
-
-REPO = Path(__file__).resolve().parents[2]
+from tracker.engine.registry import (
+    PRIORS,
+    GivenComponent,
+    PriorEntry,
+    ResolvedPrior,
+    register_prior,
+)
 
 
 @pytest.mark.parametrize("kind, count, refusal", [
@@ -58,10 +59,6 @@ def test_the_mixture_locates_the_files_its_components_name():
         "components": "crbm:model=/abs/a.pt:gibbs_steps=3,zero-velocity", "switch": 0.1}
     unnamed = {"components": "crbm,zero-velocity"}
     assert entry.located(unnamed, lambda m: f"/abs/{m}") is unnamed
-    from tracker.engine.components import with_model_paths  # the former function, kept for the command line
-
-    assert with_model_paths("crbm:model=a.pt,zero-velocity", "prior mixture", lambda m: f"/x/{m}") == \
-        "crbm:model=/x/a.pt,zero-velocity"
 
 
 def test_the_mixture_writes_components_given_as_tables():
@@ -88,16 +85,3 @@ def test_the_former_hooks_of_register_prior_still_work_with_a_warning():
         assert entry.referenced_files({}) == [Path("x.pt")]
     finally:
         PRIORS.entries.pop("test-former-hooks", None)  # other tests list every registered prior
-
-
-def test_the_filters_former_module_name_warns_only_code_outside_the_toolkit():
-    def run(code: str) -> subprocess.CompletedProcess:
-        return subprocess.run([sys.executable, "-W", "error::DeprecationWarning", "-c", code], capture_output=True,
-                              text=True, cwd=REPO)
-
-    assert run("import tracker.engine.weighing, priors.fcrbm.prior").returncode == 0  # the toolkit's own imports
-    outside = run("import tracker.engine.mixture")
-    assert outside.returncode != 0 and "renamed tracker.engine.multiple_models" in outside.stderr
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        import tracker.engine.multiple_models  # noqa: F401  the new name: no warning
