@@ -10,8 +10,9 @@ out). It is added to the image likelihood (``edge-silhouette`` and ``keypoints+e
 Measured with one camera (``docs/methods_report.md``, section 10; tuned on the learned-priors protocol's fold A,
 run once on fold B), ``ground_std = 20`` and ``root_height_std = 60`` lower zero-velocity's marker error to 0.84
 and 0.93 of what it was, the recommended mixture's from 1.08 to 0.96 and from 0.85 to 0.70 of zero-velocity's;
-with four cameras it is a tie to a small loss (0.72 to 0.74), so it is off by default. It does not stop a
-learned prior's root from drifting along the ray at the wrong walking speed.
+with four cameras it is a tie to a small loss (0.72 to 0.74). So it is on by default with one camera and off
+with more (:func:`ground_contact_config`). It does not stop a learned prior's root from drifting along the ray at
+the wrong walking speed, and it holds a jump down: track a person who leaves the floor with ``ground_std = 0``.
 """
 from __future__ import annotations
 
@@ -45,6 +46,24 @@ class GroundContactConfig:
     @property
     def active(self) -> bool:
         return self.ground_std > 0 or self.root_height_std > 0
+
+
+#: The spreads (mm) used with one camera unless given: the setting tuned on fold A and confirmed on fold B.
+ONE_VIEW_GROUND_STD, ONE_VIEW_ROOT_HEIGHT_STD = 20.0, 60.0
+#: What the options' help says of their default.
+GROUND_STD_DEFAULT = f"{ONE_VIEW_GROUND_STD:g} mm with one camera, 0 with more"
+ROOT_HEIGHT_STD_DEFAULT = f"{ONE_VIEW_ROOT_HEIGHT_STD:g} mm with one camera, 0 with more"
+
+
+def ground_contact_config(views: int, ground_std: float | None = None,
+                          root_height_std: float | None = None) -> GroundContactConfig:
+    """The ground contact for ``views`` tracked cameras: the spreads given, or where one is None, the one-camera
+    defaults (:data:`ONE_VIEW_GROUND_STD`, :data:`ONE_VIEW_ROOT_HEIGHT_STD`) with one camera and 0 (off) with
+    more."""
+    one = views == 1
+    return GroundContactConfig(
+        ground_std=(ONE_VIEW_GROUND_STD if one else 0.0) if ground_std is None else float(ground_std),
+        root_height_std=(ONE_VIEW_ROOT_HEIGHT_STD if one else 0.0) if root_height_std is None else float(root_height_std))
 
 
 class GroundContact(Likelihood):

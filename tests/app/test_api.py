@@ -244,8 +244,8 @@ def test_track_takes_the_model_train_returns_and_the_options_of_prior_and_likeli
     assert from_object.settings["prior_options"] == {"gibbs_steps": 2, "root_noise": 5.0, "pace_spread": None,
                                                      "pace_drift": None, "height_spread": None, "height_drift": 0.0,
                                                      "posture_gain": None}
-    assert from_object.to_dict()["likelihood_options"] == {"sharpness": 30.0, "bidirectional": False, "ground_std": 0.0,
-                                                            "root_height_std": 0.0}
+    assert from_object.to_dict()["likelihood_options"] == {"sharpness": 30.0, "bidirectional": False,
+                                                            "ground_std": None, "root_height_std": None}
     with pytest.raises(tracker.InputError, match="takes no option 'order'.*prior crbm: gibbs_steps"):
         tracker.track(synthetic_walk.root, "crbm", models=[model], order=3)
     with pytest.raises(tracker.InputError, match="a CRBM model is a model file or a trained CRBM model"):

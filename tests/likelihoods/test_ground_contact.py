@@ -1,5 +1,6 @@
 """The ground-contact term (:mod:`likelihoods.ground_contact`): a pose whose feet or root leave their known
-heights is penalised as declared, off by default, and a stopped run continues to the same numbers."""
+heights is penalised as declared, on by default with one camera and off with more, and a stopped run continues
+to the same numbers."""
 import numpy as np
 import pytest
 
@@ -34,12 +35,18 @@ def test_only_the_given_part_counts_and_not_finite_poses_get_nothing(model):
     assert not GroundContactConfig().active
 
 
-def test_off_by_default_and_on_as_a_likelihood_option(small_walk):
+def test_on_by_default_with_one_camera_off_with_more_and_either_as_given(small_walk):
     small_walk = tracker.load_sequence(small_walk)
-    plain = tracker.build_likelihood("edge-silhouette", small_walk)
-    grounded = tracker.build_likelihood("edge-silhouette", small_walk, ground_std=20.0, root_height_std=60.0)
-    assert plain.name == "edge-silhouette" and grounded.name == "edge-silhouette+ground-contact"
-    assert grounded.settings()["ground-contact"] == {"ground_std": 20.0, "root_height_std": 60.0}
+    several = tracker.build_likelihood("edge-silhouette", small_walk)
+    one = tracker.build_likelihood("edge-silhouette", small_walk, views=[0])
+    assert several.name == "edge-silhouette" and one.name == "edge-silhouette+ground-contact"
+    assert one.settings()["ground-contact"] == {"ground_std": 20.0, "root_height_std": 60.0}
+    assert tracker.build_likelihood("edge-silhouette", small_walk, views=[0], ground_std=0.0,
+                                    root_height_std=0.0).name == "edge-silhouette"
+    grounded = tracker.build_likelihood("edge-silhouette", small_walk, ground_std=30.0)
+    assert grounded.settings()["ground-contact"] == {"ground_std": 30.0, "root_height_std": 0.0}
+    with_keypoints = tracker.build_likelihood("keypoints+edge-silhouette", small_walk, views=[0])
+    assert "ground-contact" in with_keypoints.name
 
 
 def test_a_stopped_run_with_ground_contact_continues_to_the_same_numbers(synthetic_walk, tmp_path):
@@ -57,6 +64,6 @@ def test_a_stopped_run_with_ground_contact_continues_to_the_same_numbers(synthet
         tracker.track_into(tmp_path / "cut", synthetic_walk.root, "zero-velocity", on_frame=stop, **settings)
     resumed = tracker.resume_tracking(tmp_path / "cut")
     assert np.array_equal(resumed.poses, whole.poses)
-    plain = tracker.track(synthetic_walk.root, "zero-velocity", **{k: v for k, v in settings.items()
-                                                                  if k not in ("ground_std", "root_height_std")})
+    plain = tracker.track(synthetic_walk.root, "zero-velocity", **{**settings, "ground_std": 0.0,
+                                                                   "root_height_std": 0.0})
     assert not np.array_equal(plain.poses, whole.poses)  # the term does move the particles
