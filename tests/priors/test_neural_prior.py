@@ -188,3 +188,35 @@ def test_the_mixture_without_a_model_file_tracks_with_the_shipped_neural_prior(s
     # the record names what ran: the shipped model and its components, not the option's default string
     assert record["prior_options"]["components"] == "neural,zero-velocity"
     assert record["prior_models"] == [str(mixture_model())]
+
+
+def test_the_shipped_model_predicts_the_roots_motion_of_a_walker_it_never_saw():
+    """From the true past of subject 7's walk 07_01 (a person the pretrained model never saw; every 12th frame, 20
+    samples each, no ground diffusion), the shipped neural prior's root 20 frames (a third of a second) ahead:
+    its ground position within 200 mm of the truth on average (measured 128 mm; a root that stays where it was
+    is 455 mm off, one that keeps the last step's velocity 57 mm) and its height within 50 mm (measured 32)."""
+    import tracker
+    from data_tools.samples import sample_walks
+    from priors.neural.prior import NeuralPrior
+    from priors.parts import GroundDiffusion
+    from priors.pretrained import mixture_model
+
+    skeleton, walks = sample_walks(7)
+    poses = tracker.load_clip(walks[0], skeleton, fps=60.0).poses
+    prior = NeuralPrior(load_neural(mixture_model()), ground=GroundDiffusion(0.0))
+    order, ahead, samples = prior.order, 20, 20
+    ground, height, stays = [], [], []
+    for t in range(order, len(poses) - ahead, 12):
+        known = poses[t - order:t]
+        rng = np.random.default_rng(t)
+        state = prior.start(known, samples, rng)
+        history = np.repeat(known[None], samples, axis=0)
+        for _ in range(ahead):
+            new, state = prior.sample(history, order, state, rng)
+            history = np.concatenate([history[:, 1:], new[:, None]], axis=1)
+        truth = poses[t - 1 + ahead]
+        ground.append(np.linalg.norm(new[:, :2] - truth[:2], axis=1).mean())
+        height.append(np.abs(new[:, 2] - truth[2]).mean())
+        stays.append(np.linalg.norm(poses[t - 1, :2] - truth[:2]))
+    assert np.mean(stays) > 400
+    assert np.mean(ground) < 200 and np.mean(height) < 50, (np.mean(ground), np.mean(height))
