@@ -12,7 +12,7 @@ run once on fold B), ``ground_std = 20`` and ``root_height_std = 60`` lower zero
 and 0.93 of what it was, the recommended mixture's from 1.08 to 0.96 and from 0.85 to 0.70 of zero-velocity's;
 with four cameras it is a tie to a small loss (0.72 to 0.74). So it is on by default with one camera and off
 with more (:func:`ground_contact_config`). It does not stop a learned prior's root from drifting along the ray at
-the wrong walking speed, and it holds a jump down: track a person who leaves the floor with ``ground_std = 0``.
+the wrong walking speed, and it holds a jump down: track a person who leaves the floor with both spreads 0.
 """
 from __future__ import annotations
 
@@ -22,17 +22,27 @@ import numpy as np
 
 from tracker.core.body import BodyModel
 from tracker.engine.likelihood import Frame, FrameLikelihood, Likelihood
+from tracker.engine.registry import Option
 
-#: The body points whose lowest is the foot on the floor.
+#: The body points whose lowest is the foot on the floor (those of them a body model has: PARSEC's 10-cone model
+#: has ankles and no toes).
 FOOT_POINTS = ("left_ankle", "right_ankle", "left_toe", "right_toe")
+
+
+def foot_points(model: BodyModel) -> list[int]:
+    """Indices into ``model.points`` of the :data:`FOOT_POINTS` the model has (at least the ankles)."""
+    names = {p.name for p in model.points}
+    index = [model.point_index(name) for name in FOOT_POINTS if name in names]
+    if not index:
+        raise ValueError(f"the {model.name} body model has none of the foot points {', '.join(FOOT_POINTS)}")
+    return index
 
 
 def lowest_foot_height(model: BodyModel, poses: np.ndarray) -> np.ndarray:
     """Height (mm) ``(P,)`` of the lowest foot point (:data:`FOOT_POINTS`) of finite poses ``P x D``."""
     from tracker.core.kinematics import forward_kinematics
 
-    index = [model.point_index(name) for name in FOOT_POINTS]
-    return forward_kinematics(model, np.asarray(poses, float)).points[:, index, 2].min(axis=1)
+    return forward_kinematics(model, np.asarray(poses, float)).points[:, foot_points(model), 2].min(axis=1)
 
 
 @dataclass(frozen=True)
@@ -50,9 +60,17 @@ class GroundContactConfig:
 
 #: The spreads (mm) used with one camera unless given: the setting tuned on fold A and confirmed on fold B.
 ONE_VIEW_GROUND_STD, ONE_VIEW_ROOT_HEIGHT_STD = 20.0, 60.0
-#: What the options' help says of their default.
-GROUND_STD_DEFAULT = f"{ONE_VIEW_GROUND_STD:g} mm with one camera, 0 with more"
-ROOT_HEIGHT_STD_DEFAULT = f"{ONE_VIEW_ROOT_HEIGHT_STD:g} mm with one camera, 0 with more"
+#: The term's options, declared once: those of the likelihoods it joins (``edge-silhouette``,
+#: ``keypoints+edge-silhouette``) and of ``capture``. None: the default for the number of tracked cameras.
+GROUND_OPTIONS: tuple[Option, ...] = (
+    Option("ground_std", float, None, "ground contact: spread of the lowest foot's height about the known frames' "
+           "(likelihoods.ground_contact); 0 leaves the feet out (both 0: no ground contact, as for a person who "
+           "jumps)", minimum=0.0, maximum=1e6, unit="mm",
+           default_note=f"{ONE_VIEW_GROUND_STD:g} mm with one camera, 0 with more"),
+    Option("root_height_std", float, None, "ground contact: spread of the root's height about the known frames'; "
+           "0 leaves the root out", minimum=0.0, maximum=1e6, unit="mm",
+           default_note=f"{ONE_VIEW_ROOT_HEIGHT_STD:g} mm with one camera, 0 with more"),
+)
 
 
 def ground_contact_config(views: int, ground_std: float | None = None,

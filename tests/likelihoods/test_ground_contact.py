@@ -67,3 +67,17 @@ def test_a_stopped_run_with_ground_contact_continues_to_the_same_numbers(synthet
     plain = tracker.track(synthetic_walk.root, "zero-velocity", **{**settings, "ground_std": 0.0,
                                                                    "root_height_std": 0.0})
     assert not np.array_equal(plain.poses, whole.poses)  # the term does move the particles
+
+
+def test_one_camera_of_a_bodytrack_sequence_holds_the_ankles_of_its_ten_cone_body(bodytrack_dir):
+    """PARSEC's 10-cone body has ankles and no toes: the term holds the lowest ankle."""
+    sequence = tracker.load_sequence(bodytrack_dir)
+    likelihood = tracker.build_likelihood("edge-silhouette", sequence, views=[0])
+    assert likelihood.name == "edge-silhouette+ground-contact"
+    term = likelihood.parts[1]
+    model = term.model
+    assert model.name != fifteen_cone_model().name and "left_toe" not in {p.name for p in model.points}
+    poses = np.repeat(model.rest_pose()[None], 2, axis=0)
+    term.start(poses)
+    poses[1, model.links[0].dofs[2]] += 40.0
+    assert np.allclose(term.log_likelihood(poses), [0.0, -0.5 * 2.0 ** 2 - 0.5 * (40.0 / 60.0) ** 2])
