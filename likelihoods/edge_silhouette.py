@@ -29,9 +29,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from likelihoods.ground_contact import (
-    GROUND_STD_DEFAULT, ROOT_HEIGHT_STD_DEFAULT, GroundContact, ground_contact_config,
-)
+from likelihoods.ground_contact import GROUND_OPTIONS, GroundContact, ground_contact_config
 from tracker.core.arrays import device as device_of, is_cpu, namespace, torch_device
 from tracker.core.body import BodyModel
 from tracker.core.cameras import CameraRig
@@ -436,12 +434,7 @@ def _uncovered(u, v, foreground: list):
                     strict=True, maximum=1e6),
              Option("bidirectional", bool, False,
                     "also penalise foreground the model does not cover (for monocular tracking)"),
-             Option("ground_std", float, None, "ground contact: spread of the lowest foot's height about the "
-                    "known frames' (likelihoods.ground_contact); 0 turns it off, as for a person who jumps",
-                    minimum=0.0,
-                    maximum=1e6, unit="mm", default_note=GROUND_STD_DEFAULT),
-             Option("root_height_std", float, None, "ground contact: spread of the root's height about the known "
-                    "frames'; 0 turns it off", minimum=0.0, maximum=1e6, unit="mm", default_note=ROOT_HEIGHT_STD_DEFAULT)))
+             *GROUND_OPTIONS))
 def build_edge_silhouette(context: LikelihoodContext, options: dict) -> Likelihood:
     config = EdgeSilhouetteConfig(sharpness=options["sharpness"], bidirectional=options["bidirectional"])
     # On the CPU the compiled path (faster there than torch); "cpu:0" too.

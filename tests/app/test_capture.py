@@ -65,6 +65,15 @@ def test_capture_with_one_camera_from_the_command_line(rendered_walk, simulated_
     assert not (out / "triangulated.trc").exists()  # one view triangulates nothing
     assert len(json.loads((out / "sequence" / "cameras.json").read_text())["cameras"]) == 1
 
+    def ground_contact() -> dict | None:
+        settings = json.loads((out / "run" / "result.json").read_text())["likelihood_settings"]
+        return next((v["ground-contact"] for v in settings.values() if "ground-contact" in v), None)
+
+    assert ground_contact() == {"ground_std": 20.0, "root_height_std": 60.0}  # one camera: on by default
+    again = capture(videos, tmp_path / "rig.toml", out, views=[2], prior="zero-velocity", particles=100,
+                    downscale=1, ground_std=0.0, root_height_std=0.0)
+    assert again.skipped == ["import", "silhouettes", "keypoints", "start"] and ground_contact() is None
+
 
 def test_capture_refuses_an_unknown_prior_before_any_work(rendered_walk, tmp_path, capsys):
     folder, rendered, videos = rendered_walk

@@ -31,6 +31,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from data_tools.vision.import_settings import import_option
+from likelihoods.ground_contact import GROUND_OPTIONS
 from tracker.app.schema import setting
 from tracker.core.errors import InputError
 from tracker.engine.registry import Option
@@ -45,6 +46,7 @@ CAPTURE_OPTIONS: tuple[Option, ...] = (
     replace(setting("seed"), help="random seed of the tracking"),
     replace(import_option("downscale"), default=4.0, help="shrink every frame by F before everything else"),
     Option("frames", str, None, "video frames A to B-1 (default: all the videos share)"),
+    *GROUND_OPTIONS,
 )
 
 
@@ -76,20 +78,22 @@ def _same(path: Path, settings: dict) -> bool:
 def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Path, *,
             views: Sequence[int] | str | None = None, prior: str = _default("prior"), seed: int = _default("seed"),
             particles: int = _default("particles"), downscale: float = _default("downscale"),
-            frames: str | None = None, overwrite: bool = False,
-            on_step: Callable[[str, str], None] | None = None) -> CaptureResult:
+            frames: str | None = None, ground_std: float | None = None, root_height_std: float | None = None,
+            overwrite: bool = False, on_step: Callable[[str, str], None] | None = None) -> CaptureResult:
     """Run the steps of the module docstring on ``videos`` (one per camera of ``calibration``, paired by sorted
     name) into the folder ``out``. ``views``: the cameras to use (indices into the calibration's, default all);
-    ``prior``, ``seed`` and ``particles`` go to ``track``; ``downscale`` and ``frames`` (``"A:B"``) to the
+    ``prior``, ``seed``, ``particles`` and the likelihood's ground contact (``ground_std``, ``root_height_std``;
+    None: on with one camera, off with more) go to ``track``; ``downscale`` and ``frames`` (``"A:B"``) to the
     import. ``on_step(step, line)`` hears one line per finished step. A rerun skips the steps whose settings
     are unchanged; a folder holding a capture of other videos or views is refused without ``overwrite``."""
+    import tracker
     from data_tools.io.files import write_text_atomic
     from data_tools.vision.video import pair_videos, probe_video
     from tracker.app.plugins import prior_entry
 
     prior_entry(prior)  # an unknown prior is refused before any work
     given = {"views": views, "prior": prior, "particles": particles, "seed": seed, "downscale": downscale,
-             "frames": frames}
+             "frames": frames, "ground_std": ground_std, "root_height_std": root_height_std}
     checked = {o.name: o.parse(given[o.name], "capture") for o in CAPTURE_OPTIONS}
     views, particles, seed, downscale = checked["views"], checked["particles"], checked["seed"], checked["downscale"]
     out = Path(out)
@@ -189,7 +193,9 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
     step("start", init_path.is_file(), do_start, needs=("keypoints",))
     seq = read_sequence(seq_dir)
     run_dir = out / "run"
-    track_settings = {"prior": prior, "seed": seed, "particles": particles}
+    ground = {name: checked[name] for name in ("ground_std", "root_height_std")}
+    # the version too: another version's tracking (its defaults, its shipped model) is not this one's
+    track_settings = {"prior": prior, "seed": seed, "particles": particles, **ground, "version": tracker.__version__}
     track_record = out / "track_settings.json"
 
     def do_track() -> str:
@@ -200,7 +206,8 @@ def capture(videos: Sequence[str | Path], calibration: str | Path, out: str | Pa
         if run_dir.exists():
             shutil.rmtree(run_dir)
         init = np.load(init_path)["poses"]
-        run = track(seq, prior, init=init, seed=seed, particles=particles, known_frames=len(init))
+        run = track(seq, prior, init=init, seed=seed, particles=particles, known_frames=len(init),
+                    **{k: v for k, v in ground.items() if v is not None})
         run.save(run_dir)
         write_text_atomic(track_record, json.dumps(track_settings, sort_keys=True))
         return f"{prior}, {particles} particles, {run.seconds_per_frame:.3f} s per frame -> {run_dir}"
