@@ -278,27 +278,39 @@ def _fit_frames(model: BodyModel, points: np.ndarray) -> np.ndarray:
     init[:, :6] = _root_from_points(points)
     poses, cost = fit_poses(model, points, init)
     _refit_from_neighbours(model, points, poses, cost)
-    if _restart_arms(model, points, poses, cost):
-        _refit_from_neighbours(model, points, poses, cost)
+    # Restart every few badly fitted frames, let their neighbours start from them, then the rest still bad.
+    for stride in (_ARM_STRIDE, 1):
+        if _restart_arms(model, points, poses, cost, stride):
+            _refit_from_neighbours(model, points, poses, cost, only_bad=True)
     poses[:, 3:6] = continuous_exp_maps(poses[:, 3:6])
     return poses
 
 
-def _refit_from_neighbours(model: BodyModel, points: np.ndarray, poses: np.ndarray, cost: np.ndarray) -> None:
-    """Refit every frame from its neighbours' solutions, keeping what does better (escapes the occasional local
-    minimum of the rest-pose start); ``poses`` ``T x D`` and ``cost`` ``(T,)`` updated in place."""
+def _refit_from_neighbours(model: BodyModel, points: np.ndarray, poses: np.ndarray, cost: np.ndarray,
+                           only_bad: bool = False) -> None:
+    """Refit every frame (``only_bad``: every frame fitted worse than :data:`ARM_RESTART_MM`) from its neighbours'
+    solutions, keeping what does better (escapes the occasional local minimum of the rest-pose start); ``poses``
+    ``T x D`` and ``cost`` ``(T,)`` updated in place."""
     for _ in range(3):
         improved = False
         for shift in (1, -1):
+            rows = _badly_fitted(cost) if only_bad else np.arange(len(poses))
+            if rows.size == 0:
+                return
             start = np.roll(poses, shift, axis=0)
             start[0 if shift == 1 else -1] = poses[0 if shift == 1 else -1]
-            cand, c2 = fit_poses(model, points, start, iterations=15)
-            better = c2 < cost * (1 - 1e-6) - 1e-6
+            cand, c2 = fit_poses(model, points[rows], start[rows], iterations=15)
+            better = c2 < cost[rows] * (1 - 1e-6) - 1e-6
             if better.any():
                 improved = True
-                poses[better], cost[better] = cand[better], c2[better]
+                poses[rows[better]], cost[rows[better]] = cand[better], c2[better]
         if not improved:
             break
+
+
+def _badly_fitted(cost: np.ndarray) -> np.ndarray:
+    """The frames whose fit is worse than :data:`ARM_RESTART_MM` (indices)."""
+    return np.flatnonzero(np.sqrt(cost / len(FIT_POINTS)) > ARM_RESTART_MM)
 
 
 #: A frame whose fit stays worse than this (mm; ``sqrt(cost / 19)``, the root-mean-square of the weighted residuals
@@ -312,14 +324,16 @@ _ARM_START_VALUES = 3
 _ARM_SCREEN_ITERATIONS, _ARM_KEPT_STARTS = 8, 3
 #: Frames restarted in one batch (each takes about 3.5 MB for its 27 starts).
 _ARM_BATCH = 64
+#: The first restarts take every this many badly fitted frames; their neighbours start from them.
+_ARM_STRIDE = 4
 
 
-def _restart_arms(model: BodyModel, points: np.ndarray, poses: np.ndarray, cost: np.ndarray) -> bool:
+def _restart_arms(model: BodyModel, points: np.ndarray, poses: np.ndarray, cost: np.ndarray, stride: int = 1) -> bool:
     """Refit the frames fitted worse than :data:`ARM_RESTART_MM` from the root alone (every joint angle zero) with
     one shoulder, then the other, started at each point of a grid inside its limits (``3^3`` starts per
     shoulder); keep the best fit where it does better. ``poses`` ``T x D`` and ``cost`` ``(T,)`` updated in
     place; returns whether a frame improved. A model without a shoulder's three angles is left as it is."""
-    bad = np.flatnonzero(np.sqrt(cost / len(FIT_POINTS)) > ARM_RESTART_MM)
+    bad = _badly_fitted(cost)[::stride]
     names = list(model.dof_names)
     improved = False
     for side in ("left", "right"):
