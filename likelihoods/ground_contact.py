@@ -38,11 +38,13 @@ def foot_points(model: BodyModel) -> list[int]:
     return index
 
 
-def lowest_foot_height(model: BodyModel, poses: np.ndarray) -> np.ndarray:
-    """Height (mm) ``(P,)`` of the lowest foot point (:data:`FOOT_POINTS`) of finite poses ``P x D``."""
+def lowest_foot_height(model: BodyModel, poses: np.ndarray, feet: list[int] | None = None) -> np.ndarray:
+    """Height (mm) ``(P,)`` of the lowest foot point (:data:`FOOT_POINTS`; ``feet``: their indices, as
+    :func:`foot_points` gives them) of finite poses ``P x D``."""
     from tracker.core.kinematics import forward_kinematics
 
-    return forward_kinematics(model, np.asarray(poses, float)).points[:, foot_points(model), 2].min(axis=1)
+    feet = foot_points(model) if feet is None else feet
+    return forward_kinematics(model, np.asarray(poses, float)).points[:, feet, 2].min(axis=1)
 
 
 @dataclass(frozen=True)
@@ -92,14 +94,15 @@ class GroundContact(Likelihood):
 
     def __init__(self, model: BodyModel, config: GroundContactConfig):
         self.model, self.config = model, config
+        self.feet, self.root_height = foot_points(model), model.links[0].dofs[2]  # indices, found once
         rest = model.rest_pose()[None]
-        self.foot_reference = float(lowest_foot_height(model, rest)[0])
+        self.foot_reference = float(lowest_foot_height(model, rest, self.feet)[0])
         self.root_reference = float(model.rest_root_height)
 
     def start(self, known: np.ndarray) -> None:
         known = np.atleast_2d(np.asarray(known, float))
-        self.foot_reference = float(lowest_foot_height(self.model, known).mean())
-        self.root_reference = float(known[:, self.model.links[0].dofs[2]].mean())
+        self.foot_reference = float(lowest_foot_height(self.model, known, self.feet).mean())
+        self.root_reference = float(known[:, self.root_height].mean())
 
     def prepare(self, frame: Frame) -> FrameLikelihood:
         return _GroundFrame(self)
@@ -116,10 +119,10 @@ class GroundContact(Likelihood):
         if not ok.any():
             return out
         if self.config.ground_std > 0:
-            d = lowest_foot_height(self.model, poses[ok]) - self.foot_reference
+            d = lowest_foot_height(self.model, poses[ok], self.feet) - self.foot_reference
             out[ok] -= 0.5 * (d / self.config.ground_std) ** 2
         if self.config.root_height_std > 0:
-            d = poses[ok, self.model.links[0].dofs[2]] - self.root_reference
+            d = poses[ok, self.root_height] - self.root_reference
             out[ok] -= 0.5 * (d / self.config.root_height_std) ** 2
         return out
 

@@ -300,12 +300,17 @@ def _refit_from_neighbours(model: BodyModel, points: np.ndarray, poses: np.ndarr
             start = np.roll(poses, shift, axis=0)
             start[0 if shift == 1 else -1] = poses[0 if shift == 1 else -1]
             cand, c2 = fit_poses(model, points[rows], start[rows], iterations=15)
-            better = c2 < cost[rows] * (1 - 1e-6) - 1e-6
+            better = _improves(c2, cost[rows])
             if better.any():
                 improved = True
                 poses[rows[better]], cost[rows[better]] = cand[better], c2[better]
         if not improved:
             break
+
+
+def _improves(new_cost: np.ndarray, cost: np.ndarray) -> np.ndarray:
+    """Where a refit's cost is lower than the fit's by more than rounding (both ``(F,)``, mm^2)."""
+    return new_cost < cost * (1 - 1e-6) - 1e-6
 
 
 def _badly_fitted(cost: np.ndarray) -> np.ndarray:
@@ -347,7 +352,7 @@ def _restart_arms(model: BodyModel, points: np.ndarray, poses: np.ndarray, cost:
         for first in range(0, bad.size, _ARM_BATCH):
             frames = bad[first:first + _ARM_BATCH]
             chosen, chosen_cost = _best_restart(model, points[frames], poses[frames, :6], index, grid)
-            better = chosen_cost < cost[frames] * (1 - 1e-6) - 1e-6
+            better = _improves(chosen_cost, cost[frames])
             if better.any():
                 improved = True
                 poses[frames[better]], cost[frames[better]] = chosen[better], chosen_cost[better]

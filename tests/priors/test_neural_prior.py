@@ -200,6 +200,7 @@ def test_the_shipped_model_predicts_the_roots_motion_of_a_walker_it_never_saw():
     from priors.neural.prior import NeuralPrior
     from priors.parts import GroundDiffusion
     from priors.pretrained import mixture_model
+    from tracker.testing.priors import rollout
 
     skeleton, walks = sample_walks(7)
     poses = tracker.load_clip(walks[0], skeleton, fps=60.0).poses
@@ -207,13 +208,7 @@ def test_the_shipped_model_predicts_the_roots_motion_of_a_walker_it_never_saw():
     order, ahead, samples = prior.order, 20, 20
     ground, height, stays = [], [], []
     for t in range(order, len(poses) - ahead, 12):
-        known = poses[t - order:t]
-        rng = np.random.default_rng(t)
-        state = prior.start(known, samples, rng)
-        history = np.repeat(known[None], samples, axis=0)
-        for _ in range(ahead):
-            new, state = prior.sample(history, order, state, rng)
-            history = np.concatenate([history[:, 1:], new[:, None]], axis=1)
+        new = rollout(prior, poses[t - order:t], samples, seed=t, frames=ahead)[0][:, -1]
         truth = poses[t - 1 + ahead]
         ground.append(np.linalg.norm(new[:, :2] - truth[:2], axis=1).mean())
         height.append(np.abs(new[:, 2] - truth[2]).mean())
