@@ -79,7 +79,8 @@ class ConeCostTables:
 def cone_costs(kinematics: Kinematics, tables: ConeCostTables, edge_map: np.ndarray, silhouette_map: np.ndarray,
                view_offset: np.ndarray, height: int, width: int, n_contour: int,
                edge_out: np.ndarray, silhouette_out: np.ndarray,
-               corners_out: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+               corners_out: tuple[np.ndarray, np.ndarray] | None = None,
+               ellipses_out: tuple[np.ndarray, np.ndarray] | None = None) -> None:
     """Mean edge and silhouette costs of every particle in every view, written into ``edge_out`` and
     ``silhouette_out`` (float64, ``p x V``).
 
@@ -89,8 +90,9 @@ def cone_costs(kinematics: Kinematics, tables: ConeCostTables, edge_map: np.ndar
     a point off the image (or one that is not a number) costs 1, and so do all the points of a cone with a
     corner at or behind a camera's plane (as the array path's maps padded with cost 1 give). ``corners_out``,
     when given, receives the corners' pixels ``(u, v)``, each float64 ``V x p x S x 4`` (those of a cone behind
-    the camera set to -1e6). The shapes and dtypes are checked here: the compiled loop reads and writes without
-    bounds checks.
+    the camera set to -1e6), and ``ellipses_out`` (given with it) the pixels of the cones' end ellipses
+    (:func:`tracker.core.cones.end_ellipse_points`), each float64 ``V x p x S x 6``, -1e6 alike. The shapes and
+    dtypes are checked here: the compiled loop reads and writes without bounds checks.
     """
     R, o = kinematics.rotations, kinematics.origins
     if R.ndim != 4 or R.shape[1:] != (o.shape[1], 3, 3) or o.shape != R.shape[:2] + (3,):
@@ -111,6 +113,14 @@ def cone_costs(kinematics: Kinematics, tables: ConeCostTables, edge_map: np.ndar
         if u_out.shape != (V, P, S, 4) or v_out.shape != (V, P, S, 4) or not u_out.dtype == v_out.dtype == float:
             raise ValueError(f"cone costs: corner outputs of shapes {u_out.shape} and {v_out.shape}, expected "
                              f"float64 {(V, P, S, 4)}")
+    if ellipses_out is None:
+        eu_out = ev_out = np.empty((0, 0, 0, 6))
+    else:
+        eu_out, ev_out = ellipses_out
+        if (corners_out is None or eu_out.shape != (V, P, S, 6) or ev_out.shape != (V, P, S, 6)
+                or not eu_out.dtype == ev_out.dtype == float):
+            raise ValueError(f"cone costs: ellipse outputs of shapes {eu_out.shape} and {ev_out.shape}, expected "
+                             f"float64 {(V, P, S, 6)} beside the corners'")
     if (not 0 < n_contour < N or view_offset.shape != (V,) or height < 1 or width < 1
             or height * width >= 2**31
             or edge_out.shape != (P, V) or silhouette_out.shape != (P, V)
@@ -124,13 +134,30 @@ def cone_costs(kinematics: Kinematics, tables: ConeCostTables, edge_map: np.ndar
     _cone_costs(np.ascontiguousarray(R), np.ascontiguousarray(o), tables.seg_link, tables.seg_in_link, tables.cone,
                 tables.camera_R, tables.camera_t, tables.intrinsics, tables.distortion, tables.has_distortion,
                 tables.weights, edge_map, silhouette_map, view_offset, height, width, n_contour, edge_out,
-                silhouette_out, u_out, v_out)
+                silhouette_out, u_out, v_out, eu_out, ev_out)
+
+
+@njit(inline="always")
+def _pixel(X, Y, Z, fx, fy, cx, cy, skew, k1, k2, p1, p2, k3, has_distortion):
+    """The pixel ``(u, v)`` of camera coordinates ``X, Y, Z`` (mm): :meth:`tracker.core.cameras.CameraRig.pixels`
+    for one point."""
+    iz = 1.0 / (1e-9 if abs(Z) < 1e-9 else Z)
+    x, y = X * iz, Y * iz
+    if has_distortion:
+        r2 = x * x + y * y
+        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        xy = x * y
+        xd = x * radial + 2.0 * p1 * xy + p2 * (r2 + 2.0 * x * x)
+        yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * xy
+    else:
+        xd, yd = x, y
+    return fx * (xd + skew * yd) + cx, fy * yd + cy
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def _cone_costs(R, o, seg_link, seg_in_link, cone, camera_R, camera_t, intrinsics, distortion, has_distortion,
                 weights, edge_map, silhouette_map, view_offset, height, width, n_contour, edge_out,
-                silhouette_out, u_out, v_out):
+                silhouette_out, u_out, v_out, eu_out, ev_out):
     """:func:`cone_costs`'s loop over views, particles and cones: the array path's formulas one scalar at a time
     (:func:`tracker.core.cones.contour_corners`, :meth:`tracker.core.cameras.CameraRig.pixels`,
     :meth:`likelihoods.edge_silhouette._CostMaps.flat_index`). A cone's sample points get their pixel indices
@@ -141,6 +168,7 @@ def _cone_costs(R, o, seg_link, seg_in_link, cone, camera_R, camera_t, intrinsic
     P = R.shape[0]
     V, S, N = camera_R.shape[0], seg_link.shape[0], weights.shape[1]
     keep_corners = u_out.shape[0] > 0
+    keep_ellipses = eu_out.shape[0] > 0
     x_end, y_end = float(width), float(height)
     row = np.int32(width)
     n_edge, n_sil = S * n_contour, S * (N - n_contour)
@@ -216,22 +244,25 @@ def _cone_costs(R, o, seg_link, seg_in_link, cone, camera_R, camera_t, intrinsic
                         Z = o2 + length * a22 + r1 * rad2
                     if Z <= 0:
                         behind = True
-                    iz = 1.0 / (1e-9 if abs(Z) < 1e-9 else Z)
-                    x, y = X * iz, Y * iz
-                    if has_distortion:
-                        r2 = x * x + y * y
-                        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-                        xy = x * y
-                        xd = x * radial + 2.0 * p1 * xy + p2 * (r2 + 2.0 * x * x)
-                        yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * xy
-                    else:
-                        xd, yd = x, y
-                    cu[c] = fx * (xd + skew * yd) + cx
-                    cv[c] = fy * yd + cy
+                    cu[c], cv[c] = _pixel(X, Y, Z, fx, fy, cx, cy, skew, k1, k2, p1, p2, k3, has_distortion)
                 if keep_corners:
                     for c in range(4):
                         u_out[k, p, s, c] = -1e6 if behind else cu[c]
                         v_out[k, p, s, c] = -1e6 if behind else cv[c]
+                if keep_ellipses:  # each end's centre, then its ends of the width and the depth semi-axes
+                    for end in range(2):
+                        along = 0.0 if end == 0 else length
+                        r = r0 if end == 0 else r1
+                        X0, Y0, Z0 = o0 + along * a20, o1 + along * a21, o2 + along * a22
+                        for e, (dx, dy, dz) in enumerate(((0.0, 0.0, 0.0), (r * a00, r * a01, r * a02),
+                                                          (r * depth * a10, r * depth * a11, r * depth * a12))):
+                            if behind:
+                                eu_out[k, p, s, 3 * end + e] = -1e6
+                                ev_out[k, p, s, 3 * end + e] = -1e6
+                            else:
+                                eu_out[k, p, s, 3 * end + e], ev_out[k, p, s, 3 * end + e] = _pixel(
+                                    X0 + dx, Y0 + dy, Z0 + dz, fx, fy, cx, cy, skew, k1, k2, p1, p2, k3,
+                                    has_distortion)
                 if behind:  # every point reads the border: cost 1
                     edge_sum += n_contour
                     sil_sum += N - n_contour
@@ -247,3 +278,89 @@ def _cone_costs(R, o, seg_link, seg_in_link, cone, camera_R, camera_t, intrinsic
                     sil_sum += silhouette_map[offset + index[n]] if index[n] >= 0 else 1.0
             edge_out[p, k] = edge_sum / n_edge
             silhouette_out[p, k] = sil_sum / n_sil
+
+
+def uncovered_fraction(u: np.ndarray, v: np.ndarray, eu: np.ndarray, ev: np.ndarray, foreground: list,
+                       out: np.ndarray) -> None:
+    """The CPU path of the bidirectional term: the fraction of each view's sampled foreground pixels outside
+    every projected cone, written into ``out`` (float64 ``p x V``).
+
+    ``u``, ``v`` (float64 ``V x p x S x 4``): the cones' contour corners in pixels; ``eu``, ``ev`` (float64
+    ``V x p x S x 6``): their end ellipses' centres and semi-axis ends in pixels; ``foreground``: per view the
+    sampled pixels ``F x 2`` ``(x, y)``. The same test as the array path's
+    (:func:`likelihoods.edge_silhouette._uncovered`), a pixel at a time, stopping at the first cone that covers it.
+    """
+    V, p, S = u.shape[:3]
+    if (v.shape != u.shape or u.shape[3:] != (4,) or eu.shape != (V, p, S, 6) or ev.shape != eu.shape
+            or out.shape != (p, V) or len(foreground) != V
+            or not u.dtype == v.dtype == eu.dtype == ev.dtype == out.dtype == np.float64):
+        raise ValueError(f"uncovered fraction: corners {u.shape} and {v.shape}, ellipses {eu.shape} and {ev.shape}, "
+                         f"{len(foreground)} foreground samples, output {out.shape}: expected float64 V x p x S x 4, "
+                         "V x p x S x 6, V samples and p x V")
+    counts = np.array([len(f) for f in foreground], np.int64)
+    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    points = (np.concatenate([np.asarray(f, np.float64).reshape(-1, 2) for f in foreground]) if V
+              else np.zeros((0, 2)))
+    _uncovered_fraction(np.ascontiguousarray(u), np.ascontiguousarray(v), np.ascontiguousarray(eu),
+                        np.ascontiguousarray(ev), points, offsets, out)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _uncovered_fraction(u, v, eu, ev, points, offsets, out):
+    """:func:`uncovered_fraction`'s loop over views, particles, pixels and cones. Each cone's outline gets a
+    bounding box first, so that a pixel far from a cone costs four comparisons."""
+    V, P, S = u.shape[0], u.shape[1], u.shape[2]
+    qx = np.empty((S, 4))  # the quadrilateral line 0 proximal, distal, line 1 distal, proximal
+    qy = np.empty((S, 4))
+    box = np.empty((S, 4))  # x min, x max, y min, y max of the cone's outline
+    for k in range(V):
+        start, stop = offsets[k], offsets[k + 1]
+        if stop == start:
+            for p in range(P):
+                out[p, k] = 0.0
+            continue
+        for p in range(P):
+            for s in range(S):
+                for c, corner in enumerate((0, 1, 3, 2)):
+                    qx[s, c], qy[s, c] = u[k, p, s, corner], v[k, p, s, corner]
+                x0, x1 = min(qx[s, 0], qx[s, 1], qx[s, 2], qx[s, 3]), max(qx[s, 0], qx[s, 1], qx[s, 2], qx[s, 3])
+                y0, y1 = min(qy[s, 0], qy[s, 1], qy[s, 2], qy[s, 3]), max(qy[s, 0], qy[s, 1], qy[s, 2], qy[s, 3])
+                for end in (0, 3):  # an ellipse with conjugate semi-axes a, b reaches sqrt(a_x^2 + b_x^2) across
+                    cx, cy = eu[k, p, s, end], ev[k, p, s, end]
+                    ax, ay = eu[k, p, s, end + 1] - cx, ev[k, p, s, end + 1] - cy
+                    bx, by = eu[k, p, s, end + 2] - cx, ev[k, p, s, end + 2] - cy
+                    rx, ry = np.sqrt(ax * ax + bx * bx), np.sqrt(ay * ay + by * by)
+                    x0, x1 = min(x0, cx - rx), max(x1, cx + rx)
+                    y0, y1 = min(y0, cy - ry), max(y1, cy + ry)
+                box[s, 0], box[s, 1], box[s, 2], box[s, 3] = x0, x1, y0, y1
+            hits = 0
+            for n in range(start, stop):
+                x, y = points[n, 0], points[n, 1]
+                covered = False
+                for s in range(S):
+                    if not (box[s, 0] <= x <= box[s, 1] and box[s, 2] <= y <= box[s, 3]):
+                        continue
+                    positive, negative = True, True
+                    for c in range(4):
+                        d = (c + 1) % 4
+                        cross = (qx[s, d] - qx[s, c]) * (y - qy[s, c]) - (qy[s, d] - qy[s, c]) * (x - qx[s, c])
+                        positive = positive and cross > 0.0
+                        negative = negative and cross < 0.0
+                    if positive or negative:
+                        covered = True
+                        break
+                    for end in (0, 3):
+                        cx, cy = eu[k, p, s, end], ev[k, p, s, end]
+                        ax, ay = eu[k, p, s, end + 1] - cx, ev[k, p, s, end + 1] - cy
+                        bx, by = eu[k, p, s, end + 2] - cx, ev[k, p, s, end + 2] - cy
+                        det = ax * by - ay * bx
+                        dx, dy = x - cx, y - cy
+                        alpha, beta = dx * by - dy * bx, ax * dy - ay * dx
+                        if alpha * alpha + beta * beta < det * det:
+                            covered = True
+                            break
+                    if covered:
+                        break
+                if covered:
+                    hits += 1
+            out[p, k] = 1.0 - hits / (stop - start)  # as the array path computes it, to the last bit
