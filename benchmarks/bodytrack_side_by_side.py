@@ -5,8 +5,9 @@
 Builds bodytrack from ../shared/bodytrack/parsec (its build.sh; binaries cached in ../parsec-bin beside
 shared/), then, in interleaved rounds on ../shared/bodytrack/sequenceB_1, times:
 
-* ours: ``tracker.track`` with the zero-velocity prior and annealing (PARSEC's PoseParameters.txt scale),
-  per-frame time = reading the frame's images and masks + edge maps + the annealed filter step (the
+* ours: ``tracker.track`` with the zero-velocity prior and annealing (PARSEC's PoseParameters.txt scale) and
+  the likelihood bodytrack computes, edges and the one-directional silhouette cost (``bidirectional=False``;
+  the package's default adds the uncovered foreground, work bodytrack does not do), per-frame time = reading the frame's images and masks + edge maps + the annealed filter step (the
   ``seconds_per_frame`` of the result: load + observe + filter);
 * bodytrack serial and with 2 pthreads: PARSEC's own frame-loop timer (image loading, edge maps, the
   annealed likelihood evaluations, the estimate).
@@ -52,7 +53,8 @@ def parsec_seconds(binary: str, work: Path, particles: int, layers: int, threads
 def ours_seconds(seq, particles: int, layers: int, seed: int) -> float:
     import tracker
 
-    run = tracker.track(seq, "zero-velocity", particles=particles, annealing_layers=layers, seed=seed)
+    run = tracker.track(seq, "zero-velocity", particles=particles, annealing_layers=layers, seed=seed,
+                        bidirectional=False)
     return run.seconds_per_frame
 
 

@@ -54,12 +54,13 @@ if TYPE_CHECKING:  # the image code (OpenCV, numba) loads when a likelihood is b
 class EdgeSilhouetteConfig:
     """``n_along`` points per contour line, ``n_across`` grid lines between the two contour lines
     (at fractions ``1/(n+1) ... n/(n+1)`` of the way), ``sharpness`` multiplies the summed costs,
-    ``bidirectional`` adds the uncovered-foreground term with ``n_foreground`` foreground pixels per view."""
+    ``bidirectional`` adds the uncovered-foreground term with ``n_foreground`` foreground pixels per view (off:
+    Deutscher & Reid's one-directional silhouette cost alone)."""
 
     n_along: int = 6
     n_across: int = 3
     sharpness: float = 40.0
-    bidirectional: bool = False
+    bidirectional: bool = True
     n_foreground: int = 150
 
 
@@ -470,8 +471,9 @@ def _uncovered(u, v, eu, ev, foreground: list):
     "edge-silhouette", summary="Deutscher & Reid's edge + silhouette likelihood, summed over views",
     options=(Option("sharpness", float, EdgeSilhouetteConfig.sharpness, "likelihood sharpness", minimum=0.0,
                     strict=True, maximum=1e6),
-             Option("bidirectional", bool, False,
-                    "also penalise foreground the model does not cover (for monocular tracking)"),
+             Option("bidirectional", bool, EdgeSilhouetteConfig.bidirectional,
+                    "also penalise the foreground no projected cone covers, so that a body drawn smaller or larger "
+                    "than the person scores worse (off: the one-directional silhouette cost of Deutscher & Reid)"),
              *GROUND_OPTIONS))
 def build_edge_silhouette(context: LikelihoodContext, options: dict) -> Likelihood:
     config = EdgeSilhouetteConfig(sharpness=options["sharpness"], bidirectional=options["bidirectional"])

@@ -39,7 +39,7 @@ import os as _os
 # OpenMP runtime reads it when it loads); an explicit setting of the caller's wins.
 _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
-__version__ = "0.24.0"
+__version__ = "0.25.0"
 
 _EXPORTS = {
     "load_sequence": "tracker.app.api", "load_clip": "tracker.app.api", "load_clips": "tracker.app.api",

@@ -69,7 +69,7 @@ def test_one_camera_prefers_the_true_depth(walk_32_frames):
         poses = np.repeat(truth[None], len(steps), axis=0)
         poses[:, :3] += steps[:, None] * ray / np.linalg.norm(ray)
         both = EdgeSilhouetteLikelihood(seq.model, rig, EdgeSilhouetteConfig(bidirectional=True))
-        one = EdgeSilhouetteLikelihood(seq.model, rig)
+        one = EdgeSilhouetteLikelihood(seq.model, rig, EdgeSilhouetteConfig(bidirectional=False))
         ll = both.prepare(seq.frame(frame, [0]))(poses)
         ll_one = one.prepare(seq.frame(frame, [0]))(poses)
         at = {d: i for i, d in enumerate(steps)}

@@ -70,9 +70,9 @@ File layout (every key is checked, unknown ones refused)::
     prior = "zero-velocity"
 
     [[likelihood]]                           # variants (default: one edge-silhouette)
-    label = "bidirectional"
+    label = "one-directional"
     name = "edge-silhouette"
-    options = { bidirectional = true }
+    options = { bidirectional = false }
 
 Paths: the data paths (a sequence's ``path``, ``init``, ``reference``, ``mocap``, ``skeleton``, ``then``,
 ``then_skeleton``, ``joint_map`` and ``then_joint_map``, and the training clips and skeletons of ``train`` and

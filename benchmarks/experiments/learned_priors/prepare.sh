@@ -5,12 +5,14 @@
 # Every prior with train's defaults, training seeds 0 and 1; two trainings at a time, each on one thread.
 # Beside them, the CRBM and the neural prior on the CMU part alone (seed 0), to see what the second lab's data do,
 # and a second fold (models/fold_b/, for fold_b.toml): CMU without subjects 49 and 91, bandai2 without the style
-# "elderly" and the content "walk-turn-right", the CRBM and the neural prior, training seeds 0 and 1.
+# "elderly" and the content "walk-turn-right", the CRBM and the neural prior, training seeds 0 and 1. In both folds
+# the neural prior on the CMU part alone with training seeds 0 and 1 as well, as the pretrained model is trained
+# (for likelihood_fold_a.toml and likelihood_fold_b.toml).
 # bandai2 is CC BY-NC 4.0 (see the data's mocap/README.md): the models made here are for research, not to ship.
 #   Bandai-Namco-Research-Motiondataset, Bandai Namco Research Inc. (2022), CC BY-NC 4.0; M. Kobayashi, C.-C. Liao,
 #   K. Inoue, S. Yojima, M. Takahashi, "Motion Capture Dataset for Practical Use of AI-based Motion Editing and
 #   Stylization", arXiv:2306.08861, 2023.
-# Run from anywhere: bash benchmarks/experiments/learned_priors/prepare.sh   (about 50 min on two cores)
+# Run from anywhere: bash benchmarks/experiments/learned_priors/prepare.sh   (about 52 min on two cores)
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 root="${POSE_TRACKER_DATA_ROOT:-$here/../../../../shared}"
@@ -30,9 +32,10 @@ train() {  # prior seed [train options]: on the fold's corpus
   [ -f "$out" ] || python -m tracker --threads 1 train --prior "$prior" --seed "$seed" --mocap "${corpus[@]}" \
       "$@" --out "$out" --resume
 }
-train_cmu() {  # prior: on the fold's CMU clips alone, seed 0
-  local out="$out_dir/${1}_cmu_seed0.pt"
-  [ -f "$out" ] || python -m tracker --threads 1 train --prior "$1" --seed 0 \
+train_cmu() {  # prior [seed]: on the fold's CMU clips alone, seed 0 unless given
+  local seed="${2:-0}"
+  local out="$out_dir/${1}_cmu_seed$seed.pt"
+  [ -f "$out" ] || python -m tracker --threads 1 train --prior "$1" --seed "$seed" \
       --mocap $(printf '%s\n' "${corpus[@]}" | grep '/cmu/') --out "$out" --resume
 }
 lane() {  # seed
@@ -45,6 +48,8 @@ lane() {  # seed
 fold "" 16 11 exhausted wave-both-hands
 lane 0 & lane 1 & wait
 train_cmu neural & train_cmu crbm & wait
+train_cmu neural 1
 
 fold /fold_b 49 91 elderly walk-turn-right
 (train neural 0; train crbm 0) & (train neural 1; train crbm 1) & wait
+train_cmu neural 0 & train_cmu neural 1 & wait
