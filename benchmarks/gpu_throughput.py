@@ -11,6 +11,9 @@ the device path against the CPU path on the same seeds. Run by hand on a machine
    (the device path must give the CPU's errors within float tolerance) and seconds per frame, whole loop.
 3. A CRBM (order 1, trained on 07_01 and 07_02 on the CPU) tracking on the device: seconds per frame and
    error at 1000 and 4000 particles (its Gibbs sampling runs on the device too).
+
+The likelihood is the package's default, with the bidirectional term since 0.25.0; figures published for
+earlier versions in docs/reference/performance.md are of the one-directional likelihood.
 """
 from __future__ import annotations
 

@@ -5,6 +5,9 @@ threads, rounds interleaved, at 1000 and 4000 particles, on two frames: PARSEC b
 frame (../shared/bodytrack/sequenceB_1, its 10-cone model and provided masks) and a synthetic four-view frame of
 the 15-cone model (CMU 07_11 rendered). Prints the median milliseconds of a call (the frame's cost maps made
 once) and the speed-up of two threads over one.
+
+The likelihood is the package's default, with the bidirectional term since 0.25.0; figures published for
+earlier versions in docs/reference/performance.md are of the one-directional likelihood.
 """
 from __future__ import annotations
 

@@ -10,6 +10,9 @@ Two fixed workloads, each profiled with cProfile (the table sorted by cumulative
 Then the likelihood's stages, timed one by one on the synthetic frame (median of 20 calls, milliseconds per
 1000 particles x 4 views, one thread): reading, observations, kinematics, the compiled cones-to-costs loop,
 whole call.
+
+The likelihood is the package's default, with the bidirectional term since 0.25.0; figures published for
+earlier versions in docs/reference/performance.md are of the one-directional likelihood.
 """
 from __future__ import annotations
 

@@ -9,6 +9,9 @@
    CRBM's sampling time alone at orders 1, 3, 6.
 
 PARSEC bodytrack's own frame, beside the C++ program, is benchmarks/bodytrack_side_by_side.py.
+
+The likelihood is the package's default, with the bidirectional term since 0.25.0; figures published for
+earlier versions in docs/reference/performance.md are of the one-directional likelihood.
 """
 from __future__ import annotations
 

@@ -91,7 +91,8 @@ def cone_costs(kinematics: Kinematics, tables: ConeCostTables, edge_map: np.ndar
     corner at or behind a camera's plane (as the array path's maps padded with cost 1 give). ``corners_out``,
     when given, receives the corners' pixels ``(u, v)``, each float64 ``V x p x S x 4`` (those of a cone behind
     the camera set to -1e6), and ``ellipses_out`` (given with it) the pixels of the cones' end ellipses
-    (:func:`tracker.core.cones.end_ellipse_points`), each float64 ``V x p x S x 6``, -1e6 alike. The shapes and
+    (:func:`tracker.core.cones.end_ellipse_points`), each float64 ``V x p x S x 6``, -1e6 alike and where one of
+    the six points is at or behind the camera's plane. The shapes and
     dtypes are checked here: the compiled loop reads and writes without bounds checks.
     """
     R, o = kinematics.rotations, kinematics.origins
@@ -250,13 +251,20 @@ def _cone_costs(R, o, seg_link, seg_in_link, cone, camera_R, camera_t, intrinsic
                         u_out[k, p, s, c] = -1e6 if behind else cu[c]
                         v_out[k, p, s, c] = -1e6 if behind else cv[c]
                 if keep_ellipses:  # each end's centre, then its ends of the width and the depth semi-axes
+                    ends_behind = behind  # (an end cut by the camera's plane covers nothing either)
+                    for end in range(2):
+                        along = 0.0 if end == 0 else length
+                        r = r0 if end == 0 else r1
+                        Z0 = o2 + along * a22
+                        if Z0 <= 0 or Z0 + r * a02 <= 0 or Z0 + r * depth * a12 <= 0:
+                            ends_behind = True
                     for end in range(2):
                         along = 0.0 if end == 0 else length
                         r = r0 if end == 0 else r1
                         X0, Y0, Z0 = o0 + along * a20, o1 + along * a21, o2 + along * a22
                         for e, (dx, dy, dz) in enumerate(((0.0, 0.0, 0.0), (r * a00, r * a01, r * a02),
                                                           (r * depth * a10, r * depth * a11, r * depth * a12))):
-                            if behind:
+                            if ends_behind:
                                 eu_out[k, p, s, 3 * end + e] = -1e6
                                 ev_out[k, p, s, 3 * end + e] = -1e6
                             else:

@@ -52,7 +52,10 @@ def test_compiled_costs_equal_the_array_path_on_a_synthetic_frame(walk_32_frames
     poses[-1, :3] = seq.rig[0].centre - 3000.0 * seq.rig[0].R[2]  # behind camera 0: every cone reads cost 1
     likelihood = EdgeSilhouetteLikelihood(seq.model, seq.rig, EdgeSilhouetteConfig(bidirectional=bidirectional))
     _assert_same_costs(likelihood, seq.frame(k, range(4)), poses)
-    assert np.all(likelihood.prepare(seq.frame(k, range(4))).terms(poses[-1:]).edge[0, 0] == 1.0)
+    behind = likelihood.prepare(seq.frame(k, range(4))).terms(poses[-1:])
+    assert np.all(behind.edge[0, 0] == 1.0)
+    if bidirectional:  # cones behind the camera cover no foreground (a degenerate outline once covered it all)
+        assert behind.coverage[0, 0] == 1.0
 
 
 def test_compiled_costs_equal_the_array_path_on_the_real_bodytrack_frame(bodytrack_dir, rng):
@@ -93,7 +96,10 @@ def test_cone_costs_refuses_inconsistent_shapes_and_dtypes(walk_32_frames, rng):
            "float64 maps": dict(edge_map=maps.edge.astype(float)),
            "frames of another model": dict(kinematics=dataclasses.replace(
                kinematics, rotations=kinematics.rotations[:, :3], origins=kinematics.origins[:, :3])),
-           "corners of the wrong shape": dict(corners_out=(np.empty((V, P, 2, 4)), np.empty((V, P, 2, 4))))}
+           "corners of the wrong shape": dict(corners_out=(np.empty((V, P, 2, 4)), np.empty((V, P, 2, 4)))),
+           "ellipses without corners": dict(ellipses_out=(np.empty((V, P, 15, 6)), np.empty((V, P, 15, 6)))),
+           "ellipses of the wrong shape": dict(corners_out=(np.empty((V, P, 15, 4)), np.empty((V, P, 15, 4))),
+                                               ellipses_out=(np.empty((V, P, 15, 4)), np.empty((V, P, 15, 4))))}
     for name, change in bad.items():
         with pytest.raises(ValueError, match="cone costs"):
             cone_costs(**{**good, **change})

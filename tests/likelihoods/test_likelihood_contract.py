@@ -13,7 +13,8 @@ FRAME = 12
 
 
 class TestEdgeSilhouette(LikelihoodContract):
-    """The compiled CPU path (the registered builder's on ``--device cpu``) on frame 12 of the synthetic walk."""
+    """The compiled CPU path (the registered builder's on ``--device cpu``) on frame 12 of the synthetic walk, with
+    the default bidirectional term."""
 
     config = EdgeSilhouetteConfig()
     device: str | None = None
@@ -42,8 +43,10 @@ class TestEdgeSilhouette(LikelihoodContract):
         return -likelihood.config.sharpness * total.sum(axis=1)
 
 
-class TestEdgeSilhouetteBidirectional(TestEdgeSilhouette):
-    config = EdgeSilhouetteConfig(bidirectional=True)
+class TestEdgeSilhouetteOneDirectional(TestEdgeSilhouette):
+    """The same without the bidirectional term (``bidirectional=False``)."""
+
+    config = EdgeSilhouetteConfig(bidirectional=False)
 
 
 class TestEdgeSilhouetteTorch(TestEdgeSilhouette):
