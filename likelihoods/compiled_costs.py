@@ -253,24 +253,16 @@ def _cone_costs(R, o, seg_link, seg_in_link, cone, camera_R, camera_t, intrinsic
                 if keep_ellipses:  # each end's centre, then its ends of the width and the depth semi-axes
                     ends_behind = behind  # (an end cut by the camera's plane covers nothing either)
                     for end in range(2):
-                        along = 0.0 if end == 0 else length
-                        r = r0 if end == 0 else r1
-                        Z0 = o2 + along * a22
-                        if Z0 <= 0 or Z0 + r * a02 <= 0 or Z0 + r * depth * a12 <= 0:
-                            ends_behind = True
-                    for end in range(2):
-                        along = 0.0 if end == 0 else length
-                        r = r0 if end == 0 else r1
+                        along, r = (0.0, r0) if end == 0 else (length, r1)
                         X0, Y0, Z0 = o0 + along * a20, o1 + along * a21, o2 + along * a22
                         for e, (dx, dy, dz) in enumerate(((0.0, 0.0, 0.0), (r * a00, r * a01, r * a02),
                                                           (r * depth * a10, r * depth * a11, r * depth * a12))):
-                            if ends_behind:
-                                eu_out[k, p, s, 3 * end + e] = -1e6
-                                ev_out[k, p, s, 3 * end + e] = -1e6
-                            else:
-                                eu_out[k, p, s, 3 * end + e], ev_out[k, p, s, 3 * end + e] = _pixel(
-                                    X0 + dx, Y0 + dy, Z0 + dz, fx, fy, cx, cy, skew, k1, k2, p1, p2, k3,
-                                    has_distortion)
+                            ends_behind = ends_behind or Z0 + dz <= 0
+                            eu_out[k, p, s, 3 * end + e], ev_out[k, p, s, 3 * end + e] = _pixel(
+                                X0 + dx, Y0 + dy, Z0 + dz, fx, fy, cx, cy, skew, k1, k2, p1, p2, k3, has_distortion)
+                    if ends_behind:
+                        eu_out[k, p, s, :] = -1e6
+                        ev_out[k, p, s, :] = -1e6
                 if behind:  # every point reads the border: cost 1
                     edge_sum += n_contour
                     sil_sum += N - n_contour
@@ -313,6 +305,15 @@ def uncovered_fraction(u: np.ndarray, v: np.ndarray, eu: np.ndarray, ev: np.ndar
                         np.ascontiguousarray(ev), points, offsets, out)
 
 
+@njit(inline="always")
+def _end_ellipse(eu, ev, k, p, s, end):
+    """Centre ``(cx, cy)`` and conjugate semi-axes ``(ax, ay)``, ``(bx, by)`` (pixels) of the end ellipse whose
+    points start at ``end`` (0 proximal, 3 distal) in :func:`uncovered_fraction`'s ``eu``, ``ev``."""
+    cx, cy = eu[k, p, s, end], ev[k, p, s, end]
+    return (cx, cy, eu[k, p, s, end + 1] - cx, ev[k, p, s, end + 1] - cy,
+            eu[k, p, s, end + 2] - cx, ev[k, p, s, end + 2] - cy)
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def _uncovered_fraction(u, v, eu, ev, points, offsets, out):
     """:func:`uncovered_fraction`'s loop over views, particles, pixels and cones. Each cone's outline gets a
@@ -334,9 +335,7 @@ def _uncovered_fraction(u, v, eu, ev, points, offsets, out):
                 x0, x1 = min(qx[s, 0], qx[s, 1], qx[s, 2], qx[s, 3]), max(qx[s, 0], qx[s, 1], qx[s, 2], qx[s, 3])
                 y0, y1 = min(qy[s, 0], qy[s, 1], qy[s, 2], qy[s, 3]), max(qy[s, 0], qy[s, 1], qy[s, 2], qy[s, 3])
                 for end in (0, 3):  # an ellipse with conjugate semi-axes a, b reaches sqrt(a_x^2 + b_x^2) across
-                    cx, cy = eu[k, p, s, end], ev[k, p, s, end]
-                    ax, ay = eu[k, p, s, end + 1] - cx, ev[k, p, s, end + 1] - cy
-                    bx, by = eu[k, p, s, end + 2] - cx, ev[k, p, s, end + 2] - cy
+                    cx, cy, ax, ay, bx, by = _end_ellipse(eu, ev, k, p, s, end)
                     rx, ry = np.sqrt(ax * ax + bx * bx), np.sqrt(ay * ay + by * by)
                     x0, x1 = min(x0, cx - rx), max(x1, cx + rx)
                     y0, y1 = min(y0, cy - ry), max(y1, cy + ry)
@@ -358,9 +357,7 @@ def _uncovered_fraction(u, v, eu, ev, points, offsets, out):
                         covered = True
                         break
                     for end in (0, 3):
-                        cx, cy = eu[k, p, s, end], ev[k, p, s, end]
-                        ax, ay = eu[k, p, s, end + 1] - cx, ev[k, p, s, end + 1] - cy
-                        bx, by = eu[k, p, s, end + 2] - cx, ev[k, p, s, end + 2] - cy
+                        cx, cy, ax, ay, bx, by = _end_ellipse(eu, ev, k, p, s, end)
                         det = ax * by - ay * bx
                         dx, dy = x - cx, y - cy
                         alpha, beta = dx * by - dy * bx, ax * dy - ay * dx
