@@ -20,8 +20,8 @@ covers (``coverage``), so that a model that explains only part of the silhouette
 projection is its whole outline, the quadrilateral between its contour lines and the images of its two end
 ellipses (:func:`tracker.core.cones.end_ellipse_points`), and the sample keeps ``FOREGROUND_MARGIN`` pixels
 inside the silhouette's outline: with the quadrilaterals alone and no margin the true pose left 11-18% of the
-sample uncovered (synthetic walks), and a larger, nearer body scored better. Moving a body along a camera's ray, the term is then highest at the
-true depth.
+sample uncovered (synthetic walks), and a larger, nearer body scored better. Now a body moved along a camera's
+ray scores highest at its true depth.
 
 Shapes: poses ``P x D``; observations ``V x H x W``; the result ``(P,)``.
 

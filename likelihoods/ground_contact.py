@@ -80,10 +80,11 @@ def ground_contact_config(views: int, ground_std: float | None = None,
     """The ground contact for ``views`` tracked cameras: the spreads given, or where one is None, the one-camera
     defaults (:data:`ONE_VIEW_GROUND_STD`, :data:`ONE_VIEW_ROOT_HEIGHT_STD`) with one camera and 0 (off) with
     more."""
-    one = views == 1
-    return GroundContactConfig(
-        ground_std=(ONE_VIEW_GROUND_STD if one else 0.0) if ground_std is None else float(ground_std),
-        root_height_std=(ONE_VIEW_ROOT_HEIGHT_STD if one else 0.0) if root_height_std is None else float(root_height_std))
+    def given_or_default(value: float | None, one_view: float) -> float:
+        return (one_view if views == 1 else 0.0) if value is None else float(value)
+
+    return GroundContactConfig(ground_std=given_or_default(ground_std, ONE_VIEW_GROUND_STD),
+                               root_height_std=given_or_default(root_height_std, ONE_VIEW_ROOT_HEIGHT_STD))
 
 
 class GroundContact(Likelihood):
